@@ -1,0 +1,194 @@
+"""The ``gearjax`` command line.
+
+Commands
+--------
+``gearjax info``        geometry and mesh figures of a rig at its nominal torque.
+``gearjax quasistatic`` TE_S and NLTE over a mesh period (a pinion revolution with pitch
+                        errors), load sharing, CSV/JSON/plot output.
+
+The CLI only parses arguments and formats results; all physics lives in the library.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+import numpy as np
+
+__all__ = ["main"]
+
+
+def _add_rig(p: argparse.ArgumentParser):
+    p.add_argument(
+        "--rig",
+        default="baud-velex-spur",
+        help="built-in rig: baud-velex-spur (default) or baud-velex-helical",
+    )
+    p.add_argument(
+        "--stiffness",
+        default="iso6336",
+        choices=["uniform", "iso6336"],
+        help="mesh stiffness law (default iso6336: mean = ISO 6336-1 c_gamma_alpha * b)",
+    )
+    p.add_argument("--json", action="store_true", help="print machine-readable JSON only")
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="gearjax",
+        description="Differentiable gear dynamics (Velex & Ajmi transmission-error models).",
+    )
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    info = sub.add_parser("info", help="geometry and mesh figures of a rig")
+    _add_rig(info)
+    info.add_argument("--model", default="torsional", choices=["torsional"],
+                      help="model (torsional; the 3D model adds its figures when available)")
+
+    qs = sub.add_parser("quasistatic", help="quasi-static TE_S and NLTE (unilateral contact)")
+    _add_rig(qs)
+    qs.add_argument("--model", default="torsional", choices=["torsional"])
+    qs.add_argument("--relief", default="short", choices=["none", "short", "long"],
+                    help="Table 1 tip relief on both gears (default short)")
+    qs.add_argument("--relief-amplitude", type=float, metavar="METRES",
+                    help="tip relief amplitude P_c on both gears (m), e.g. 13.3e-6")
+    qs.add_argument("--relief-extent", type=float, metavar="FRACTION",
+                    help="relief extent L_c as a fraction of the path of contact, in (0, 1]")
+    qs.add_argument("--relief-shape", default="linear", choices=["linear", "parabolic"])
+    qs.add_argument("--pitch-errors", action="store_true",
+                    help="add the pinion cumulative pitch errors (computed over a pinion revolution)")
+    qs.add_argument("--positions", type=int, default=256,
+                    help="positions per mesh period (default 256)")
+    qs.add_argument("--csv", metavar="FILE", help="write theta_rad, te_s_m, nlte_m, mesh_force_N")
+    qs.add_argument("--plot", metavar="FILE", help="write a PNG of TE_S, NLTE and load sharing")
+    return ap
+
+
+def _fail(msg: str) -> int:
+    print(f"gearjax: error: {msg}", file=sys.stderr)
+    return 2
+
+
+def _cmd_info(args) -> int:
+    from .rigs import get_rig, torsional_stiffness_figures
+
+    rig = get_rig(args.rig)
+    out = {"rig": rig.name, "description": rig.description}
+    out.update(rig.pair.summary())
+    out.update(torsional_stiffness_figures(rig, args.stiffness))
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    p = rig.pair
+    rows = [
+        ("rig", rig.description),
+        ("teeth z1 / z2", f"{p.z1} / {p.z2}"),
+        ("normal module", f"{p.normal_module_m * 1e3:.3f} mm"),
+        ("helix / base helix angle", f"{math.degrees(p.helix_angle_rad):.2f} / "
+                                     f"{math.degrees(p.base_helix_angle_rad):.3f} deg"),
+        ("centre distance", f"{p.centre_distance_m * 1e3:.3f} mm"),
+        ("base radii Rb1 / Rb2", f"{p.base_radii_m[0] * 1e3:.3f} / {p.base_radii_m[1] * 1e3:.3f} mm"),
+        ("base pitch p_bt", f"{p.base_pitch_m * 1e3:.4f} mm"),
+        ("path of contact g_alpha", f"{p.path_of_contact_m * 1e3:.4f} mm"),
+        ("contact ratio eps_alpha", f"{p.transverse_contact_ratio:.4f}"),
+        ("overlap ratio eps_beta", f"{p.overlap_ratio:.4f}"),
+        ("mesh stiffness law", out["stiffness_law"]),
+        ("mean mesh stiffness k_m", f"{out['mean_mesh_stiffness_N_per_m'] / 1e6:.2f} N/um"),
+        ("stiffness variation alpha", f"{out['stiffness_variation_alpha']:.4f}"),
+        ("pinion torque", f"{rig.pinion_torque_Nm:.1f} N m"),
+        ("static mesh force F_S", f"{out['static_mesh_force_N']:.1f} N"),
+    ]
+    w = max(len(r[0]) for r in rows)
+    for k, v in rows:
+        print(f"  {k:<{w}}  {v}")
+    return 0
+
+
+def _cmd_quasistatic(args) -> int:
+    from .mesh import Mesh
+    from .quasistatic import quasi_static, static_mesh_force
+    from .rigs import get_rig
+
+    rig = get_rig(args.rig)
+    if args.positions < 8:
+        return _fail(f"--positions={args.positions}: need at least 8 positions per mesh period")
+    mods = rig.modifications(
+        args.relief, args.relief_amplitude, args.relief_extent, args.relief_shape, args.pitch_errors
+    )
+    mesh = Mesh.build(rig.pair, args.stiffness)
+    n_periods = rig.pair.z1 if args.pitch_errors else 1
+    theta = mesh.theta_grid(args.positions, n_periods)
+    f_s = static_mesh_force(rig.pair, rig.pinion_torque_Nm)
+    res = quasi_static(mesh, mods, theta, f_s)
+    te, nlte = np.asarray(res.te_s_m), np.asarray(res.nlte_m)
+    force = np.asarray(res.mesh_force_N)
+    summary = {
+        "rig": rig.name,
+        "stiffness_law": args.stiffness,
+        "relief": args.relief,
+        "relief_amplitude_m": [float(v) for v in np.asarray(mods.relief_amplitude_m)],
+        "relief_extent": [float(v) for v in np.asarray(mods.relief_extent)],
+        "relief_shape": args.relief_shape,
+        "pitch_errors": bool(args.pitch_errors),
+        "positions": int(theta.shape[0]),
+        "span_rad": float(n_periods * rig.pair.mesh_period_rad),
+        "static_mesh_force_N": f_s,
+        "te_s_mean_m": float(te.mean()),
+        "te_s_ptp_m": float(np.ptp(te)),
+        "te_s_rms_fluctuation_m": float(np.std(te)),
+        "nlte_mean_m": float(nlte.mean()),
+        "nlte_ptp_m": float(np.ptp(nlte)),
+        "loaded_stiffness_mean_N_per_m": float(np.mean(res.loaded_stiffness_N_per_m)),
+        "max_force_balance_error_N": float(np.max(np.abs(force - f_s))),
+    }
+    if args.csv:
+        data = np.column_stack([np.asarray(theta), te, nlte, force])
+        np.savetxt(args.csv, data, delimiter=",", header="theta_rad,te_s_m,nlte_m,mesh_force_N",
+                   comments="", fmt="%.10e")
+        summary["csv"] = args.csv
+    if args.plot:
+        from .plotting import plot_quasistatic
+
+        plot_quasistatic(res, mesh, args.plot, title=f"{rig.name}, relief {args.relief}")
+        summary["plot"] = args.plot
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        um = 1e6
+        print(f"  {rig.description}")
+        print(f"  relief {args.relief} ({args.relief_shape}), amplitude "
+              f"{summary['relief_amplitude_m'][0] * um:.2f} um, extent {summary['relief_extent'][0]:.3f}"
+              f"{', pinion pitch errors' if args.pitch_errors else ''}; law {args.stiffness}")
+        print(f"  TE_S  mean {summary['te_s_mean_m'] * um:8.3f} um   peak-to-peak "
+              f"{summary['te_s_ptp_m'] * um:8.3f} um")
+        print(f"  NLTE  mean {summary['nlte_mean_m'] * um:8.3f} um   peak-to-peak "
+              f"{summary['nlte_ptp_m'] * um:8.3f} um")
+        print(f"  static mesh force F_S {f_s:.1f} N over {summary['positions']} positions "
+              f"(balance error {summary['max_force_balance_error_N']:.1e} N)")
+        for key in ("csv", "plot"):
+            if key in summary:
+                print(f"  wrote {summary[key]}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    from .geometry import GeometryError
+    from .modifications import ModificationError
+    from .rigs import RigError
+
+    try:
+        if args.command == "info":
+            return _cmd_info(args)
+        if args.command == "quasistatic":
+            return _cmd_quasistatic(args)
+    except (GeometryError, ModificationError, RigError) as exc:
+        return _fail(str(exc))
+    return _fail(f"unknown command {args.command!r}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

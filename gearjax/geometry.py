@@ -1,0 +1,356 @@
+"""Involute geometry of an external spur or helical gear pair (ISO 21771 conventions).
+
+Everything here is plain Python/NumPy evaluated once, outside ``jit``: a :class:`GearPair`
+is configuration (its fields are static), and the mesh model reads its derived numbers.
+
+Conventions (SI units: m, rad)
+------------------------------
+* Subscript 1 is the pinion (driving), 2 the gear.
+* The *base plane* is the plane tangent to both base cylinders. Positions on it are
+  ``xi`` along the transverse line of action, measured from T1 (tangency point on the
+  pinion base circle, so ``xi`` equals the pinion involute's radius of curvature), and
+  ``eta`` across the face width (``0 <= eta <= b``).
+* Contact starts at ``xi_start`` (gear tip circle, point A) and ends at ``xi_end``
+  (pinion tip circle, point E); these are the paper's limits T'1, T'2 of the meshing area
+  on the base plane (Fig. 1). The path of contact is ``g_alpha = xi_end - xi_start``.
+* Contact lines on the base plane are inclined by the base helix angle ``beta_b``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+__all__ = ["GearPair", "GeometryError", "involute", "inverse_involute", "baud_velex_pair"]
+
+
+class GeometryError(ValueError):
+    """Invalid gear data: the message names the field, its value and why it is wrong."""
+
+    def __init__(self, field: str, value, reason: str):
+        self.field = field
+        self.value = value
+        super().__init__(f"{field}={value!r}: {reason}")
+
+
+def involute(alpha: float) -> float:
+    """inv(alpha) = tan(alpha) - alpha."""
+    return math.tan(alpha) - alpha
+
+
+def inverse_involute(value: float) -> float:
+    """Solve inv(alpha) = value for alpha in [0, pi/2) by Newton's method."""
+    if value < 0:
+        raise ValueError(f"inverse_involute: value={value!r} must be >= 0")
+    alpha = (3.0 * value) ** (1.0 / 3.0)  # inv(a) ~ a^3/3 for small a
+    for _ in range(60):
+        f = involute(alpha) - value
+        step = f / math.tan(alpha) ** 2  # d inv / d alpha = tan^2
+        alpha -= step
+        if abs(step) < 1e-15:
+            break
+    return alpha
+
+
+def _positive(field: str, value: float) -> float:
+    value = float(value)
+    if not math.isfinite(value) or value <= 0.0:
+        raise GeometryError(field, value, "must be a finite positive number")
+    return value
+
+
+@dataclasses.dataclass(frozen=True)
+class GearPair:
+    """An external involute gear pair; derived quantities follow ISO 21771.
+
+    Parameters
+    ----------
+    normal_module_m : normal module m_n (m).
+    z1, z2 : tooth numbers of pinion and gear.
+    normal_pressure_angle_rad : alpha_n (rad).
+    helix_angle_rad : beta (rad); 0 for spur gears.
+    profile_shift1, profile_shift2 : profile shift coefficients x1, x2.
+    addendum_coeff1, addendum_coeff2 : h_a* (tip height / m_n before shift).
+    dedendum_coeff1, dedendum_coeff2 : h_f* (root depth / m_n before shift).
+    face_width1_m, face_width2_m : face widths b1, b2 (m). The common face width
+        ``b = min(b1, b2)`` carries the load.
+
+    Raises
+    ------
+    GeometryError
+        non-positive module or width, fewer than 5 teeth, undercut/interference at the start
+        of contact, pointed tips, negative tip clearance from inconsistent shifts,
+        transverse contact ratio below 1.
+    """
+
+    normal_module_m: float
+    z1: int
+    z2: int
+    normal_pressure_angle_rad: float = math.radians(20.0)
+    helix_angle_rad: float = 0.0
+    profile_shift1: float = 0.0
+    profile_shift2: float = 0.0
+    addendum_coeff1: float = 1.0
+    addendum_coeff2: float = 1.0
+    dedendum_coeff1: float = 1.25
+    dedendum_coeff2: float = 1.25
+    face_width1_m: float = 0.02
+    face_width2_m: float = 0.02
+
+    def __post_init__(self):
+        _positive("normal_module_m", self.normal_module_m)
+        _positive("face_width1_m", self.face_width1_m)
+        _positive("face_width2_m", self.face_width2_m)
+        for name in ("z1", "z2"):
+            z = getattr(self, name)
+            if int(z) != z or z < 5:
+                raise GeometryError(name, z, "tooth number must be an integer >= 5")
+        an = float(self.normal_pressure_angle_rad)
+        if not (math.radians(5.0) <= an <= math.radians(40.0)):
+            raise GeometryError(
+                "normal_pressure_angle_rad", an, "must lie between 5 and 40 degrees (in radians)"
+            )
+        if not (0.0 <= abs(self.helix_angle_rad) < math.radians(50.0)):
+            raise GeometryError("helix_angle_rad", self.helix_angle_rad, "|beta| must be < 50 degrees")
+        for name in ("addendum_coeff1", "addendum_coeff2", "dedendum_coeff1", "dedendum_coeff2"):
+            _positive(name, getattr(self, name))
+        for k in (1, 2):
+            x = getattr(self, f"profile_shift{k}")
+            if not math.isfinite(x) or abs(x) > 2.0:
+                raise GeometryError(f"profile_shift{k}", x, "must be finite with |x| <= 2")
+        self._check_consistency()
+
+    # ------------------------------------------------------------------ transverse data
+    @property
+    def spur(self) -> bool:
+        return self.helix_angle_rad == 0.0
+
+    @property
+    def transverse_pressure_angle_rad(self) -> float:
+        """alpha_t = atan(tan alpha_n / cos beta)."""
+        return math.atan(math.tan(self.normal_pressure_angle_rad) / math.cos(self.helix_angle_rad))
+
+    @property
+    def transverse_module_m(self) -> float:
+        return self.normal_module_m / math.cos(self.helix_angle_rad)
+
+    @property
+    def pitch_radii_m(self) -> tuple[float, float]:
+        mt = self.transverse_module_m
+        return 0.5 * self.z1 * mt, 0.5 * self.z2 * mt
+
+    @property
+    def base_radii_m(self) -> tuple[float, float]:
+        """Rb_k = r_k cos alpha_t."""
+        c = math.cos(self.transverse_pressure_angle_rad)
+        r1, r2 = self.pitch_radii_m
+        return r1 * c, r2 * c
+
+    @property
+    def base_helix_angle_rad(self) -> float:
+        """beta_b = atan(tan beta cos alpha_t)."""
+        return math.atan(math.tan(self.helix_angle_rad) * math.cos(self.transverse_pressure_angle_rad))
+
+    @property
+    def working_pressure_angle_rad(self) -> float:
+        """alpha_wt from inv(alpha_wt) = inv(alpha_t) + 2 tan(alpha_n)(x1+x2)/(z1+z2)."""
+        inv = involute(self.transverse_pressure_angle_rad) + 2.0 * math.tan(
+            self.normal_pressure_angle_rad
+        ) * (self.profile_shift1 + self.profile_shift2) / (self.z1 + self.z2)
+        return inverse_involute(inv)
+
+    @property
+    def centre_distance_m(self) -> float:
+        """Working centre distance a_w = (r1 + r2) cos alpha_t / cos alpha_wt."""
+        r1, r2 = self.pitch_radii_m
+        return (r1 + r2) * math.cos(self.transverse_pressure_angle_rad) / math.cos(
+            self.working_pressure_angle_rad
+        )
+
+    @property
+    def tip_radii_m(self) -> tuple[float, float]:
+        """r_a = r + m_n (h_a* + x) (no tip shortening)."""
+        r1, r2 = self.pitch_radii_m
+        mn = self.normal_module_m
+        return (
+            r1 + mn * (self.addendum_coeff1 + self.profile_shift1),
+            r2 + mn * (self.addendum_coeff2 + self.profile_shift2),
+        )
+
+    @property
+    def root_radii_m(self) -> tuple[float, float]:
+        """r_f = r - m_n (h_f* - x)."""
+        r1, r2 = self.pitch_radii_m
+        mn = self.normal_module_m
+        return (
+            r1 - mn * (self.dedendum_coeff1 - self.profile_shift1),
+            r2 - mn * (self.dedendum_coeff2 - self.profile_shift2),
+        )
+
+    # ------------------------------------------------------------------ base plane
+    @property
+    def line_of_action_length_m(self) -> float:
+        """T1T2 = a_w sin alpha_wt (distance between the base-circle tangency points)."""
+        return self.centre_distance_m * math.sin(self.working_pressure_angle_rad)
+
+    @property
+    def contact_limits_m(self) -> tuple[float, float]:
+        """(xi_start, xi_end): T'1 and T'2 measured from T1 on the line of action (m)."""
+        ra1, ra2 = self.tip_radii_m
+        rb1, rb2 = self.base_radii_m
+        xi_end = math.sqrt(ra1**2 - rb1**2)
+        xi_start = self.line_of_action_length_m - math.sqrt(ra2**2 - rb2**2)
+        return xi_start, xi_end
+
+    @property
+    def path_of_contact_m(self) -> float:
+        """g_alpha, length of the transverse path of contact (m)."""
+        a, e = self.contact_limits_m
+        return e - a
+
+    @property
+    def base_pitch_m(self) -> float:
+        """Transverse base pitch p_bt = 2 pi Rb1 / z1 (m)."""
+        return 2.0 * math.pi * self.base_radii_m[0] / self.z1
+
+    @property
+    def face_width_m(self) -> float:
+        """Common (load-carrying) face width b = min(b1, b2) (m)."""
+        return min(self.face_width1_m, self.face_width2_m)
+
+    @property
+    def transverse_contact_ratio(self) -> float:
+        """epsilon_alpha = g_alpha / p_bt."""
+        return self.path_of_contact_m / self.base_pitch_m
+
+    @property
+    def overlap_ratio(self) -> float:
+        """epsilon_beta = b sin|beta| / (pi m_n)."""
+        return self.face_width_m * math.sin(abs(self.helix_angle_rad)) / (math.pi * self.normal_module_m)
+
+    @property
+    def total_contact_ratio(self) -> float:
+        return self.transverse_contact_ratio + self.overlap_ratio
+
+    @property
+    def contact_line_shift_m(self) -> float:
+        """b tan(beta_b): shift along the line of action between the two face ends (m)."""
+        return self.face_width_m * math.tan(abs(self.base_helix_angle_rad))
+
+    @property
+    def mesh_period_rad(self) -> float:
+        """Mesh period in the pinion angle theta = Omega1 t: 2 pi / z1 (rad)."""
+        return 2.0 * math.pi / self.z1
+
+    @property
+    def gear_ratio(self) -> float:
+        """z2 / z1 = Rb2 / Rb1."""
+        return self.z2 / self.z1
+
+    def tip_thickness_m(self, k: int) -> float:
+        """Transverse tooth thickness on the tip circle of gear k (1 or 2) (m)."""
+        z = (self.z1, self.z2)[k - 1]
+        x = (self.profile_shift1, self.profile_shift2)[k - 1]
+        ra = self.tip_radii_m[k - 1]
+        rb = self.base_radii_m[k - 1]
+        at = self.transverse_pressure_angle_rad
+        aat = math.acos(min(1.0, rb / ra))
+        half = (math.pi / 2.0 + 2.0 * x * math.tan(self.normal_pressure_angle_rad)) / z
+        return 2.0 * ra * (half + involute(at) - involute(aat))
+
+    # ------------------------------------------------------------------ validation
+    def _check_consistency(self):
+        rb1, rb2 = self.base_radii_m
+        ra1, ra2 = self.tip_radii_m
+        rf1, rf2 = self.root_radii_m
+        for k, (ra, rb) in enumerate(((ra1, rb1), (ra2, rb2)), start=1):
+            if ra <= rb:
+                raise GeometryError(
+                    f"addendum_coeff{k}", getattr(self, f"addendum_coeff{k}"),
+                    f"tip circle (r_a={ra:.6g} m) lies inside the base circle (r_b={rb:.6g} m)",
+                )
+        aw = self.centre_distance_m
+        for k, (ra, rf_other) in enumerate(((ra1, rf2), (ra2, rf1)), start=1):
+            clearance = aw - ra - rf_other
+            if clearance < 0.0:
+                raise GeometryError(
+                    f"profile_shift{k}", getattr(self, f"profile_shift{k}"),
+                    f"inconsistent profile shifts: tip of gear {k} reaches {-clearance:.3g} m into "
+                    "the root of its mate (negative tip clearance)",
+                )
+        xi_start, xi_end = self.contact_limits_m
+        if xi_start <= 0.0:
+            raise GeometryError(
+                "z1", self.z1,
+                "interference: the gear tip meets the pinion below its base circle "
+                f"(start of contact {xi_start:.4g} m before T1); add pinion profile shift or teeth",
+            )
+        if xi_end >= self.line_of_action_length_m:
+            raise GeometryError(
+                "z2", self.z2,
+                "interference: the pinion tip meets the gear below its base circle; "
+                "add gear profile shift or teeth",
+            )
+        for k in (1, 2):
+            sa = self.tip_thickness_m(k)
+            if sa <= 0.0:
+                raise GeometryError(
+                    f"addendum_coeff{k}", getattr(self, f"addendum_coeff{k}"),
+                    f"pointed tip on gear {k} (tip thickness {sa:.3g} m <= 0)",
+                )
+        if self.transverse_contact_ratio < 1.0:
+            raise GeometryError(
+                "addendum_coeff1", self.addendum_coeff1,
+                f"transverse contact ratio epsilon_alpha={self.transverse_contact_ratio:.4f} < 1: "
+                "the pair cannot transmit motion continuously",
+            )
+
+    def summary(self) -> dict:
+        """Plain-number summary (SI units) for reports and JSON output."""
+        return {
+            "normal_module_m": self.normal_module_m,
+            "tooth_numbers": [self.z1, self.z2],
+            "helix_angle_rad": self.helix_angle_rad,
+            "transverse_pressure_angle_rad": self.transverse_pressure_angle_rad,
+            "working_pressure_angle_rad": self.working_pressure_angle_rad,
+            "centre_distance_m": self.centre_distance_m,
+            "pitch_radii_m": list(self.pitch_radii_m),
+            "base_radii_m": list(self.base_radii_m),
+            "tip_radii_m": list(self.tip_radii_m),
+            "root_radii_m": list(self.root_radii_m),
+            "base_helix_angle_rad": self.base_helix_angle_rad,
+            "base_pitch_m": self.base_pitch_m,
+            "path_of_contact_m": self.path_of_contact_m,
+            "contact_limits_m": list(self.contact_limits_m),
+            "face_width_m": self.face_width_m,
+            "contact_ratio": self.transverse_contact_ratio,
+            "overlap_ratio": self.overlap_ratio,
+            "total_contact_ratio": self.total_contact_ratio,
+            "mesh_period_rad": self.mesh_period_rad,
+        }
+
+
+def baud_velex_pair(helical: bool = False) -> GearPair:
+    """Table 1 gear pair of the Baud & Velex test rig (Section 6.1).
+
+    Module 4 mm, 26/157 teeth, 20 deg pressure angle, helix 0 (spur) or 20 deg (helical),
+    addendum 1, dedendum 1.46, shifts +0.16/-0.16, face widths 50/40 mm. The module is
+    taken as the normal module for the helical variant.
+    """
+    return GearPair(
+        normal_module_m=4e-3,
+        z1=26,
+        z2=157,
+        normal_pressure_angle_rad=math.radians(20.0),
+        helix_angle_rad=math.radians(20.0) if helical else 0.0,
+        profile_shift1=0.16,
+        profile_shift2=-0.16,
+        addendum_coeff1=1.0,
+        addendum_coeff2=1.0,
+        dedendum_coeff1=1.46,
+        dedendum_coeff2=1.46,
+        face_width1_m=0.050,
+        face_width2_m=0.040,
+    )

@@ -1,0 +1,51 @@
+"""Figures: quasi-static transmission errors and load sharing (more come with the sweeps).
+
+Matplotlib is imported lazily with the non-interactive Agg backend so that the CLI works on
+machines without a display.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["plot_quasistatic"]
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_quasistatic(result, mesh, path: str, title: str = ""):
+    """TE_S and NLTE (um) and the load carried by each tooth pair (N) against theta.
+
+    ``result`` is a :class:`gearjax.quasistatic.QuasiStatic`; the abscissa is the pinion
+    angle in mesh periods.
+    """
+    plt = _pyplot()
+    t = np.asarray(result.theta_rad) / mesh.pair.mesh_period_rad
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, constrained_layout=True)
+    ax1.plot(t, np.asarray(result.te_s_m) * 1e6, label="TE$_S$ (under load)", lw=1.6)
+    ax1.plot(t, np.asarray(result.nlte_m) * 1e6, label="NLTE (no load)", lw=1.2, ls="--")
+    ax1.set_ylabel("transmission error on base plane [um]")
+    ax1.legend(loc="best")
+    ax1.grid(alpha=0.3)
+    loads, idx = result.pair_loads(mesh.n_slots)
+    loads, idx = np.asarray(loads), np.asarray(idx)
+    for n in np.unique(idx):
+        present = idx == n  # pair n occupies at most one slot at each angle
+        y = np.where(present.any(axis=1), (loads * present).sum(axis=1), np.nan)
+        ax2.plot(t, y, lw=1.0)
+    ax2.plot(t, np.asarray(result.mesh_force_N), color="k", lw=1.0, ls=":", label="total")
+    ax2.set_xlabel("pinion angle [mesh periods]")
+    ax2.set_ylabel("load per tooth pair [N]")
+    ax2.legend(loc="best")
+    ax2.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

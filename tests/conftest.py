@@ -1,0 +1,6 @@
+"""Strict numerics for every test: float64 and no silent rank promotion (as diffrax does)."""
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_numpy_rank_promotion", "raise")

@@ -1,0 +1,71 @@
+"""The `gearjax` command line: JSON keys, CSV columns, plots, clear errors."""
+
+import json
+
+import numpy as np
+import pytest
+
+from gearjax.cli import main
+from gearjax.geometry import baud_velex_pair
+
+
+def _json(capsys, argv):
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize("rig, helical", [("baud-velex-spur", False), ("baud-velex-helical", True)])
+def test_info_json_keys_and_values(capsys, rig, helical):
+    out = _json(capsys, ["info", "--rig", rig, "--json"])
+    pair = baud_velex_pair(helical)
+    for key in ("contact_ratio", "overlap_ratio", "base_radii_m", "base_helix_angle_rad",
+                "base_pitch_m", "mean_mesh_stiffness_N_per_m", "stiffness_variation_alpha",
+                "static_mesh_force_N"):
+        assert key in out
+    assert out["contact_ratio"] == pytest.approx(pair.transverse_contact_ratio)
+    # F_S = C_m0 / (Rb1 cos beta_b)
+    assert out["static_mesh_force_N"] == pytest.approx(
+        254.8 / (pair.base_radii_m[0] * np.cos(pair.base_helix_angle_rad)))
+    assert 0 < out["stiffness_variation_alpha"] < 1
+
+
+def test_info_human_readable(capsys):
+    assert main(["info"]) == 0
+    text = capsys.readouterr().out
+    assert "contact ratio" in text and "N/um" in text
+
+
+def test_quasistatic_json_csv_plot(capsys, tmp_path):
+    csv, png = tmp_path / "qs.csv", tmp_path / "qs.png"
+    out = _json(capsys, ["quasistatic", "--relief", "long", "--positions", "64", "--json",
+                         "--csv", str(csv), "--plot", str(png)])
+    for key in ("te_s_mean_m", "te_s_ptp_m", "nlte_ptp_m"):
+        assert key in out
+    assert out["nlte_ptp_m"] > 1e-6  # long relief: NLTE != 0 (Section 6.3.2)
+    data = np.genfromtxt(csv, delimiter=",", names=True)
+    assert data.dtype.names == ("theta_rad", "te_s_m", "nlte_m", "mesh_force_N")
+    assert len(data) == 64
+    np.testing.assert_allclose(data["mesh_force_N"], out["static_mesh_force_N"], rtol=1e-9)
+    assert png.stat().st_size > 10_000
+
+
+def test_quasistatic_pitch_errors_span_a_revolution(capsys):
+    out = _json(capsys, ["quasistatic", "--pitch-errors", "--positions", "8", "--json"])
+    assert out["positions"] == 8 * 26
+    assert out["span_rad"] == pytest.approx(2 * np.pi)
+    assert out["nlte_ptp_m"] > 1e-6
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["info", "--rig", "nope"], "rig='nope'"),
+        (["quasistatic", "--relief-extent", "1.5"], "relief_extent"),
+        (["quasistatic", "--relief-amplitude=-1e-6"], "relief_amplitude_m"),
+        (["quasistatic", "--positions", "2"], "--positions=2"),
+    ],
+)
+def test_bad_input_is_a_clear_error(capsys, argv, words):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err
