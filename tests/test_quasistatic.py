@@ -171,3 +171,7 @@ def test_pitch_error_length_checked():
     mods = ToothModifications.none().with_pitch_errors(np.zeros(25), np.zeros(pair.z2))
     with pytest.raises(ModificationError, match="expected \\(26,\\)"):
         mods.check_against(pair)
+    # and inside the jitted solve (JAX gathers would otherwise clamp the index silently)
+    mesh = Mesh.build(pair, "uniform", cells_per_line=1)
+    with pytest.raises(ModificationError, match="gear 1 has 26 teeth"):
+        quasi_static(mesh, mods, mesh.theta_grid(4), 1000.0)
