@@ -1,0 +1,42 @@
+"""Structural finite elements of the geared system (everything but the pinion-gear element).
+
+Shafts (Timoshenko beams), rigid discs, bearings, couplings and torsional springs
+assembled into the constant matrices ``M`` and ``K`` of Eqs. (12)-(14) of Velex & Ajmi,
+plus the modal tools (modal basis, modal damping, reduced models) and the Baud & Velex
+test rig of Section 6.1. Node dof order: ``(u, v, w, phi, psi, theta)``; global index
+``6 * node + dof``; SI units.
+"""
+
+from .assembly import ElementRecord as ElementRecord
+from .assembly import ModalBasis as ModalBasis
+from .assembly import ReducedModel as ReducedModel
+from .assembly import RigidBodyModeWarning as RigidBodyModeWarning
+from .assembly import Structure as Structure
+from .assembly import StructureBuilder as StructureBuilder
+from .assembly import StructureInputError as StructureInputError
+from .assembly import modal_basis as modal_basis
+from .assembly import modal_damping_matrix as modal_damping_matrix
+from .assembly import reduced_model as reduced_model
+from .beams import DOF_NAMES as DOF_NAMES
+from .beams import DOFS_PER_NODE as DOFS_PER_NODE
+from .beams import STEEL as STEEL
+from .beams import ElementInputError as ElementInputError
+from .beams import Material as Material
+from .beams import bearing_stiffness as bearing_stiffness
+from .beams import coupling_stiffness as coupling_stiffness
+from .beams import disc_properties as disc_properties
+from .beams import hollow_section as hollow_section
+from .beams import rigid_disc as rigid_disc
+from .beams import shear_coefficient_hutchinson as shear_coefficient_hutchinson
+from .beams import timoshenko_element as timoshenko_element
+from .beams import torsional_coupling as torsional_coupling
+from .beams import torsional_spring_to_ground as torsional_spring_to_ground
+from .rigs import BAUD_VELEX_BEARINGS as BAUD_VELEX_BEARINGS
+from .rigs import ENCODER_POSITIONS as ENCODER_POSITIONS
+from .rigs import GEAR_NODE as GEAR_NODE
+from .rigs import LOAD_NODE as LOAD_NODE
+from .rigs import MOTOR_NODE as MOTOR_NODE
+from .rigs import PINION_NODE as PINION_NODE
+from .rigs import baud_velex_structure as baud_velex_structure
+from .rigs import encoder_nodes as encoder_nodes
+from .rigs import paper_node as paper_node
