@@ -530,6 +530,11 @@ def test_baud_velex_topology() -> None:
     # Pinion and gear centres are a centre distance apart in the same transverse plane.
     d = s.node_position(GEAR_NODE) - s.node_position(PINION_NODE)
     assert np.linalg.norm(d) == pytest.approx(0.366) and d[2] == 0.0
+    # Default frame of the pinion-gear element: S along the line of action, so
+    # O1O2 = a (sin alpha_w S - cos alpha_w T) (tangent points T1 = O1 - Rb1 T,
+    # T2 = O2 + Rb2 T, T1T2 = a sin alpha_w S).
+    aw = math.radians(20.0)
+    assert np.allclose(d, 0.366 * np.array([math.sin(aw), -math.cos(aw), 0.0]), atol=1e-15)
     s2 = baud_velex_structure(centre_distance_m=0.3895, centre_line_angle_rad=math.pi / 2)
     d2 = s2.node_position(GEAR_NODE) - s2.node_position(PINION_NODE)
     assert np.allclose(d2, [0.0, 0.3895, 0.0], atol=1e-15)
@@ -640,3 +645,41 @@ def test_no_warning_for_grounded_structure() -> None:
         warnings.simplefilter("error")
         mb = modal_basis(s.M, s.K, n_modes=3)
     assert mb.n_rigid == 0
+
+
+def test_rig_with_pinion_gear_element_satisfies_appendix_a() -> None:
+    """Integration with the mesh core: the rig's node positions agree with the frame of
+    the pinion-gear element (a rigid motion of the whole rig does not load the mesh,
+    V^T R = 0), and Eqs. (33)-(35) hold: C_vv k_m = 1, C_wv k_m cos(beta_b) = 1 for every
+    encoder position, w_x0 equal at positions 1 and 2 (no torque beyond the mesh on the
+    free-end side) and different at position 3 (on the torque path)."""
+    from gearjax.geometry import baud_velex_pair
+    from gearjax.mesh import Mesh
+    from gearjax.models.element import PinionGearElement
+
+    pair = baud_velex_pair()
+    s = baud_velex_structure(
+        centre_distance_m=pair.centre_distance_m,
+        working_pressure_angle_rad=pair.working_pressure_angle_rad,
+    )
+    mesh = Mesh.build(pair)
+    el = PinionGearElement.at_nodes(mesh, s.n_dof, s.pinion_node, s.gear_node)
+    V = np.asarray(el.mean_vector(n_positions=64))
+    km = 8e8
+    assert np.abs(V @ rigid_body_vectors(s)).max() < 1e-12
+    Kbar = s.K + km * np.outer(V, V)
+    Cv = np.linalg.solve(Kbar, V)
+    assert V @ Cv * km == pytest.approx(1.0, rel=1e-9)
+    F0 = np.zeros(s.n_dof)
+    F0[s.dof(MOTOR_NODE, "theta")] = 254.8
+    X0 = np.linalg.solve(Kbar, F0)
+    rb1, rb2 = pair.base_radii_m
+    w_x0 = {}
+    for pos in (1, 2, 3):
+        i, ii = encoder_nodes(pos)
+        W = np.zeros(s.n_dof)
+        W[s.dof(i, "theta")], W[s.dof(ii, "theta")] = rb1, rb2
+        assert W @ Cv * km * math.cos(pair.base_helix_angle_rad) == pytest.approx(1.0, rel=1e-9)
+        w_x0[pos] = W @ X0
+    assert w_x0[2] == pytest.approx(w_x0[1], rel=1e-9)
+    assert abs(w_x0[3] - w_x0[1]) > 0.1 * abs(w_x0[1])

@@ -67,8 +67,11 @@ Assumptions (the paper does not print them; chosen for a 4 mm module, z = 26/157
 * Geometry: shafts parallel to z. The pinion axis is the z axis (S = T = 0); the gear
   axis passes through ``O2 = O1 + a (cos g, sin g, 0)`` with ``a`` the centre distance
   (default 0.366 m = m (z1 + z2) / 2 for the spur pair, x1 + x2 = 0) and ``g`` the
-  centre-line angle measured from S towards T (default 0: the centre line is along +S).
-  The pinion and gear centres share the plane z = 0.
+  centre-line angle measured from S towards T. The default ``g = alpha_w - pi/2``
+  (``alpha_w`` the working transverse pressure angle, 20 deg for the spur pair) matches the
+  frame of :mod:`gearjax.models.element`: S along the line of action from T1 to T2 and
+  ``O2 = O1 + a (sin alpha_w S - cos alpha_w T)``. The pinion and gear centres share the
+  plane z = 0. The positions are metadata (the dofs are the same in any layout).
 
 Encoder positions (Fig. 7; the figure is not reproduced in the text)
 --------------------------------------------------------------------
@@ -166,7 +169,8 @@ _GEAR_D = np.array([0.065] * 5 + [0.080] * 4 + [0.065] * 6)
 def baud_velex_structure(
     *,
     centre_distance_m: float = 0.366,
-    centre_line_angle_rad: float = 0.0,
+    centre_line_angle_rad: float | None = None,
+    working_pressure_angle_rad: float = math.radians(20.0),
     load_torsional_stiffness: float = 1e5,
     material: Material = STEEL,
 ) -> Structure:
@@ -179,8 +183,13 @@ def baud_velex_structure(
     ----------
     centre_distance_m : float
         Distance between the pinion and gear axes (m).
-    centre_line_angle_rad : float
-        Direction of ``O1 -> O2`` in the (S, T) plane, from S towards T (rad).
+    centre_line_angle_rad : float, optional
+        Direction of ``O1 -> O2`` in the (S, T) plane, from S towards T (rad). Default
+        ``working_pressure_angle_rad - pi/2`` (S along the line of action, as in
+        :mod:`gearjax.models.element`).
+    working_pressure_angle_rad : float
+        Working transverse pressure angle ``alpha_w`` (rad) used by the default above
+        (``pair.working_pressure_angle_rad``; 20 deg for the spur pair of Table 1).
     load_torsional_stiffness : float
         Resisting-load torsional stiffness at node 22 (N m/rad).
     material : Material
@@ -197,7 +206,12 @@ def baud_velex_structure(
         raise StructureInputError(
             f"centre_distance_m must be finite and > 0, got {centre_distance_m!r}"
         )
-    g = float(centre_line_angle_rad)
+    aw = float(working_pressure_angle_rad)
+    if not (math.isfinite(aw) and 0.0 < aw < math.pi / 2):
+        raise StructureInputError(
+            f"working_pressure_angle_rad must lie in (0, pi/2), got {working_pressure_angle_rad!r}"
+        )
+    g = aw - math.pi / 2 if centre_line_angle_rad is None else float(centre_line_angle_rad)
     if not math.isfinite(g):
         raise StructureInputError(
             f"centre_line_angle_rad must be finite, got {centre_line_angle_rad!r}"
