@@ -45,8 +45,11 @@ def _parser() -> argparse.ArgumentParser:
 
     info = sub.add_parser("info", help="geometry and mesh figures of a rig")
     _add_rig(info)
-    info.add_argument("--model", default="torsional", choices=["torsional"],
-                      help="model (torsional; the 3D model adds its figures when available)")
+    info.add_argument("--model", default="3d", choices=["torsional", "3d"],
+                      help="3d (default) adds the structure: dofs, Appendix A relations, "
+                           "natural frequencies")
+    info.add_argument("--encoders", type=int, default=1, choices=[1, 2, 3],
+                      help="encoder positions of Fig. 7 for W and w_x0 (default 1)")
 
     qs = sub.add_parser("quasistatic", help="quasi-static TE_S and NLTE (unilateral contact)")
     _add_rig(qs)
@@ -79,6 +82,10 @@ def _cmd_info(args) -> int:
     out = {"rig": rig.name, "description": rig.description}
     out.update(rig.pair.summary())
     out.update(torsional_stiffness_figures(rig, args.stiffness))
+    if args.model == "3d":
+        from .rigs import three_d_figures
+
+        out.update(three_d_figures(rig, args.stiffness, args.encoders))
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
@@ -101,6 +108,16 @@ def _cmd_info(args) -> int:
         ("pinion torque", f"{rig.pinion_torque_Nm:.1f} N m"),
         ("static mesh force F_S", f"{out['static_mesh_force_N']:.1f} N"),
     ]
+    if args.model == "3d":
+        freqs = ", ".join(f"{f:.1f}" for f in out["natural_frequencies_hz"][:8])
+        rows += [
+            ("3D model dofs", f"{out['n_dof']}"),
+            ("C_vv k_m  (Eq. 33, = 1)", f"{out['C_vv_times_km']:.12f}"),
+            ("C_wv k_m cos b_b  (Eq. 35, = 1)", f"{out['C_wv_times_km_cos_beta_b']:.12f}"),
+            ("v_x0 k_m / F_S  (Eq. 34, = 1)", f"{out['v_x0_times_km_over_FS']:.12f}"),
+            (f"w_x0 (encoders {out['encoder_position']})", f"{out['w_x0_m'] * 1e6:.3f} um"),
+            ("lowest natural frequencies", f"{freqs} Hz"),
+        ]
     w = max(len(r[0]) for r in rows)
     for k, v in rows:
         print(f"  {k:<{w}}  {v}")

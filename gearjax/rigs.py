@@ -16,7 +16,7 @@ import numpy as np
 from .geometry import GearPair, baud_velex_pair
 from .modifications import ToothModifications, fig5_pitch_errors, table1_relief
 
-__all__ = ["Rig", "RIGS", "get_rig", "RigError"]
+__all__ = ["Rig", "RIGS", "get_rig", "RigError", "system_3d", "three_d_figures"]
 
 
 class RigError(ValueError):
@@ -42,6 +42,16 @@ class Rig:
     pinion_torque_Nm: float
     pinion_pitch_errors_m: np.ndarray
     description: str
+
+    def structure(self):
+        """The rig's shafts, discs, bearings and couplings (:mod:`gearjax.structure.rigs`),
+        with the centre line set by this rig's gear pair."""
+        from .structure.rigs import baud_velex_structure
+
+        return baud_velex_structure(
+            centre_distance_m=self.pair.centre_distance_m,
+            working_pressure_angle_rad=self.pair.working_pressure_angle_rad,
+        )
 
     def modifications(
         self,
@@ -113,4 +123,60 @@ def torsional_stiffness_figures(rig: Rig, law: str = "iso6336") -> dict:
         "cells_per_line": mesh.cells_per_line,
         "tooth_pair_slots": mesh.n_slots,
         "base_helix_cos": math.cos(rig.pair.base_helix_angle_rad),
+    }
+
+
+def system_3d(rig: Rig, law: str = "iso6336", encoder_position: int = 1):
+    """The 3D pieces of a rig shared by ``gearjax info`` and the 3D model.
+
+    Returns a dict with ``structure``, ``mesh``, ``element`` (pinion-gear element),
+    ``V`` (averaged structure vector), ``W`` (TE projection at the encoder nodes of Fig. 7
+    position ``encoder_position``), ``F0`` (pinion torque on the motor's torsional dof,
+    N m), ``k_m`` (mean mesh stiffness, N/m) and ``F_S`` (N).
+    """
+    from .mesh import Mesh
+    from .models.element import PinionGearElement
+    from .quasistatic import static_mesh_force
+    from .structure.rigs import MOTOR_NODE, encoder_nodes
+
+    structure = rig.structure()
+    mesh = Mesh.build(rig.pair, law)
+    element = PinionGearElement.at_nodes(mesh, structure.n_dof, structure.pinion_node, structure.gear_node)
+    node_i, node_ii = encoder_nodes(encoder_position)
+    W = element.torsional_vector(structure.dof(node_i, "theta"), structure.dof(node_ii, "theta"))
+    F0 = np.zeros(structure.n_dof)
+    F0[structure.dof(MOTOR_NODE, "theta")] = rig.pinion_torque_Nm
+    return {
+        "structure": structure,
+        "mesh": mesh,
+        "element": element,
+        "V": np.asarray(element.mean_vector()),
+        "W": np.asarray(W),
+        "F0": F0,
+        "k_m": float(mesh.mean_stiffness()),
+        "F_S": static_mesh_force(rig.pair, rig.pinion_torque_Nm),
+    }
+
+
+def three_d_figures(rig: Rig, law: str = "iso6336", encoder_position: int = 1, n_frequencies: int = 10) -> dict:
+    """3D figures of a rig for ``gearjax info --model 3d``: dof count, the Appendix A
+    relations normalised to 1 (Eqs. (33)-(35)), w_x0 and the lowest natural frequencies of
+    (M, K_bar) with K_bar = K + k_m V V^T."""
+    from .analytic import analytic_relations
+    from .structure import modal_basis
+
+    sys3 = system_3d(rig, law, encoder_position)
+    rel = analytic_relations(
+        sys3["structure"].K, sys3["k_m"], sys3["V"], sys3["W"], sys3["F0"], sys3["F_S"],
+        rig.pair.base_helix_angle_rad,
+    )
+    modes = modal_basis(np.asarray(sys3["structure"].M), rel["K_bar"], n_modes=n_frequencies)
+    return {
+        "n_dof": int(sys3["structure"].n_dof),
+        "encoder_position": encoder_position,
+        "C_vv_times_km": float(rel["C_vv_times_km"]),
+        "C_wv_times_km_cos_beta_b": float(rel["C_wv_times_km_cos_beta_b"]),
+        "v_x0_times_km_over_FS": float(rel["v_x0_times_km_over_FS"]),
+        "w_x0_m": float(rel["w_x0"]),
+        "natural_frequencies_hz": [float(f) for f in modes.frequencies_hz],
     }

@@ -16,7 +16,7 @@ def _json(capsys, argv):
 
 @pytest.mark.parametrize("rig, helical", [("baud-velex-spur", False), ("baud-velex-helical", True)])
 def test_info_json_keys_and_values(capsys, rig, helical):
-    out = _json(capsys, ["info", "--rig", rig, "--json"])
+    out = _json(capsys, ["info", "--rig", rig, "--model", "torsional", "--json"])
     pair = baud_velex_pair(helical)
     for key in ("contact_ratio", "overlap_ratio", "base_radii_m", "base_helix_angle_rad",
                 "base_pitch_m", "mean_mesh_stiffness_N_per_m", "stiffness_variation_alpha",
@@ -69,3 +69,14 @@ def test_bad_input_is_a_clear_error(capsys, argv, words):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("encoders", [1, 3])
+def test_info_3d_reports_appendix_a_relations(capsys, encoders):
+    out = _json(capsys, ["info", "--model", "3d", "--encoders", str(encoders), "--json"])
+    assert out["n_dof"] == 258  # Section 6.1: 43 nodes x 6 dof
+    # Eqs. (33)-(35) hold whatever the encoder position (Appendix A)
+    for key in ("C_vv_times_km", "C_wv_times_km_cos_beta_b", "v_x0_times_km_over_FS"):
+        assert out[key] == pytest.approx(1.0, abs=1e-9)
+    f = np.asarray(out["natural_frequencies_hz"])
+    assert f[0] > 0 and np.all(np.diff(f) >= 0)  # K_bar invertible: no rigid-body mode left
