@@ -49,3 +49,39 @@ def plot_quasistatic(result, mesh, path: str, title: str = ""):
         fig.suptitle(title)
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def plot_response_curves(csv_path: str, path: str, title: str = ""):
+    """Response curves laid out like Figs. 8-13 from a sweep's ``results.csv``: maximum
+    dynamic tooth load, peak-to-peak DTE and peak-to-peak pinion-centre acceleration (S)
+    against pinion speed, one curve per formulation (the acceleration panel is left out for
+    torsional models, which have none)."""
+    import csv
+
+    plt = _pyplot()
+    rows = list(csv.DictReader(open(csv_path)))
+    forms = list(dict.fromkeys(r["formulation"] for r in rows))
+    has_acc = any(r["accel_ptp_m_s2"] not in ("", "nan") for r in rows)
+    panels = [("max_mesh_force_N", "max dynamic tooth load [N]", 1.0),
+              ("dte_ptp_m", "peak-to-peak DTE [um]", 1e6)]
+    if has_acc:
+        panels.append(("accel_ptp_m_s2", "p-p pinion acceleration S [m/s$^2$]", 1.0))
+    fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 2.6 * len(panels) + 0.6), sharex=True,
+                             constrained_layout=True)
+    markers = {"reference": "D", "te": "s", "perturbation": "^"}
+    labels = {"reference": "reference, Eq. (14)/(16)", "te": "TE-based, Eq. (42)/(20)",
+              "perturbation": "perturbation, Eq. (48a)/(47a)"}
+    for ax, (key, ylabel, scale) in zip(np.atleast_1d(axes), panels):
+        for form in forms:
+            sel = [r for r in rows if r["formulation"] == form]
+            x = np.array([float(r["speed_rad_s"]) for r in sel])
+            y = np.array([float(r[key]) if r[key] not in ("",) else np.nan for r in sel]) * scale
+            ax.plot(x, y, marker=markers.get(form, "o"), ms=3.5, lw=1.2, label=labels.get(form, form))
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    np.atleast_1d(axes)[0].legend(loc="best", fontsize=8)
+    np.atleast_1d(axes)[-1].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
+    if title:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
