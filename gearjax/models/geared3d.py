@@ -1,0 +1,890 @@
+"""3D geared-system model: shafts + bearings + pinion-gear element (paper Section 4).
+
+The structure (``M``, ``K``: shafts, discs, bearings, couplings, the resisting torsional
+spring; :mod:`gearjax.structure`) is coupled to the mesh cells of :mod:`gearjax.mesh`
+through the structure vectors ``V(M_i)`` of the pinion-gear element (Eq. (8a),
+:class:`gearjax.models.element.PinionGearElement`). Three formulations, a static choice so
+that each compiles only its own terms (``' = d/dtheta``, ``theta = Omega1 t``):
+
+``"reference"`` -- Eq. (14), instantaneous unilateral contact on every cell::
+
+    Omega^2 M X'' + Omega C X' + K X + sum_i k_i max(0, V(M_i)^T X - de_i) V(M_i)
+        = F_0 - Omega^2 [NLTE'' E + NLTE' F + G]
+
+``"te"`` -- transmission-error based Eq. (42)::
+
+    Omega^2 M X'' + Omega C X' + [K_bar + alpha k_m g V V^T] X
+        = F_0 + [k(theta) cos b_b (TE_S - NLTE - w_x0) + alpha F_S g] V
+          - Omega^2 [NLTE'' E + NLTE' F + G]
+
+  with ``K_bar = K + k_m V V^T`` (Eq. (27)), ``k(theta) = k_m (1 + alpha g)`` the *loaded*
+  quasi-static stiffness (stiffness of the cells loaded in the quasi-static solution) and
+  ``k_m`` its mean over one excitation period, so that ``alpha k_m g = k(theta) - k_m`` and
+  ``alpha F_S g = (k(theta) - k_m) F_S / k_m``.
+
+``"perturbation"`` -- main-order perturbation Eq. (48a)::
+
+    Omega^2 M X'' + Omega C X' + K_bar X
+        = F_0 + k_m cos b_b (TE_S - NLTE - w_x0) V - Omega^2 [NLTE'' E + NLTE' F + G]
+
+``V`` is the averaged structure vector (Eq. (A.1), :meth:`PinionGearElement.mean_vector`),
+``W`` the TE projection vector (Rb1, Rb2 at the encoder torsional dofs, Eq. (10)),
+``X_0 = K_bar^-1 F_0``, ``w_x0 = W^T X_0`` and ``v_x0 = V^T X_0``.
+
+Quasi-static solution (Eq. (25))
+--------------------------------
+``TE_S``, ``NLTE`` and ``k(theta)`` come from the exact unilateral quasi-static solution,
+evaluated at every right-hand-side call (as the torsional model does), with either the
+position-dependent cell vectors (``mesh_vectors="cells"``, the paper's Section 6.2: TE_S
+from Eq. (14) at very low speed) or the averaged ``V`` for every cell (``"mean"``, Eq. (27),
+the simplification of Section 4.2). The structure is condensed statically onto the 12
+pinion-gear dofs (the internal block is invertible), then an active-set iteration on the
+cells solves ``[K_cc + sum_A k_i V_i V_i^T] x = f_c + sum_A k_i de_i V_i`` until the set
+``A = {i : V_i^T x > de_i}`` is stable (exact at convergence; warm-started from the torsional
+solution; fixed maximum number of iterations inside ``lax.while_loop``; the returned
+solution is a final solve with the converged set, hence differentiable almost everywhere).
+With ``"mean"`` vectors the approach ``V^T X_S`` is exactly the torsional root (the pinion
+line is torsionally free, so the total mesh force is ``F_S``) and no iteration is needed.
+``TE_S = W^T X_S + NLTE`` is recovered from the condensation at the encoder dofs.
+
+Inertial excitations E, F, G (text after Eq. (14))
+--------------------------------------------------
+* ``E``: ``J2 Rb1 / Rb2^2`` on the torsional dof of the input torque (Eq. (5); ``J2`` the
+  polar inertia of the gear shaft line, ``r_2^T M r_2`` with ``r_2`` the unit rigid rotation
+  of the gear line) plus ``M r_2 / Rb2`` (``I_pi / Rb2`` at every torsional dof of the gear
+  shaft line for lumped inertias; the consistent-mass generalisation otherwise), plus the
+  gear-eccentricity components of ``E~``.
+* ``F``, ``G``: eccentricities of pinion and gear (mass ``m_k`` of the pinion/gear discs).
+  Phases follow :mod:`gearjax.modifications`: the mass centre of gear k sits at
+  ``e_k (cos psi_k, sin psi_k)`` in (s, t) with ``psi_1 = theta - lambda_1 - pi/2`` and
+  ``psi_2 = lambda_2 - pi/2 - theta Rb1/Rb2`` (the gear turns backwards), which is the
+  offset whose projection on the normal gives the geometric excess
+  ``e_k cos b_b sin(phi_k - lambda_k)`` used in the gaps de_i. Then
+  ``G~ = -m_1 e_1 (cos, sin)psi_1`` at the pinion (v, w), ``-m_2 e_2 (Rb1/Rb2)^2 (cos, sin)psi_2``
+  at the gear, ``F~ = 2 m_2 e_2 Rb1/Rb2^2 (cos, sin)psi_2`` and ``E~ = m_2 e_2/Rb2
+  (-sin, cos)psi_2`` at the gear (v, w): the paper's vectors up to the phase origin.
+
+Without eccentricity G, F and E~ are not compiled; without NLTE terms (``nlte_terms=False``,
+or NLTE identically zero) E and F are not compiled, and in the te/perturbation formulations
+``TE_S - NLTE`` becomes ``TE_S`` (as the torsional model and the paper's Fig. 10 "with NLTE
+= 0"); DTE is then ``W^T X``.
+
+NLTE'' without differentiating a kinked function
+-----------------------------------------------
+NLTE has kinks, so NLTE'' has Dirac parts. With ``u = q' + NLTE' e(theta)`` (``q`` modal
+coordinates, ``M_r = I``, ``e = T^T E``) the equation ``Omega^2 q'' + ... = -Omega^2 NLTE'' e``
+becomes ``u' = (...)/Omega^2 + NLTE' e'``, ``q' = u - NLTE' e``: only NLTE' (exact
+forward-mode derivative of the minimum, piecewise smooth) enters, and the kinks are passed
+to the integrator as ``jump_thetas``. This is the torsional model's substitution written on
+the velocity, and it also covers the angle-dependent ``E~`` of an eccentric gear.
+
+Modal coordinates, reduction, damping
+-------------------------------------
+``X = T q`` with ``T`` from :func:`gearjax.structure.reduced_model` on ``(M, K_bar)``: all
+modes (``max_frequency_hz=None``, exact) or the modes below a cut-off plus static-correction
+pseudo-modes for the load patterns ``F_0``, ``E`` and unit loads on the 12 pinion-gear dofs
+(so every static mesh response, hence ``X_0``, ``X_S`` and ``C_v``, is reproduced exactly).
+``M_r = I``; ``K_bar,r`` diagonal; damping ``C = M Phi diag(2 zeta omega) Phi^T M`` with all
+modes of ``(M, K_bar)`` (unique modal damping factor, Section 6.1), projected.
+
+State and scaling
+-----------------
+``y = ((q - q_0)/a, u / (r a))`` with ``q_0`` the modal coordinates of ``X_0`` (so the large
+static wind-up of the shafts is not integrated), ``r_j = omega_j / Omega`` and ``a`` the
+largest modal coordinate of ``X^_0 = F_S C_v`` (Eq. (A.2)), so that ``rtol``/``atol`` of the
+step-size controller act on quantities of the size of the static mesh deflection.
+
+Outputs
+-------
+Mesh force: reference ``sum_i k_i max(0, V(M_i)^T X - de_i)``; te/perturbation Eq. (41)
+``F_D = F_S + k(theta) V^T (X - X_S)`` with ``V^T X_S = v_x0 + cos b_b (TE_S - NLTE - w_x0)``
+(Eq. (36)). DTE ``= W^T X + NLTE`` (Eq. (10)). Acceleration of the pinion centre along s
+(dof v of the pinion node): ``Omega^2 X_v''`` (the Dirac part of NLTE'' excluded).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Literal
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..mesh import Mesh
+from ..modifications import ToothModifications
+from ..quasistatic import contact_gaps, static_mesh_force
+from .element import PinionGearElement
+from .torsional import ModelError, ModelOutputs, unilateral_solve_pairwise
+
+__all__ = [
+    "Geared3DModel",
+    "Condensation",
+    "QuasiStatic3D",
+    "quasi_static_3d",
+    "MESH_VECTORS",
+]
+
+FORMULATIONS = ("reference", "te", "perturbation")
+MESH_VECTORS = ("cells", "mean")
+Formulation = Literal["reference", "te", "perturbation"]
+
+
+# ====================================================================== quasi-static
+class Condensation(eqx.Module):
+    """Static condensation of ``K X = F_0 - f_mesh`` onto the 12 pinion-gear dofs.
+
+    With ``l`` the 12 element dofs and ``i`` the others, ``K_cc = K_ll - K_li K_ii^-1 K_il``
+    and ``f_c = F_l - K_li K_ii^-1 F_i``; the encoder observation ``W^T X = c_w + g_w^T x``
+    (x the 12 element dofs). ``K_cc`` is singular by one (the free pinion-line rotation)
+    until the mesh is added.
+
+    Attributes
+    ----------
+    k_cc : (12, 12) condensed stiffness (N/m, N m/rad).
+    f_c : (12,) condensed load (N, N m).
+    c_w : W^T X for x = 0 (m).
+    g_w : (12,) gradient of W^T X with respect to x.
+    """
+
+    k_cc: jax.Array
+    f_c: jax.Array
+    c_w: jax.Array
+    g_w: jax.Array
+
+
+class QuasiStatic3D(eqx.Module):
+    """Quasi-static 3D solution at one angle (a leading axis after vmap).
+
+    Attributes
+    ----------
+    x_local : (12,) pinion-gear dofs of X_S (m, rad).
+    te_s_m : TE_S = W^T X_S + NLTE (m), Eq. (10).
+    nlte_m : NLTE (m).
+    v_xs_m : V^T X_S with the averaged V (m), Eq. (36).
+    mesh_force_N : total normal mesh force (N) (= F_S when the pinion line is free).
+    loaded_stiffness_N_per_m : stiffness of the loaded cells k(theta) (N/m).
+    cell_load_N : (cells,) loads per cell (N).
+    iterations : active-set iterations used (0 for ``"mean"`` vectors).
+    converged : the active set is consistent (no tensile load, no penetration).
+    """
+
+    x_local: jax.Array
+    te_s_m: jax.Array
+    nlte_m: jax.Array
+    v_xs_m: jax.Array
+    mesh_force_N: jax.Array
+    loaded_stiffness_N_per_m: jax.Array
+    cell_load_N: jax.Array
+    iterations: jax.Array
+    converged: jax.Array
+
+
+def _active_set_solve(cond: Condensation, vecs, k, de, active0, max_iter: int):
+    """Exact unilateral contact on the condensed 12-dof system (Eq. (25)).
+
+    Returns (x, active, iterations, converged); ``x`` is a final solve with the converged
+    active set (no gradient through the set itself)."""
+
+    def solve(active):
+        ka = jnp.where(active, k, 0.0)
+        kt = cond.k_cc + (vecs.T * ka[None, :]) @ vecs
+        rhs = cond.f_c + vecs.T @ (ka * de)
+        return jnp.linalg.solve(kt, rhs)
+
+    def new_set(x):
+        return (k > 0) & (vecs @ x - de > 0)
+
+    def body(c):
+        active, _, it = c
+        nxt = new_set(solve(active))
+        return nxt, jnp.any(nxt != active), it + 1
+
+    def cond_fn(c):
+        return c[1] & (c[2] < max_iter)
+
+    active, changed, it = jax.lax.while_loop(
+        cond_fn, body, (active0, jnp.asarray(True), jnp.asarray(0))
+    )
+    active = jax.lax.stop_gradient(active)
+    x = solve(active)
+    return x, active, it, ~changed
+
+
+def quasi_static_3d(
+    cond: Condensation,
+    element: PinionGearElement,
+    mods: ToothModifications,
+    theta,
+    static_force_N,
+    v_mean_local,
+    mesh_vectors: str = "cells",
+    max_iter: int = 30,
+    free_mask=None,
+) -> QuasiStatic3D:
+    """Quasi-static 3D solution with unilateral contact at pinion angle ``theta`` (Eq. (25)).
+
+    Parameters
+    ----------
+    cond : :class:`Condensation` of the structure (K, F_0, W) on the element dofs.
+    element : the pinion-gear element (mesh and dof indices).
+    mods : tooth modifications.
+    theta : pinion angle (rad), scalar (vmap for several).
+    static_force_N : F_S (N), used for the warm start (the torsional root).
+    v_mean_local : (12,) averaged structure vector V (Eq. (A.1)).
+    mesh_vectors : ``"cells"`` (V(M_i), Eq. (25)) or ``"mean"`` (V for every cell, Eq. (27)).
+    max_iter : maximum active-set iterations.
+    free_mask : (12,) 1 for free element dofs, 0 for clamped ones (default all free).
+    """
+    cells, de, nlte = contact_gaps(element.mesh, mods, theta)
+    k = cells.stiffness_N_per_m
+    y, _ = unilateral_solve_pairwise(k, de, static_force_N)
+    active0 = (k > 0) & (de < y)
+    if mesh_vectors == "cells":
+        vecs = element.cell_vectors(cells)
+        if free_mask is not None:
+            vecs = vecs * free_mask
+    else:
+        vecs = jnp.broadcast_to(v_mean_local, (k.shape[0], 12))
+    x, active, it, ok = _active_set_solve(cond, vecs, k, de, active0, max_iter)
+    loads = jnp.where(active, k * (vecs @ x - de), 0.0)
+    return QuasiStatic3D(
+        x_local=x,
+        te_s_m=cond.c_w + cond.g_w @ x + nlte,
+        nlte_m=nlte,
+        v_xs_m=v_mean_local @ x,
+        mesh_force_N=jnp.sum(loads),
+        loaded_stiffness_N_per_m=jnp.sum(jnp.where(active, k, 0.0)),
+        cell_load_N=loads,
+        iterations=it,
+        converged=ok,
+    )
+
+
+# ====================================================================== the model
+class _Ecc(eqx.Module):
+    """Eccentricity data: masses (kg), amplitudes (m), phases (rad)."""
+
+    masses_kg: jax.Array
+    e_m: jax.Array
+    phase_rad: jax.Array
+
+
+class Geared3DModel(eqx.Module):
+    """3D geared system, Eqs. (14), (42), (48a); simulation interface of
+    :mod:`gearjax.simulate` (``prepare``, ``initial_state``, ``vector_field``, ``outputs``,
+    ``decay_rate_per_rad``, ``period_rad``, ``mesh_period_rad``, ``jump_thetas``,
+    ``static_force_N``, ``formulation``). Build with :meth:`build` (or :meth:`baud_velex`).
+
+    Array attributes (modal basis ``T``, r columns; element dofs ``l``)
+    ------------------------------------------------------------------
+    mesh, mods, element : mesh model, tooth modifications, pinion-gear element (on the free
+        dofs).
+    t_local : (12, r) rows of ``T`` at the element dofs.
+    kbar_r : (r, r) ``T^T K_bar T`` (diagonal up to round-off).
+    c_r : (r, r) ``T^T C T``.
+    omega_r : (r,) ``sqrt(diag(kbar_r))`` (rad/s), for the state scaling.
+    v_r, w_r, acc_r : (r,) ``T^T V``, ``T^T W`` and the row of ``T`` at the pinion v dof.
+    e_r : (r,) ``T^T E`` (constant part of E), zeros when unused.
+    q0 : (r,) modal coordinates of ``X_0 = K_bar^-1 F_0``.
+    c_v_r : (r,) modal coordinates of ``C_v = K_bar^-1 V``.
+    v_local : (12,) averaged structure vector ``V`` at the element dofs.
+    free12 : (12,) 1 for free element dofs, 0 for clamped ones.
+    cond : :class:`Condensation` for the quasi-static solve.
+    k_m : mean loaded quasi-static stiffness (N/m), the splitting constant of K_bar.
+    pinion_torque_Nm, damping_ratio, scale_a : C_m0 (N m), zeta, state scale ``a``.
+    ecc : eccentricity data or None.
+
+    Static attributes
+    -----------------
+    formulation, mesh_vectors, nlte_terms, n_modes, n_static, period_rad, jump_thetas,
+    decay_omega_rad_s (slowest mode with a mesh participation above ``participation_tol``),
+    qs_max_iter.
+    """
+
+    mesh: Mesh
+    mods: ToothModifications
+    element: PinionGearElement
+    t_local: jax.Array
+    kbar_r: jax.Array
+    c_r: jax.Array
+    omega_r: jax.Array
+    v_r: jax.Array
+    w_r: jax.Array
+    acc_r: jax.Array
+    e_r: jax.Array
+    q0: jax.Array
+    c_v_r: jax.Array
+    v_local: jax.Array
+    free12: jax.Array
+    cond: Condensation
+    k_m: jax.Array
+    pinion_torque_Nm: jax.Array
+    damping_ratio: jax.Array
+    scale_a: jax.Array
+    ecc: _Ecc | None
+    formulation: str = eqx.field(static=True)
+    mesh_vectors: str = eqx.field(static=True)
+    nlte_terms: bool = eqx.field(static=True)
+    n_modes: int = eqx.field(static=True)
+    n_static: int = eqx.field(static=True)
+    period_rad: float = eqx.field(static=True)
+    jump_thetas: tuple = eqx.field(static=True)
+    decay_omega_rad_s: float = eqx.field(static=True)
+    qs_max_iter: int = eqx.field(static=True)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def build(
+        cls,
+        structure,
+        mesh: Mesh,
+        mods: ToothModifications | None = None,
+        *,
+        pinion_torque_Nm: float = 254.8,
+        torque_node: int | None = None,
+        encoder_nodes: tuple[int, int] | None = None,
+        damping_ratio: float = 0.03,
+        formulation: Formulation = "reference",
+        mesh_vectors: str = "cells",
+        nlte_terms: bool | None = None,
+        max_frequency_hz: float | None = None,
+        fixed_dofs=(),
+        eccentric_masses_kg=None,
+        n_table: int = 256,
+        participation_tol: float = 1e-3,
+        qs_max_iter: int = 30,
+    ) -> "Geared3DModel":
+        """Build a 3D model (outside ``jit``: checks, modal basis, k_m, jump angles).
+
+        Parameters
+        ----------
+        structure : :class:`gearjax.structure.Structure` with ``pinion_node`` and
+            ``gear_node`` set; ``K`` must leave the pinion shaft line free in torsion (the
+            motor torque is imposed, the resisting load is a torsional stiffness on the
+            gear line), so that ``K_bar = K + k_m V V^T`` is invertible.
+        mesh : the mesh model.
+        mods : tooth modifications (default none).
+        pinion_torque_Nm : motor torque C_m0 (N m), > 0; F_S = C_m0 / (Rb1 cos b_b).
+        torque_node : node whose torsional dof carries C_m0 (default the pinion node; the
+            Baud-Velex rig uses its motor node).
+        encoder_nodes : nodes (I, II) of the TE encoders (Eq. (9)); default the pinion and
+            gear nodes (Fig. 7 position 1).
+        damping_ratio : unique modal damping factor zeta in [0, 1).
+        formulation : ``"reference"`` (Eq. (14)), ``"te"`` (Eq. (42)) or
+            ``"perturbation"`` (Eq. (48a)).
+        mesh_vectors : ``"cells"`` (V(M_i), paper) or ``"mean"`` (averaged V everywhere:
+            the reference contact and the quasi-static TE_S then use V, Eq. (27)).
+        nlte_terms : keep NLTE in the equations (default: unless NLTE is identically zero).
+        max_frequency_hz : modal cut-off (Hz); None keeps all modes (exact).
+        fixed_dofs : dof indices clamped to zero (removed), e.g. to make a torsional-only
+            structure.
+        eccentric_masses_kg : (m1, m2) for the eccentricity terms; default the masses of
+            the discs at the pinion and gear nodes.
+        n_table : samples per mesh period for k_m and the jump scan.
+        participation_tol : modes whose share of the static mesh compliance
+            ``(phi^T V)^2 / omega^2 / C_vv`` is below this are ignored when sizing the
+            transient (:meth:`decay_rate_per_rad`).
+        qs_max_iter : maximum active-set iterations of the quasi-static solve.
+
+        Raises
+        ------
+        ModelError
+            naming the field, its value and the reason.
+        """
+        from ..structure import reduced_model
+
+        if formulation not in FORMULATIONS:
+            raise ModelError("formulation", formulation, f"must be one of {FORMULATIONS}")
+        if mesh_vectors not in MESH_VECTORS:
+            raise ModelError("mesh_vectors", mesh_vectors, f"must be one of {MESH_VECTORS}")
+        if mods is None:
+            mods = ToothModifications.none()
+        mods.check_against(mesh.pair)
+        torque = float(pinion_torque_Nm)
+        if not (math.isfinite(torque) and torque > 0):
+            raise ModelError("pinion_torque_Nm", pinion_torque_Nm, "must be finite and > 0")
+        zeta = float(damping_ratio)
+        if not (math.isfinite(zeta) and 0.0 <= zeta < 1.0):
+            raise ModelError("damping_ratio", damping_ratio, "must lie in [0, 1)")
+        if structure.pinion_node is None or structure.gear_node is None:
+            raise ModelError("structure", "pinion_node/gear_node", "set them with set_pinion_node/set_gear_node")
+        pn, gn = structure.pinion_node, structure.gear_node
+        torque_node = pn if torque_node is None else int(torque_node)
+        enc = (pn, gn) if encoder_nodes is None else tuple(int(n) for n in encoder_nodes)
+        n_all = structure.n_dof
+        for name, node in (("torque_node", torque_node), ("encoder_nodes[0]", enc[0]), ("encoder_nodes[1]", enc[1])):
+            if not 0 <= node < structure.n_nodes:
+                raise ModelError(name, node, f"not a node of the structure (0..{structure.n_nodes - 1})")
+        M_all = np.asarray(structure.M, dtype=float)
+        K_all = np.asarray(structure.K, dtype=float)
+        fixed = np.unique(np.asarray(fixed_dofs, dtype=int))
+        if fixed.size and (fixed.min() < 0 or fixed.max() >= n_all):
+            raise ModelError("fixed_dofs", fixed_dofs, f"indices must lie in [0, {n_all})")
+        free = np.setdiff1d(np.arange(n_all), fixed)
+        pos = -np.ones(n_all, dtype=int)
+        pos[free] = np.arange(free.size)
+        n = free.size
+        M, K = M_all[np.ix_(free, free)], K_all[np.ix_(free, free)]
+        loc_all = np.concatenate([6 * pn + np.arange(6), 6 * gn + np.arange(6)])
+        loc_free = loc_all[pos[loc_all] >= 0]
+        keep12 = pos[loc_all] >= 0  # which of the 12 element components are free
+
+        pair = mesh.pair
+        rb1, rb2 = pair.base_radii_m
+        cos_bb = math.cos(pair.base_helix_angle_rad)
+        f_s = static_mesh_force(pair, torque)
+
+        # element on the full numbering; restrict vectors to free dofs through a projector
+        el_full = PinionGearElement.at_nodes(mesh, n_all, pn, gn)
+        v_loc12 = np.asarray(el_full.mean_local_vector())
+        mask12 = keep12.astype(float)
+
+        def to_free(vec_all):
+            return np.asarray(vec_all)[free]
+
+        tors = lambda node: 6 * node + 5  # noqa: E731
+        for name, d in (("torque_node", tors(torque_node)), ("encoder_nodes[0]", tors(enc[0])),
+                        ("encoder_nodes[1]", tors(enc[1]))):
+            if pos[d] < 0:
+                raise ModelError(name, d // 6, "its torsional dof is fixed")
+        F0 = np.zeros(n)
+        F0[pos[tors(torque_node)]] = torque
+        W = np.zeros(n)
+        W[pos[tors(enc[0])]] += rb1
+        W[pos[tors(enc[1])]] += rb2
+        V = np.zeros(n)
+        V[pos[loc_free]] = v_loc12[keep12]
+
+        # pinion line must be torsionally free in K (imposed motor torque)
+        lines = structure.node_lines
+        r1 = np.zeros(n_all)
+        r2 = np.zeros(n_all)
+        for node, ln in enumerate(lines):
+            if ln == lines[pn]:
+                r1[tors(node)] = 1.0
+            if ln == lines[gn]:
+                r2[tors(node)] = 1.0
+        r1f, r2f = to_free(r1), to_free(r2)
+        kscale = np.abs(K).max() if np.abs(K).max() > 0 else 1.0
+        if np.abs(K @ r1f).max() > 1e-9 * kscale:
+            raise ModelError(
+                "structure.K", f"line {lines[pn]!r}",
+                "the pinion shaft line must be free in torsion (motor torque imposed, "
+                "resisting load a torsional stiffness on the gear line), Section 6.1",
+            )
+
+        # quasi-static scan with the condensed structure -> k_m
+        el = PinionGearElement.at_nodes(mesh, n_all, pn, gn)
+        cond = _condense(K, F0, W, pos[loc_all], keep12)
+        period = _excitation_period(pair, mods)
+        n_mesh = int(round(period / pair.mesh_period_rad))
+        n_tab = int(n_table) * n_mesh
+        if int(n_table) < 16:
+            raise ModelError("n_table", n_table, "must be >= 16 samples per mesh period")
+        theta_tab = np.arange(n_tab) * (period / n_tab)
+        qs_fn = jax.jit(jax.vmap(lambda t: quasi_static_3d(
+            cond, el, mods, t, f_s, jnp.asarray(v_loc12 * mask12), mesh_vectors, qs_max_iter,
+            jnp.asarray(mask12))))
+        qs = qs_fn(jnp.asarray(theta_tab))
+        if not bool(np.all(np.asarray(qs.converged))):
+            bad = theta_tab[~np.asarray(qs.converged)]
+            raise ModelError("qs_max_iter", qs_max_iter, f"active set did not converge at theta={bad[:3]}")
+        k_m = float(np.mean(np.asarray(qs.loaded_stiffness_N_per_m)))
+        nlte_tab = np.asarray(qs.nlte_m)
+        if nlte_terms is None:
+            nlte_terms = bool(np.max(np.abs(nlte_tab - 0.0)) > 0.0)
+
+        # modal basis of (M, K_bar)
+        kbar = K + k_m * np.outer(V, V)
+        E = np.zeros(n)
+        if nlte_terms:
+            j2 = r2f @ M @ r2f
+            E = M @ r2f / rb2
+            E[pos[tors(torque_node)]] += j2 * rb1 / rb2**2
+        unit = np.zeros((n, loc_free.size))
+        unit[pos[loc_free], np.arange(loc_free.size)] = 1.0
+        loads = np.concatenate([F0[:, None], E[:, None], V[:, None], unit], axis=1)
+        red = reduced_model(M, kbar, loads, max_frequency_hz=max_frequency_hz, zeta=zeta)
+        T = np.asarray(red.basis)
+        kbar_r = np.asarray(red.K)
+        t12 = np.zeros((12, T.shape[1]))
+        t12[keep12] = T[pos[loc_free]]
+        v_r = T.T @ V
+        q0 = np.linalg.solve(kbar_r, T.T @ F0)
+        c_v_r = np.linalg.solve(kbar_r, v_r)
+        omega_r = np.sqrt(np.clip(np.diag(kbar_r), 0.0, None))
+        part = v_r**2 / np.where(omega_r > 0, omega_r, np.inf) ** 2
+        part = part / part.sum()
+        decay_omega = float(np.min(omega_r[part >= participation_tol]))
+        acc_dof = pos[6 * pn + 1]
+        acc_r = T[acc_dof] if acc_dof >= 0 else np.zeros(T.shape[1])
+
+        ecc = None
+        if mods.eccentricity_m is not None and np.any(np.asarray(mods.eccentricity_m) != 0):
+            if eccentric_masses_kg is None:
+                eccentric_masses_kg = (_disc_mass(structure, pn, M_all), _disc_mass(structure, gn, M_all))
+            ecc = _Ecc(jnp.asarray(eccentric_masses_kg, dtype=float), jnp.asarray(mods.eccentricity_m),
+                       jnp.asarray(mods.eccentricity_phase_rad))
+        scale_a = float(np.max(np.abs(f_s * c_v_r)))
+
+        model = cls(
+            mesh=mesh, mods=mods, element=el,
+            t_local=jnp.asarray(t12), kbar_r=jnp.asarray(kbar_r), c_r=jnp.asarray(red.C),
+            omega_r=jnp.asarray(omega_r), v_r=jnp.asarray(v_r), w_r=jnp.asarray(T.T @ W),
+            acc_r=jnp.asarray(acc_r), e_r=jnp.asarray(T.T @ E), q0=jnp.asarray(q0),
+            c_v_r=jnp.asarray(c_v_r), v_local=jnp.asarray(v_loc12 * mask12),
+            free12=jnp.asarray(mask12), cond=cond,
+            k_m=jnp.asarray(k_m), pinion_torque_Nm=jnp.asarray(torque),
+            damping_ratio=jnp.asarray(zeta), scale_a=jnp.asarray(scale_a), ecc=ecc,
+            formulation=formulation, mesh_vectors=mesh_vectors, nlte_terms=bool(nlte_terms),
+            n_modes=int(red.n_modes), n_static=int(red.n_static), period_rad=float(period),
+            jump_thetas=(), decay_omega_rad_s=decay_omega, qs_max_iter=int(qs_max_iter),
+        )
+        jumps = _jump_angles(model, theta_tab, qs)
+        return dataclasses.replace(model, jump_thetas=tuple(float(t) for t in jumps))
+
+    @classmethod
+    def baud_velex(
+        cls,
+        helical: bool = False,
+        mods: ToothModifications | None = None,
+        *,
+        law: str = "iso6336",
+        cells_per_line: int | None = None,
+        encoder_position: int = 1,
+        **kwargs,
+    ) -> "Geared3DModel":
+        """The Baud & Velex rig of Section 6.1 (258 dof, Table 1 gears, Table 2 bearings,
+        254.8 N m on the motor node); ``kwargs`` go to :meth:`build`."""
+        from ..geometry import baud_velex_pair
+        from ..structure import MOTOR_NODE, baud_velex_structure, encoder_nodes
+
+        mesh = Mesh.build(baud_velex_pair(helical), law, cells_per_line=cells_per_line)
+        kwargs.setdefault("torque_node", MOTOR_NODE)
+        kwargs.setdefault("encoder_nodes", encoder_nodes(encoder_position))
+        return cls.build(baud_velex_structure(), mesh, mods, **kwargs)
+
+    # ------------------------------------------------------------------ constants
+    @property
+    def cos_bb(self) -> float:
+        return math.cos(self.mesh.pair.base_helix_angle_rad)
+
+    @property
+    def mesh_period_rad(self) -> float:
+        """One mesh period in theta, 2 pi / z1 (rad)."""
+        return self.mesh.pair.mesh_period_rad
+
+    @property
+    def static_force_N(self):
+        """F_S = C_m0 / (Rb1 cos b_b) (N)."""
+        return self.pinion_torque_Nm / (self.mesh.pair.base_radii_m[0] * self.cos_bb)
+
+    @property
+    def n_reduced(self) -> int:
+        """Number of modal coordinates r (modes + static-correction pseudo-modes)."""
+        return int(self.omega_r.shape[0])
+
+    @property
+    def v_x0(self):
+        """V^T X_0 (m), = F_S / k_m (Eq. (34))."""
+        return self.v_r @ self.q0
+
+    @property
+    def w_x0(self):
+        """W^T X_0 (m), Eq. (30)."""
+        return self.w_r @ self.q0
+
+    @property
+    def c_wv(self):
+        """C_wv = W^T K_bar^-1 V, = 1 / (k_m cos b_b) (Eq. (35))."""
+        return self.w_r @ self.c_v_r
+
+    @property
+    def c_vv(self):
+        """C_vv = V^T K_bar^-1 V, = 1 / k_m (Eq. (33))."""
+        return self.v_r @ self.c_v_r
+
+    def prepare(self) -> "Geared3DModel":
+        """Everything is derived at build time; returns ``self`` (interface of simulate)."""
+        return self
+
+    # ------------------------------------------------------------------ quasi-static
+    def quasi_static(self, theta) -> QuasiStatic3D:
+        """Quasi-static 3D solution (Eq. (25)) at ``theta`` (scalar; vmap for several)."""
+        return quasi_static_3d(self.cond, self.element, self.mods, theta, self.static_force_N,
+                               self.v_local, self.mesh_vectors, self.qs_max_iter, self.free12)
+
+    def _excitation(self, theta):
+        """(d, k) with d = TE_S - NLTE - w_x0 (or TE_S - w_x0 without NLTE terms) and the
+        loaded quasi-static stiffness k(theta), for te/perturbation."""
+        if self.mesh_vectors == "mean":
+            # exact shortcut: V^T X_S is the torsional root (total mesh force F_S), and
+            # X_S = X_0 + phi C_v (Eq. (29)) gives TE_S - NLTE = w_x0 + phi C_wv.
+            cells, de, nlte = contact_gaps(self.mesh, self.mods, theta)
+            y, k_s = unilateral_solve_pairwise(cells.stiffness_N_per_m, de, self.static_force_N)
+            d = (y - self.v_x0) / self.c_vv * self.c_wv
+            if not self.nlte_terms:
+                d = d + nlte
+            return d, k_s
+        qs = self.quasi_static(theta)
+        te = qs.te_s_m if not self.nlte_terms else qs.te_s_m - qs.nlte_m
+        return te - self.w_x0, qs.loaded_stiffness_N_per_m
+
+    def _static_q(self, theta):
+        """Modal coordinates of the quasi-static X_S seen by this formulation."""
+        if self.formulation == "reference":
+            # K X_S = F_0 - f_mesh with K = K_bar - k_m V V^T and V^T X_S = V_l^T x_l
+            qs = self.quasi_static(theta)
+            cells, _, _ = contact_gaps(self.mesh, self.mods, theta)
+            f_loc = self._vectors(cells).T @ qs.cell_load_N
+            rhs = -(self.t_local.T @ f_loc) + self.k_m * self.v_r * (self.v_local @ qs.x_local)
+            return self.q0 + jnp.linalg.solve(self.kbar_r, rhs)
+        d, _ = self._excitation(theta)
+        return self.q0 + d / self.c_wv * self.c_v_r
+
+    # ------------------------------------------------------------------ excitation vectors
+    def _vectors(self, cells):
+        if self.mesh_vectors == "cells":
+            return self.element.cell_vectors(cells) * self.free12
+        return jnp.broadcast_to(self.v_local, (cells.xi_m.shape[0], 12))
+
+    def _ecc_local(self, theta):
+        """(E~, F~, G~) at the 12 element dofs (Eq. (14), see module docstring)."""
+        ecc = self.ecc
+        rb1, rb2 = self.mesh.pair.base_radii_m
+        m1, m2 = ecc.masses_kg[0], ecc.masses_kg[1]
+        e1, e2 = ecc.e_m[0], ecc.e_m[1]
+        psi1 = theta - ecc.phase_rad[0] - 0.5 * math.pi
+        psi2 = ecc.phase_rad[1] - 0.5 * math.pi - theta * rb1 / rb2
+        z = jnp.zeros(())
+        c2, s2 = jnp.cos(psi2), jnp.sin(psi2)
+        # node order (u, v, w, ...): v along s, w along t
+        e_loc = jnp.stack([z, z, z, z, z, z, z, -m2 * e2 / rb2 * s2, m2 * e2 / rb2 * c2, z, z, z])
+        f_loc = jnp.stack([z] * 7 + [2 * m2 * e2 * rb1 / rb2**2 * c2, 2 * m2 * e2 * rb1 / rb2**2 * s2, z, z, z])
+        g2 = m2 * e2 * (rb1 / rb2) ** 2
+        g_loc = jnp.stack([z, -m1 * e1 * jnp.cos(psi1), -m1 * e1 * jnp.sin(psi1), z, z, z,
+                           z, -g2 * c2, -g2 * s2, z, z, z])
+        return e_loc, f_loc, g_loc
+
+    def _inertial(self, theta):
+        """(e(theta), e'(theta), f(theta), g(theta)) in modal coordinates; None when absent."""
+        use_e = self.nlte_terms
+        if self.ecc is None:
+            e = self.e_r if use_e else None
+            return e, (jnp.zeros_like(self.e_r) if use_e else None), None, None
+        tl = self.t_local.T
+
+        def e_fun(t):
+            return self.e_r + tl @ self._ecc_local(t)[0]
+
+        _, f_loc, g_loc = self._ecc_local(theta)
+        g = tl @ g_loc
+        if not use_e:
+            return None, None, None, g
+        e, ep = jax.jvp(e_fun, (theta,), (jnp.ones_like(theta),))
+        return e, ep, tl @ f_loc, g
+
+    def _nlte_derivs(self, theta, order: int = 1):
+        f = lambda t: contact_gaps(self.mesh, self.mods, t)[2]  # noqa: E731
+        one = jnp.ones_like(theta)
+        if order == 1:
+            return jax.jvp(f, (theta,), (one,))
+        d1 = lambda t: jax.jvp(f, (t,), (jnp.ones_like(t),))  # noqa: E731
+        (n0, n1), (_, n2) = jax.jvp(d1, (theta,), (one,))
+        return n0, n1, n2
+
+    # ------------------------------------------------------------------ dynamics
+    def _unscale(self, y, omega):
+        r = self.omega_r / omega
+        nr = self.n_reduced
+        z = y[:nr] * self.scale_a
+        u = y[nr:] * r * self.scale_a
+        return z, u, r
+
+    def _elastic(self, theta, q):
+        """(restoring minus static force in modal coordinates, mesh force F_D (N))."""
+        z = q - self.q0
+        f_s = self.static_force_N
+        if self.formulation == "reference":
+            cells, de, _ = contact_gaps(self.mesh, self.mods, theta)
+            vecs = self._vectors(cells)
+            x_loc = self.t_local @ q
+            loads = cells.stiffness_N_per_m * jnp.maximum(vecs @ x_loc - de, 0.0)
+            f_loc = vecs.T @ loads
+            # K q - F0 = K_bar z - k_m V (V^T q) + k_m v_x0 V ... with K_bar q0 = F0
+            force = self.kbar_r @ z - self.k_m * self.v_r * (self.v_r @ q) + self.t_local.T @ f_loc
+            return force, jnp.sum(loads)
+        d, k = self._excitation(theta)
+        v_q = self.v_r @ q
+        v_xs = self.v_x0 + self.cos_bb * d
+        f_d = f_s + k * (v_q - v_xs)  # Eq. (41)
+        if self.formulation == "te":
+            force = (self.kbar_r @ z + (k - self.k_m) * v_q * self.v_r
+                     - (k * self.cos_bb * d + (k - self.k_m) * f_s / self.k_m) * self.v_r)
+        else:
+            force = self.kbar_r @ z - self.k_m * self.cos_bb * d * self.v_r
+        return force, f_d
+
+    def _accel(self, theta, y, omega):
+        """(q, q', u') for the state y: the equations of motion in modal coordinates."""
+        z, u, r = self._unscale(y, omega)
+        q = self.q0 + z
+        e, ep, f, g = self._inertial(theta)
+        nl1 = None
+        if e is not None:
+            _, nl1 = self._nlte_derivs(theta)
+            qp = u - nl1 * e
+        else:
+            qp = u
+        force, _ = self._elastic(theta, q)
+        up = -(force + omega * (self.c_r @ qp)) / omega**2
+        if e is not None:
+            up = up + nl1 * ep
+            if f is not None:
+                up = up - nl1 * f
+        if g is not None:
+            up = up - g
+        return q, qp, up
+
+    def vector_field(self, theta, y, omega):
+        """d y / d theta for the scaled state ``y = ((q - q_0)/a, u/(r a))`` (module
+        docstring); ``omega`` is the pinion speed Omega1 (rad/s)."""
+        _, qp, up = self._accel(theta, y, omega)
+        r = self.omega_r / omega
+        return jnp.concatenate([qp / self.scale_a, up / (r * self.scale_a)])
+
+    def initial_state(self, omega, theta0=0.0):
+        """Scaled state at ``theta0`` on the quasi-static solution (X_D = X_D' = 0)."""
+        theta0 = jnp.asarray(theta0, dtype=float)
+        qs, qs_p = jax.jvp(self._static_q, (theta0,), (jnp.ones_like(theta0),))
+        e, _, _, _ = self._inertial(theta0)
+        u = qs_p
+        if e is not None:
+            u = u + self._nlte_derivs(theta0)[1] * e
+        r = self.omega_r / omega
+        return jnp.concatenate([(qs - self.q0) / self.scale_a, u / (r * self.scale_a)])
+
+    def outputs(self, theta, y, omega) -> ModelOutputs:
+        """Mesh force F_D (N), DTE = W^T X + NLTE (m) and the pinion-centre acceleration
+        along s (m/s^2) at one angle."""
+        q, qp, up = self._accel(theta, y, omega)
+        _, f_d = self._elastic(theta, q)
+        e, ep, _, _ = self._inertial(theta)
+        qpp = up
+        if e is not None:
+            _, nl1, nl2 = self._nlte_derivs(theta, order=2)
+            qpp = up - nl2 * e - nl1 * ep
+        dte = self.w_r @ q
+        if self.formulation == "reference" or self.nlte_terms:
+            dte = dte + contact_gaps(self.mesh, self.mods, theta)[2]
+        return ModelOutputs(mesh_force_N=f_d, dte_m=dte, accel_m_s2=omega**2 * (self.acc_r @ qpp))
+
+    def decay_rate_per_rad(self, omega):
+        """``zeta omega_min / Omega`` with ``omega_min`` the slowest mode that takes part in
+        the mesh deflection (``participation_tol`` at build)."""
+        return self.damping_ratio * self.decay_omega_rad_s / omega
+
+
+# ---------------------------------------------------------------------- build helpers
+def _condense(K, F0, W, loc_pos, keep12) -> Condensation:
+    """Condensation on the free element dofs, embedded back into 12 components (fixed
+    element dofs get an identity row so that they stay at zero)."""
+    loc_free = loc_pos[keep12]
+    n = K.shape[0]
+    inner = np.setdiff1d(np.arange(n), loc_free)
+    m = loc_free.size
+    perm = np.r_[loc_free, inner]
+    Kp, Fp, Wp = K[np.ix_(perm, perm)], F0[perm], W[perm]
+    kll, kli, kii = Kp[:m, :m], Kp[:m, m:], Kp[m:, m:]
+    if inner.size:
+        try:
+            sol = np.linalg.solve(kii, np.concatenate([Kp[m:, :m], Fp[m:, None]], axis=1))
+        except np.linalg.LinAlgError as exc:
+            raise ModelError("structure.K", "internal block", "singular once the pinion and gear "
+                             "node dofs are held: a shaft line is not supported") from exc
+        rr, xf = sol[:, :m], sol[:, m]
+    else:
+        rr, xf = np.zeros((0, m)), np.zeros(0)
+    k_cc = kll - kli @ rr
+    f_c = Fp[:m] - kli @ xf
+    c_w = Wp[m:] @ xf
+    g_w = Wp[:m] - Wp[m:] @ rr
+    K12 = np.eye(12) * (np.abs(k_cc).max() if k_cc.size else 1.0)
+    idx = np.flatnonzero(keep12)
+    K12[np.ix_(idx, idx)] = k_cc
+    f12 = np.zeros(12)
+    f12[idx] = f_c
+    g12 = np.zeros(12)
+    g12[idx] = g_w
+    return Condensation(jnp.asarray(0.5 * (K12 + K12.T)), jnp.asarray(f12), jnp.asarray(c_w), jnp.asarray(g12))
+
+
+def _disc_mass(structure, node, M_all) -> float:
+    for e in structure.elements_of_kind("disc"):
+        if node in e.nodes:
+            return e.param("mass_kg")
+    return float(M_all[6 * node + 1, 6 * node + 1])
+
+
+def _nonzero(x) -> bool:
+    return bool(np.any(np.asarray(x) != 0.0))
+
+
+def _excitation_period(pair, mods) -> float:
+    """Period of the excitation in theta: lcm of the mesh period and the rotations that
+    carry errors (pinion: z1 mesh periods, gear: z2 mesh periods)."""
+    n = 1
+    if mods.pitch_errors_m is not None:
+        f1, f2 = mods.pitch_errors_m
+        if _nonzero(np.diff(np.asarray(f1))):
+            n = math.lcm(n, pair.z1)
+        if _nonzero(np.diff(np.asarray(f2))):
+            n = math.lcm(n, pair.z2)
+    if mods.eccentricity_m is not None:
+        e = np.asarray(mods.eccentricity_m)
+        if e[0] != 0.0:
+            n = math.lcm(n, pair.z1)
+        if e[1] != 0.0:
+            n = math.lcm(n, pair.z2)
+    return n * pair.mesh_period_rad
+
+
+def _jump_angles(model: Geared3DModel, theta, qs) -> np.ndarray:
+    """Angles in [0, period) where the right-hand side jumps or kinks independently of
+    speed: cell engagement/exit, quasi-static active-set changes (te, perturbation) and
+    changes of the cell realising NLTE; found on the scan grid and refined by bisection."""
+    mesh, mods = model.mesh, model.mods
+    period = model.period_rad
+
+    @jax.jit
+    @jax.vmap
+    def code(t):
+        cells, _, _ = contact_gaps(mesh, mods, t)
+        r = mesh.removed_material(mods, cells, t)
+        arg = jnp.argmin(jnp.where(cells.inside, r, jnp.inf))
+        parts = [cells.inside.astype(jnp.int32), arg[None].astype(jnp.int32)]
+        if model.formulation != "reference":
+            q = model.quasi_static(t)
+            parts.append((q.cell_load_N > 0).astype(jnp.int32))
+        return jnp.concatenate(parts)
+
+    c = np.asarray(code(jnp.asarray(theta)))
+    changed = np.any(c != np.roll(c, -1, axis=0), axis=1)
+    lo = theta[changed]
+    h = period / len(theta)
+    hi = lo + h
+    left = c[changed]
+    if lo.size:
+        for _ in range(48):
+            mid = 0.5 * (lo + hi)
+            same = np.all(np.asarray(code(jnp.asarray(np.mod(mid, period)))) == left, axis=1)
+            lo = np.where(same, mid, lo)
+            hi = np.where(same, hi, mid)
+    ang = np.sort(np.mod(0.5 * (lo + hi), period))
+    if ang.size:
+        keep = np.concatenate([[True], np.diff(ang) > 1e-9 * period])
+        ang = ang[keep]
+    return ang
