@@ -245,7 +245,7 @@ def quasi_static_3d(
     if mesh_vectors == "cells":
         vecs = element.cell_vectors(cells)
         if free_mask is not None:
-            vecs = vecs * free_mask
+            vecs = vecs * free_mask[None, :]
     else:
         vecs = jnp.broadcast_to(v_mean_local, (k.shape[0], 12))
     x, active, it, ok = _active_set_solve(cond, vecs, k, de, active0, max_iter)
@@ -439,7 +439,7 @@ class Geared3DModel(eqx.Module):
 
         # element on the full numbering; restrict vectors to free dofs through a projector
         el_full = PinionGearElement.at_nodes(mesh, n_all, pn, gn)
-        v_loc12 = np.asarray(el_full.mean_local_vector())
+        v_loc12 = np.asarray(eqx.filter_jit(lambda e: e.mean_local_vector())(el_full))
         mask12 = keep12.astype(float)
 
         def to_free(vec_all):
@@ -648,7 +648,7 @@ class Geared3DModel(eqx.Module):
     # ------------------------------------------------------------------ excitation vectors
     def _vectors(self, cells):
         if self.mesh_vectors == "cells":
-            return self.element.cell_vectors(cells) * self.free12
+            return self.element.cell_vectors(cells) * self.free12[None, :]
         return jnp.broadcast_to(self.v_local, (cells.xi_m.shape[0], 12))
 
     def _ecc_local(self, theta):

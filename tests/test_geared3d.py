@@ -1,0 +1,264 @@
+"""3D geared model (Eqs. (14), (25), (42), (48a)) against independent references.
+
+* Appendix A relations on the Baud-Velex rig and on seeded random rigs built with
+  StructureBuilder (numerical linear algebra vs closed forms).
+* A torsional-only structure reproduces the sdof TorsionalModel (a separate code path) for
+  all three formulations, and the 3D quasi-static solve reproduces quasistatic.quasi_static.
+* Eq. (42) reproduces Eq. (14) where the paper says it must (same contact conditions).
+* Modal reduction with static correction agrees with the full modal model.
+"""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from gearjax import Mesh, ToothModifications, baud_velex_pair, quasi_static, table1_relief
+from gearjax.analytic import analytic_relations
+from gearjax.models.element import PinionGearElement
+from gearjax.models.geared3d import Geared3DModel, quasi_static_3d
+from gearjax.models.torsional import ModelError, TorsionalModel, solid_cylinder_inertias
+from gearjax.quasistatic import static_mesh_force
+from gearjax.simulate import simulate
+from gearjax.structure import (
+    MOTOR_NODE,
+    StructureBuilder,
+    baud_velex_structure,
+    encoder_nodes,
+)
+
+TORQUE = 254.8
+
+
+# ---------------------------------------------------------------------- helpers
+def random_rig(seed: int):
+    """A random two-line geared structure: pinion line free in torsion, motor disc at its
+    end, gear line held in torsion by a spring at its far end; random shaft diameters,
+    lengths, bearing stiffnesses and discs. Returns (structure, motor node, encoder
+    candidates on each line)."""
+    rng = np.random.default_rng(seed)
+    n1, n2 = int(rng.integers(5, 9)), int(rng.integers(5, 9))
+    p_node, g_node = int(rng.integers(1, n1 - 1)), n1 + int(rng.integers(1, n2 - 1))
+    b = StructureBuilder(n_nodes=n1 + n2)
+    z1 = np.cumsum(rng.uniform(0.03, 0.12, n1))
+    z1 -= z1[p_node]
+    z2 = np.cumsum(rng.uniform(0.03, 0.12, n2))
+    z2 -= z2[g_node - n1]
+    b.add_shaft(list(range(n1)), positions_m=z1, outer_diameters_m=rng.uniform(0.03, 0.07, n1 - 1),
+                line="pinion", name="p")
+    b.add_shaft(list(range(n1, n1 + n2)), positions_m=z2, outer_diameters_m=rng.uniform(0.04, 0.09, n2 - 1),
+                axis_st_m=(0.366, 0.0), line="gear", name="g")
+    b.add_disc(p_node, mass_kg=rng.uniform(1, 4), transverse_inertia_kg_m2=2e-3, polar_inertia_kg_m2=4e-3)
+    b.add_disc(g_node, mass_kg=rng.uniform(50, 120), transverse_inertia_kg_m2=2.5, polar_inertia_kg_m2=4.7)
+    motor = n1 - 1
+    b.add_disc(motor, mass_kg=rng.uniform(10, 50), transverse_inertia_kg_m2=0.1, polar_inertia_kg_m2=0.15)
+    for lo, hi in ((0, n1), (n1, n1 + n2)):
+        a, c = sorted(rng.choice(np.arange(lo, hi), 2, replace=False))
+        for node in (a, c):
+            b.add_bearing(int(node), *rng.uniform(5e7, 2e9, 2), 0.0)
+        b.add_bearing(int(rng.integers(lo, hi)), 0.0, 0.0, rng.uniform(1e7, 1e8))
+    b.add_torsional_spring_to_ground(n1 + n2 - 1, rng.uniform(5e4, 5e5))
+    b.set_pinion_node(p_node).set_gear_node(g_node)
+    return b.build(), motor, (0, p_node, motor), (n1, g_node, n1 + n2 - 1)
+
+
+def torsional_structure(j1, j2, k_load):
+    """Two inertias: pinion (node 0) free in torsion, gear (node 1) held by a soft
+    torsional spring (the resisting load), every other dof clamped."""
+    b = StructureBuilder(n_nodes=2)
+    b.add_disc(0, mass_kg=1.0, transverse_inertia_kg_m2=1.0, polar_inertia_kg_m2=j1)
+    b.add_disc(1, mass_kg=1.0, transverse_inertia_kg_m2=1.0, polar_inertia_kg_m2=j2)
+    b.add_torsional_spring_to_ground(1, k_load)
+    b.set_node(0, line="pinion").set_node(1, line="gear")
+    b.set_pinion_node(0).set_gear_node(1)
+    fixed = [d for d in range(12) if d not in (5, 11)]
+    return b.build(), fixed
+
+
+def _relations(structure, mesh, motor, enc):
+    el = PinionGearElement.at_nodes(mesh, structure.n_dof, structure.pinion_node, structure.gear_node)
+    V = np.asarray(el.mean_vector())
+    W = np.asarray(el.torsional_vector(structure.dof(enc[0], "theta"), structure.dof(enc[1], "theta")))
+    F0 = np.zeros(structure.n_dof)
+    F0[structure.dof(motor, "theta")] = TORQUE
+    k_m = float(mesh.mean_stiffness(512))
+    f_s = static_mesh_force(mesh.pair, TORQUE)
+    return analytic_relations(structure.K, k_m, V, W, F0, f_s, mesh.pair.base_helix_angle_rad)
+
+
+# ---------------------------------------------------------------------- Appendix A
+@pytest.mark.parametrize("helical", [False, True], ids=["spur", "helical"])
+def test_relations_on_baud_velex_rig(helical):
+    """Eqs. (33)-(35) to 1e-9 and W^T X^_0 independent of the encoder positions (A.10)."""
+    s = baud_velex_structure()
+    mesh = Mesh.build(baud_velex_pair(helical), "iso6336", cells_per_line=4)
+    w_hat = []
+    for pos in (1, 2, 3):
+        r = _relations(s, mesh, MOTOR_NODE, encoder_nodes(pos))
+        assert abs(r.C_vv_times_km - 1) < 1e-9
+        assert abs(r.C_wv_times_km_cos_beta_b - 1) < 1e-9
+        assert abs(r.v_x0_times_km_over_FS - 1) < 1e-9
+        # X^_0 has no bending/axial part (A.7)
+        x_hat = r.X_hat_0.reshape(-1, 6)
+        assert np.abs(x_hat[:, :5]).max() < 1e-9 * np.abs(x_hat[:, 5]).max()
+        w_hat.append(r.w_hat_x0)
+    np.testing.assert_allclose(w_hat, w_hat[0], rtol=1e-9)
+    # (A.10): W^T X^_0 = V^T X_0 / cos(beta_b)
+    np.testing.assert_allclose(w_hat[0], r.v_x0 / math.cos(mesh.pair.base_helix_angle_rad), rtol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_relations_on_random_rigs(seed):
+    s, motor, enc1, enc2 = random_rig(seed)
+    helical = bool(seed % 2)
+    mesh = Mesh.build(baud_velex_pair(helical), "iso6336", cells_per_line=4)
+    w_hat = []
+    for i in enc1:
+        for j in enc2:
+            r = _relations(s, mesh, motor, (i, j))
+            assert abs(r.C_vv_times_km - 1) < 1e-9
+            assert abs(r.C_wv_times_km_cos_beta_b - 1) < 1e-9
+            assert abs(r.v_x0_times_km_over_FS - 1) < 1e-9
+            w_hat.append(r.w_hat_x0)
+    np.testing.assert_allclose(w_hat, w_hat[0], rtol=1e-9)
+
+
+# ---------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module")
+def rig_te():
+    """Baud-Velex spur rig, long relief (NLTE != 0), reduced (6 kHz), coarse cells: te."""
+    return Geared3DModel.baud_velex(False, table1_relief("long"), cells_per_line=4,
+                                    formulation="te", max_frequency_hz=6000.0, n_table=32)
+
+
+def test_model_relations_and_static_balance(rig_te):
+    """The model's reduced-basis C_vv, C_wv, v_x0 obey Eqs. (33)-(35) (static correction is
+    exact), and the 3D quasi-static mesh force balances F_S at every angle."""
+    m = rig_te
+    assert abs(float(m.c_vv * m.k_m) - 1) < 1e-9
+    assert abs(float(m.c_wv * m.k_m * m.cos_bb) - 1) < 1e-9
+    assert abs(float(m.v_x0 * m.k_m / m.static_force_N) - 1) < 1e-9
+    th = m.mesh.theta_grid(16)
+    qs = jax.vmap(m.quasi_static)(th)
+    assert bool(jnp.all(qs.converged))
+    np.testing.assert_allclose(np.asarray(qs.mesh_force_N), float(m.static_force_N), rtol=1e-10)
+    assert np.all(np.asarray(qs.cell_load_N) >= 0)
+    assert float(jnp.max(qs.nlte_m)) > 0  # long relief: NLTE is not zero
+
+
+def test_quasi_static_3d_eq36_with_mean_vector(rig_te):
+    """Eq. (36): V^T X_S = v_x0 + cos b_b (TE_S - NLTE - w_x0) for the averaged V, with the
+    3D active-set solve (it holds only approximately with the cell vectors V(M_i))."""
+    m = rig_te
+    th = m.mesh.theta_grid(16)
+    qs = jax.vmap(lambda t: quasi_static_3d(m.cond, m.element, m.mods, t, m.static_force_N,
+                                            m.v_local, "mean"))(th)
+    rhs = m.v_x0 + m.cos_bb * (qs.te_s_m - qs.nlte_m - m.w_x0)
+    np.testing.assert_allclose(np.asarray(qs.v_xs_m), np.asarray(rhs), rtol=1e-9)
+    # the torsional root is the same mesh approach (pinion line free: total force F_S)
+    qt = quasi_static(m.mesh, m.mods, th, m.static_force_N)
+    np.testing.assert_allclose(np.asarray(qs.v_xs_m), np.asarray(qt.x_s_m) * m.cos_bb, rtol=1e-9)
+
+
+# ---------------------------------------------------------------------- torsional limit
+@pytest.fixture(scope="module")
+def torsional_setup():
+    pair = baud_velex_pair(False)
+    mesh = Mesh.build(pair, "iso6336", cells_per_line=2)
+    mods = table1_relief("long")
+    # J2 kept moderate so that the long relief's NLTE'' terms do not make the teeth separate
+    j1, j2 = solid_cylinder_inertias(pair)[0], 0.05
+    s, fixed = torsional_structure(j1, j2, k_load=10.0)
+    return mesh, mods, (j1, j2), s, fixed
+
+
+def test_quasi_static_matches_torsional(torsional_setup):
+    mesh, mods, _, s, fixed = torsional_setup
+    m = Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, formulation="te", n_table=32)
+    th = mesh.theta_grid(24)
+    qs3 = jax.vmap(m.quasi_static)(th)
+    qs1 = quasi_static(mesh, mods, th, m.static_force_N)
+    np.testing.assert_allclose(np.asarray(qs3.te_s_m), np.asarray(qs1.te_s_m), rtol=1e-9)
+    np.testing.assert_allclose(np.asarray(qs3.nlte_m), np.asarray(qs1.nlte_m), atol=1e-15)
+    np.testing.assert_allclose(np.asarray(qs3.loaded_stiffness_N_per_m),
+                               np.asarray(qs1.loaded_stiffness_N_per_m), rtol=1e-12)
+
+
+@pytest.mark.parametrize("formulation", ["reference", "te", "perturbation"])
+def test_torsional_structure_matches_sdof_model(torsional_setup, formulation):
+    """Two inertias with a soft resisting spring = the sdof model of Section 3 (Eqs. (16),
+    (20), (47a)), long relief so that the NLTE'' terms (E of Eq. (14)) are active."""
+    mesh, mods, inert, s, fixed = torsional_setup
+    kw = dict(damping_ratio=0.05, formulation=formulation)
+    m3 = Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, n_table=256, **kw)
+    m1 = TorsionalModel.build(mesh, mods, inertias_kg_m2=inert, n_table=256, **kw)
+    assert m3.nlte_terms and m1.nlte_terms
+    assert abs(float(m3.k_m / m1.mean_stiffness_N_per_m()) - 1) < 1e-12
+    omega = 450.0
+    run = lambda m: simulate(m, omega, n_transient_periods=12, n_measured_periods=2)  # noqa: E731
+    r3, r1 = run(m3), run(m1)
+    assert bool(r3.solver_ok) and bool(r1.solver_ok)
+    np.testing.assert_allclose(float(r3.max_mesh_force_N), float(r1.max_mesh_force_N), rtol=2e-5)
+    np.testing.assert_allclose(float(r3.min_mesh_force_N), float(r1.min_mesh_force_N), rtol=2e-5)
+    np.testing.assert_allclose(float(r3.dte_ptp_m), float(r1.dte_ptp_m), rtol=2e-4)
+
+
+# ---------------------------------------------------------------------- Eq. (42) vs (14)
+def test_te_formulation_equals_reference_without_contact_changes():
+    """Perfect spur gears (all gaps zero) and the averaged V: the dynamic active set is the
+    quasi-static one, so Eq. (42) is an exact rewriting of Eq. (14) at any speed."""
+    common = dict(cells_per_line=2, mesh_vectors="mean", max_frequency_hz=5000.0, n_table=32)
+    ref = Geared3DModel.baud_velex(False, ToothModifications.none(), formulation="reference", **common)
+    te = Geared3DModel.baud_velex(False, ToothModifications.none(), formulation="te", **common)
+    run = lambda m: simulate(m, 200.0, n_transient_periods=6, n_measured_periods=2)  # noqa: E731
+    a, b = run(ref), run(te)
+    assert not bool(a.contact_loss) and bool(a.solver_ok) and bool(b.solver_ok)
+    for f in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m", "accel_ptp_m_s2"):
+        np.testing.assert_allclose(float(getattr(a, f)), float(getattr(b, f)), rtol=1e-6, err_msg=f)
+    assert float(a.max_mesh_force_N) > 1.02 * float(ref.static_force_N)  # really dynamic
+
+
+def test_te_formulation_at_low_speed_is_quasi_static():
+    """Quasi-static limit: Eq. (42)'s initial state is X_S of Eq. (32) and the reference
+    (Eq. (14), averaged V) state is X_S of Eq. (27): identical, and their mesh forces are
+    F_S (no dynamic part)."""
+    mods = table1_relief("long")
+    common = dict(cells_per_line=2, mesh_vectors="mean", max_frequency_hz=3000.0, n_table=16)
+    ref = Geared3DModel.baud_velex(False, mods, formulation="reference", **common)
+    te = Geared3DModel.baud_velex(False, mods, formulation="te", **common)
+    for th in (0.013, 0.1, 0.2):
+        ya, yb = ref.initial_state(1.0, th), te.initial_state(1.0, th)
+        n = ref.n_reduced
+        np.testing.assert_allclose(np.asarray(ya[:n]), np.asarray(yb[:n]), rtol=1e-6,
+                                   atol=1e-9 * float(jnp.max(jnp.abs(ya[:n]))))
+        fa = float(ref.outputs(th, ya, 1.0).mesh_force_N)
+        fb = float(te.outputs(th, yb, 1.0).mesh_force_N)
+        assert abs(fa / float(ref.static_force_N) - 1) < 1e-9
+        assert abs(fb / float(ref.static_force_N) - 1) < 1e-9
+
+
+# ---------------------------------------------------------------------- reduction, errors
+def test_reduced_model_close_to_full():
+    common = dict(cells_per_line=2, formulation="reference", n_table=32)
+    full = Geared3DModel.baud_velex(False, table1_relief("short"), **common)
+    red = Geared3DModel.baud_velex(False, table1_relief("short"), max_frequency_hz=8000.0, **common)
+    assert red.n_reduced < full.n_reduced
+    run = lambda m: simulate(m, 300.0, n_transient_periods=6, n_measured_periods=2)  # noqa: E731
+    a, b = run(full), run(red)
+    np.testing.assert_allclose(float(a.max_mesh_force_N), float(b.max_mesh_force_N), rtol=2e-3)
+    np.testing.assert_allclose(float(a.dte_ptp_m), float(b.dte_ptp_m), rtol=2e-2)
+
+
+def test_clear_errors(torsional_setup):
+    mesh, mods, _, s, fixed = torsional_setup
+    with pytest.raises(ModelError, match="formulation='eq99'"):
+        Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, formulation="eq99")
+    with pytest.raises(ModelError, match="damping_ratio=1.5"):
+        Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, damping_ratio=1.5)
+    with pytest.raises(ModelError, match="mesh_vectors"):
+        Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, mesh_vectors="avg")
+    grounded = s.with_stiffness(np.diag(np.r_[np.zeros(5), 1e5, np.zeros(6)]), "pinion_ground", (0,))
+    with pytest.raises(ModelError, match="free in torsion"):
+        Geared3DModel.build(grounded, mesh, mods, fixed_dofs=fixed)
