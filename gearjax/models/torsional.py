@@ -1,0 +1,790 @@
+"""Sdof torsional gear model, paper Section 3 (Eqs. (15)-(24)) and Section 5 (Eq. (47a)).
+
+The pinion-gear pair is two rigid inertias ``J1, J2`` (pinion and gear shaft lines) linked by
+the mesh cells of :mod:`gearjax.mesh` (Fig. 2). The single unknown is the transverse elastic
+approach on the base plane ``x = Rb1 theta1 + Rb2 theta2`` (m), written in the angular
+variable ``theta = Omega1 t`` (rad), with ``' = d/dtheta``. Three formulations (a static
+choice, so each compiles only its own terms):
+
+``"reference"`` -- Eq. (16) with instantaneous unilateral contact on every cell::
+
+    Omega^2 m_eq x'' + Omega c x' + cos(b_b) sum_i k_i max(0, x cos(b_b) - de_i)
+        = F_t - Omega^2 (J2 / Rb2^2) NLTE''
+
+``"te"`` -- transmission-error based Eq. (20), with the *loaded* quasi-static stiffness
+``k(theta) = (sum k_i)^S`` (the stiffness of the cells loaded in the quasi-static solution,
+Eqs. (17)-(19))::
+
+    Omega^2 m_eq x'' + Omega c x' + k(theta) cos^2(b_b) x
+        = k(theta) cos^2(b_b) (TE_S - NLTE) - Omega^2 (J2 / Rb2^2) NLTE''
+
+``"perturbation"`` -- main-order perturbation Eq. (47a): the same with the constant
+``k_m``, the mean of ``(sum k_i)^S`` over one period.
+
+Here ``m_eq = J1 J2 / (J1 Rb2^2 + J2 Rb1^2)`` (kg), ``F_t = C_m0 / Rb1`` (N) and the viscous
+damping is ``c = 2 zeta sqrt(k_m cos^2(b_b) m_eq)`` (N s/m), the same ``k_m`` for all three
+formulations so that they differ only in their mesh terms.
+
+Dynamic mesh force
+------------------
+* reference: the sum of the cell forces, Eq. (22), ``F_D = sum_i k_i max(0, x cos b_b - de_i)``.
+* te and perturbation: Eq. (24), ``F_D = F_S + k(theta) cos(b_b) x_D`` with ``x_D = x - x_S``
+  and the *loaded* quasi-static stiffness ``k(theta)`` for both. For the perturbation
+  formulation this is the paper's choice (Section 6.2 evaluates the tooth load of Eq. (48a)
+  through Eq. (41), which holds with the actual mesh stiffness); the alternative
+  ``F_S + k_m cos(b_b) x_D`` (the force that appears in Eq. (47a) itself) differs by
+  ``alpha g k_m cos(b_b) x_D``, i.e. at order alpha, the order that Eq. (47a) neglects.
+
+Excitations: a jump-aware periodic table (default) or inline solves
+------------------------------------------------------------------
+``TE_S``, ``NLTE`` and ``(sum k_i)^S`` do not depend on speed. With ``excitation="table"``
+(default) they are tabulated once per call (inside ``jit``, so they stay differentiable in
+the modifications) by the exact unilateral quasi-static solve at the knots of a
+:class:`PeriodicHermiteTable` -- ``n_table`` uniform knots per mesh period plus, for every
+angle where the quasi-static active set or the cell realising NLTE changes, the two
+adjacent floating-point angles that bracket it (found by bisection at build time) -- with
+their exact slopes (forward-mode AD). Cubic Hermite interpolation between knots is then
+exact at the jumps of ``(sum k_i)^S`` and at the kinks of ``TE_S`` and NLTE (no smearing),
+exact for the piecewise linear/quadratic NLTE of linear/parabolic reliefs, and O(h^4)
+elsewhere. A lookup costs a few flops, against an O(n^2) (or sort-based) unilateral solve
+over the 30 (spur) to 160 (helical) cells per right-hand side with ``excitation="inline"``
+(kept to check the table; about 10x slower per step for the spur pair, measured).
+
+NLTE' and NLTE'' (no-load transmission error derivatives)
+--------------------------------------------------------
+NLTE is a minimum over cells of the removed material: it has kinks (where the tooth pair
+that touches first changes, where a relief starts), so NLTE'' contains Dirac terms that
+automatic differentiation of the sampled function misses, and a spectral derivative with a
+harmonic cut-off H converges only slowly: the sdof response to the inertial forcing
+``-Omega^2 (J2/Rb2^2) NLTE''`` at frequencies well above resonance is
+``x_h = -kappa NLTE_h`` with ``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (about 30
+for the Baud-Velex pair), independent of the harmonic order, so the truncation error of x is
+of the order of ``kappa`` times the tail of the NLTE spectrum (O(1/H) for a kinked NLTE).
+
+We therefore remove NLTE'' *exactly* by a change of variable (``nlte_method="substitution"``,
+the default)::
+
+    z = x + kappa NLTE        =>   Omega^2 m_eq z'' + Omega c (z' - kappa NLTE') + ... = F_t
+
+so the state ``(z, z')`` is continuous and only NLTE (continuous) and NLTE' (piecewise
+smooth, with jumps at the kinks, obtained exactly by forward-mode differentiation of the
+minimum, which picks the active branch) enter the vector field; the kinks are passed to the
+integrator as ``jump_thetas``. The same substitution applies to the 3D model (Eq. (42)) as
+``X = Z - NLTE M^-1 E`` while ``E`` is constant. ``nlte_method="spectral"`` keeps the
+original variable and evaluates NLTE'' from the truncated Fourier series of NLTE sampled
+over one period (``nlte_harmonics`` harmonics of the mesh frequency); it exists to check
+the substitution (the two agree as H grows, see ``tests/test_dynamics_sdof.py``).
+
+``nlte_terms=False`` sets NLTE = 0 in the equations of motion, as the paper's Fig. 10
+"TE-based formulation (with NLTE = 0)": the NLTE'' inertial term is dropped and, in the
+te and perturbation formulations, ``TE_S - NLTE`` is replaced by ``TE_S`` (the model then
+treats TE_S as the static approach and reports ``DTE = x``). In the reference formulation
+only NLTE'' is dropped (the gaps de_i contain the errors). When NLTE is identically zero
+(e.g. spur Table 1 short relief) the default ``nlte_terms=None`` resolves to False and the
+scenario compiles without these terms.
+
+State and scaling
+-----------------
+The integrated state is dimensionless, ``y = (z / x_ref, z' / (r x_ref))`` with
+``x_ref = F_S / (k_m cos b_b)`` (the mean static approach, m) and ``r = omega_n / Omega``
+(``omega_n^2 = k_m cos^2(b_b) / m_eq``), so that a free oscillation has components of equal
+size and ``rtol``/``atol`` of the step-size controller are relative to ``x_ref``. With that
+scaling (``f`` the elastic mesh force over F_t)::
+
+    du/dtheta = r v,    dv/dtheta = -r [ f(theta, x) - 1 + 2 zeta (v - kappa NLTE' / (r x_ref)) ]
+
+Default inertias
+----------------
+Without better data, ``J1, J2`` are solid steel cylinders (rho = 7800 kg/m^3) of the pitch
+radii and the face widths of pinion and gear, ``J = rho pi b r^4 / 2``
+(:func:`solid_cylinder_inertias`; 4.48e-3 and 4.76 kg m^2 for the spur Baud-Velex pair,
+m_eq = 1.81 kg). The 3D rig will supply the real shaft-line values.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Literal
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..geometry import GearPair
+from ..mesh import Mesh
+from ..modifications import ToothModifications
+from ..quasistatic import contact_gaps, static_mesh_force
+
+__all__ = [
+    "TorsionalModel",
+    "ModelOutputs",
+    "ModelError",
+    "FORMULATIONS",
+    "solid_cylinder_inertias",
+    "unilateral_solve_pairwise",
+    "PeriodicHermiteTable",
+]
+
+Formulation = Literal["reference", "te", "perturbation"]
+FORMULATIONS = ("reference", "te", "perturbation")
+NLTE_METHODS = ("substitution", "spectral")
+EXCITATIONS = ("table", "inline")
+STEEL_DENSITY_KG_M3 = 7800.0
+
+
+class ModelError(ValueError):
+    """Invalid model input: the message names the field, its value and the reason."""
+
+    def __init__(self, field: str, value, reason: str):
+        self.field = field
+        self.value = value
+        super().__init__(f"{field}={value!r}: {reason}")
+
+
+def solid_cylinder_inertias(pair: GearPair, density_kg_m3: float = STEEL_DENSITY_KG_M3):
+    """Polar inertias (kg m^2) of solid cylinders at the pitch radii with the face widths.
+
+    ``J_k = rho pi b_k r_k^4 / 2``: the default pinion and gear shaft-line inertias of the
+    sdof model when nothing better is known (steel, rho = 7800 kg/m^3).
+    """
+    r1, r2 = pair.pitch_radii_m
+    return (
+        density_kg_m3 * math.pi * pair.face_width1_m * r1**4 / 2.0,
+        density_kg_m3 * math.pi * pair.face_width2_m * r2**4 / 2.0,
+    )
+
+
+def unilateral_solve_pairwise(k, gap, force):
+    """Exact unilateral contact of parallel springs, without a sort (Eq. (17)).
+
+    Same root as :func:`gearjax.quasistatic.solve_unilateral`: for every active cell j the
+    candidate active set is ``{l : gap_l <= gap_j}`` (a prefix of the gap-sorted cells) and
+    ``y = min_j (F + sum_l k_l gap_l) / sum_l k_l`` over those sets. O(n^2) operations with
+    no data-dependent ordering, which vectorises better than a sort for n <= ~200.
+
+    Parameters
+    ----------
+    k : (n,) cell stiffnesses (N/m); cells with ``k == 0`` are ignored.
+    gap : (n,) initial gaps (m).
+    force : total normal force (N), > 0.
+
+    Returns
+    -------
+    (y, k_loaded) : normal approach (m) and the stiffness of the loaded cells (N/m).
+    """
+    active = k > 0
+    le = (gap[None, :] <= gap[:, None]) & active[None, :]  # [j, l]: l in set of j
+    ksum = jnp.sum(jnp.where(le, k[None, :], 0.0), axis=1)
+    ksg = jnp.sum(jnp.where(le, (k * gap)[None, :], 0.0), axis=1)
+    ok = active & (ksum > 0)
+    y_j = jnp.where(ok, (force + ksg) / jnp.where(ok, ksum, 1.0), jnp.inf)
+    y = jnp.min(y_j)
+    k_loaded = jnp.sum(jnp.where(active & (gap < y), k, 0.0))
+    return y, k_loaded
+
+
+class ModelOutputs(eqx.Module):
+    """Observables at one angle (all scalars).
+
+    Attributes
+    ----------
+    mesh_force_N : dynamic normal mesh force F_D (N), Eqs. (22)/(24).
+    dte_m : dynamic transmission error DTE = x + NLTE (m, transverse on the base plane).
+    accel_m_s2 : acceleration observable (m/s^2), or None when the model has none
+        (torsional model).
+    """
+
+    mesh_force_N: jax.Array
+    dte_m: jax.Array
+    accel_m_s2: jax.Array | None = None
+
+
+class PeriodicHermiteTable(eqx.Module):
+    """Piecewise cubic Hermite interpolation of periodic signals with known jumps.
+
+    Knots cover ``[origin, origin + period]``: a uniform grid of ``n_cells`` intervals plus
+    extra knots (e.g. the two floating-point neighbours of a jump). Values and slopes are
+    given at every knot, so jumps and kinks placed between two adjacent extra knots are
+    reproduced exactly. Lookup is O(1): the uniform cell gives the first knot, at most
+    ``max_extra`` comparisons give the segment.
+
+    Attributes
+    ----------
+    knots : (K,) sorted angles (rad), ``knots[0] = origin``, ``knots[-1] = origin + period``.
+    values, slopes : (K, q) signal values and d/dtheta at the knots.
+    cell_first : (n_cells,) index of the uniform knot opening each cell.
+    origin, period, n_cells, max_extra : static layout.
+    """
+
+    knots: jax.Array
+    values: jax.Array
+    slopes: jax.Array
+    cell_first: jax.Array
+    origin: float = eqx.field(static=True)
+    period: float = eqx.field(static=True)
+    n_cells: int = eqx.field(static=True)
+    max_extra: int = eqx.field(static=True)
+
+    @staticmethod
+    def layout(origin: float, period: float, n_cells: int, extra) -> tuple[np.ndarray, np.ndarray, int]:
+        """Knots (uniform grid + ``extra`` folded into the period), first knot per cell,
+        and the largest number of extra knots in a cell (NumPy, build time)."""
+        grid = origin + np.arange(n_cells + 1) * (period / n_cells)
+        grid[-1] = origin + period
+        extra = np.asarray(extra, dtype=float).reshape(-1)
+        extra = extra[(extra > origin) & (extra < origin + period)]
+        knots = np.unique(np.concatenate([grid, extra]))
+        cell_first = np.searchsorted(knots, grid[:-1], side="left")
+        counts = np.diff(np.concatenate([cell_first, [len(knots) - 1]])) - 1
+        return knots, cell_first, int(max(1, counts.max()))
+
+    def wrap(self, theta):
+        """theta folded into [origin, origin + period)."""
+        return self.origin + jnp.mod(theta - self.origin, self.period)
+
+    def __call__(self, theta):
+        """(values (q,), slopes (q,)) at ``theta`` (rad)."""
+        s = self.wrap(theta)
+        h = self.period / self.n_cells
+        i = jnp.clip(jnp.floor((s - self.origin) / h).astype(jnp.int32), 0, self.n_cells - 1)
+        j0 = self.cell_first[i]
+        last = self.knots.shape[0] - 2
+        cand = jnp.minimum(j0 + 1 + jnp.arange(self.max_extra), last + 1)
+        j = jnp.minimum(j0 + jnp.sum(self.knots[cand] <= s), last)
+        t0, t1 = self.knots[j], self.knots[j + 1]
+        w = jnp.maximum(t1 - t0, 1e-300)
+        u = jnp.clip((s - t0) / w, 0.0, 1.0)
+        v0, v1 = self.values[j], self.values[j + 1]
+        d0, d1 = self.slopes[j] * w, self.slopes[j + 1] * w
+        u2, u3 = u * u, u * u * u
+        val = (2 * u3 - 3 * u2 + 1) * v0 + (u3 - 2 * u2 + u) * d0 + (-2 * u3 + 3 * u2) * v1 + (u3 - u2) * d1
+        der = ((6 * u2 - 6 * u) * v0 + (3 * u2 - 4 * u + 1) * d0 + (-6 * u2 + 6 * u) * v1 + (3 * u2 - 2 * u) * d1) / w
+        return val, der
+
+    def mean(self):
+        """Exact mean over one period of the Hermite interpolant, (q,)."""
+        w = jnp.diff(self.knots)[:, None]
+        v, d = self.values, self.slopes
+        seg = w * (v[:-1] + v[1:]) / 2 + w * w * (d[:-1] - d[1:]) / 12
+        return jnp.sum(seg, axis=0) / self.period
+
+
+class _Derived(eqx.Module):
+    """Quantities derived from the model data inside ``jit`` (see :meth:`prepare`)."""
+
+    table: PeriodicHermiteTable  # columns: x_S (m), (sum k)^S (N/m), NLTE (m)
+    k_m: jax.Array  # mean loaded quasi-static stiffness (N/m)
+    x_ref: jax.Array  # F_S / (k_m cos b_b) (m)
+    omega_n: jax.Array  # sqrt(k_m cos^2 b_b / m_eq) (rad/s)
+    kappa: jax.Array  # J2 / (Rb2^2 m_eq) with the substitution, else 0
+    nlte_dd_coeffs: jax.Array | None  # complex Fourier coefficients of NLTE'' (spectral)
+
+
+_X_S, _K_S, _NLTE = 0, 1, 2
+
+
+class TorsionalModel(eqx.Module):
+    """Sdof torsional model of a gear pair (paper Section 3, Eqs. (16), (20), (47a)).
+
+    Build with :meth:`build`. Array fields are differentiable data; the configuration
+    (formulation, which terms exist, period, jump angles, table layout) is static.
+
+    The simulation interface (used by :func:`gearjax.simulate.simulate`) is
+    :meth:`prepare`, :meth:`initial_state`, :meth:`vector_field`, :meth:`outputs`,
+    :meth:`decay_rate_per_rad`, :attr:`period_rad`, :attr:`mesh_period_rad`,
+    :attr:`jump_thetas`, :attr:`static_force_N`, :attr:`formulation`.
+
+    Attributes
+    ----------
+    mesh : :class:`gearjax.mesh.Mesh` (cells and stiffness law).
+    mods : :class:`gearjax.modifications.ToothModifications`.
+    inertias_kg_m2 : (2,) polar inertias J1, J2 of the pinion and gear shaft lines (kg m^2).
+    pinion_torque_Nm : input torque C_m0 on the pinion (N m), > 0.
+    damping_ratio : zeta in [0, 1), ``c = 2 zeta sqrt(k_m cos^2 b_b m_eq)``.
+    formulation : ``"reference"`` (Eq. (16)), ``"te"`` (Eq. (20)) or ``"perturbation"``
+        (Eq. (47a)).
+    nlte_terms : keep the NLTE terms (see module docstring).
+    nlte_method : ``"substitution"`` (exact, default) or ``"spectral"``.
+    nlte_harmonics : harmonics of the mesh frequency kept by the spectral method.
+    excitation : ``"table"`` (default) or ``"inline"`` quasi-static excitations.
+    period_rad : period of the excitation in theta (rad): one mesh period ``2 pi / z1``
+        without pitch errors or eccentricity, else the common period of the rotations
+        that carry them (one pinion revolution for pinion errors only).
+    jump_thetas : angles in ``[0, period_rad)`` where the right-hand side jumps or kinks
+        independently of speed (cell engagement/exit, quasi-static active-set changes,
+        NLTE kinks); passed to the step-size controller as ``jump_ts``.
+    table_knots, table_cell_first : layout of the excitation table (see
+        :class:`PeriodicHermiteTable`).
+    table_side : (K,) -1 / +1 for the knots just left / right of a jump, 0 elsewhere: the
+        one-sided values there are extrapolated from ``1e-9`` periods inside the branch, so
+        that they do not depend on on which side round-off puts the knot itself.
+    """
+
+    mesh: Mesh
+    mods: ToothModifications
+    inertias_kg_m2: jax.Array
+    pinion_torque_Nm: jax.Array
+    damping_ratio: jax.Array
+    table_knots: jax.Array
+    table_cell_first: jax.Array
+    table_side: jax.Array
+    formulation: str = eqx.field(static=True)
+    nlte_terms: bool = eqx.field(static=True)
+    nlte_method: str = eqx.field(static=True)
+    nlte_harmonics: int = eqx.field(static=True)
+    excitation: str = eqx.field(static=True)
+    period_rad: float = eqx.field(static=True)
+    jump_thetas: tuple = eqx.field(static=True)
+    n_table: int = eqx.field(static=True)
+    table_origin: float = eqx.field(static=True)
+    table_max_extra: int = eqx.field(static=True)
+    derived: _Derived | None = None
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def build(
+        cls,
+        mesh: Mesh,
+        mods: ToothModifications | None = None,
+        *,
+        pinion_torque_Nm: float = 254.8,
+        inertias_kg_m2=None,
+        damping_ratio: float = 0.03,
+        formulation: Formulation = "reference",
+        nlte_terms: bool | None = None,
+        nlte_method: str = "substitution",
+        nlte_harmonics: int = 64,
+        excitation: str = "table",
+        n_table: int = 256,
+    ) -> "TorsionalModel":
+        """Build a torsional model (outside ``jit``: inputs are checked, jump angles found).
+
+        Parameters
+        ----------
+        mesh : the mesh model.
+        mods : tooth modifications (default: none).
+        pinion_torque_Nm : C_m0 (N m), default 254.8 (paper Section 6.1).
+        inertias_kg_m2 : (J1, J2) (kg m^2); default :func:`solid_cylinder_inertias`.
+        damping_ratio : zeta in [0, 1), default 0.03 (paper Section 6.1).
+        formulation : ``"reference"``, ``"te"`` or ``"perturbation"``.
+        nlte_terms : keep NLTE in the equations; None (default) keeps them unless NLTE is
+            identically zero for these modifications.
+        nlte_method : ``"substitution"`` or ``"spectral"`` (see module docstring).
+        nlte_harmonics : mesh harmonics kept by the spectral method.
+        excitation : ``"table"`` or ``"inline"`` (see module docstring).
+        n_table : uniform table knots per mesh period (also the scan used to find jumps).
+
+        Raises
+        ------
+        ModelError
+            for an unknown option, a non-positive torque or inertia, zeta outside [0, 1)
+            or inconsistent sizes.
+        """
+        if formulation not in FORMULATIONS:
+            raise ModelError("formulation", formulation, f"must be one of {FORMULATIONS}")
+        if nlte_method not in NLTE_METHODS:
+            raise ModelError("nlte_method", nlte_method, f"must be one of {NLTE_METHODS}")
+        if excitation not in EXCITATIONS:
+            raise ModelError("excitation", excitation, f"must be one of {EXCITATIONS}")
+        if mods is None:
+            mods = ToothModifications.none()
+        mods.check_against(mesh.pair)
+        torque = float(pinion_torque_Nm)
+        if not (math.isfinite(torque) and torque > 0):
+            raise ModelError(
+                "pinion_torque_Nm", pinion_torque_Nm,
+                "must be finite and > 0 (the contact model loads the drive flanks)",
+            )
+        zeta = float(damping_ratio)
+        if not (math.isfinite(zeta) and 0.0 <= zeta < 1.0):
+            raise ModelError("damping_ratio", damping_ratio, "must lie in [0, 1)")
+        if inertias_kg_m2 is None:
+            inertias_kg_m2 = solid_cylinder_inertias(mesh.pair)
+        inert = np.asarray(inertias_kg_m2, dtype=float)
+        if inert.shape != (2,) or not np.all(np.isfinite(inert)) or np.any(inert <= 0):
+            raise ModelError(
+                "inertias_kg_m2", inertias_kg_m2, "must be two finite positive values (J1, J2)"
+            )
+        n_table = int(n_table)
+        if n_table < 16:
+            raise ModelError("n_table", n_table, "must be >= 16 knots per mesh period")
+        if nlte_method == "spectral" and not (1 <= int(nlte_harmonics) < n_table // 2):
+            raise ModelError(
+                "nlte_harmonics", nlte_harmonics, f"must lie in [1, n_table/2) = [1, {n_table // 2})"
+            )
+        period = _excitation_period(mesh.pair, mods)
+        force = static_mesh_force(mesh.pair, torque)
+        n_mesh = int(round(period / mesh.pair.mesh_period_rad))
+        sig = _signature_fn(mesh, mods, force)
+        theta = np.arange(n_table * n_mesh) * (period / (n_table * n_mesh))
+        scan = {k: np.asarray(v) for k, v in sig(jnp.asarray(theta)).items()}
+        if not np.all(np.isfinite(scan["x_s"])):
+            raise ModelError(
+                "mods", "...", "the quasi-static solve has no contact at some angle "
+                "(modifications larger than the static deflection everywhere?)",
+            )
+        if nlte_terms is None:
+            nlte_terms = bool(np.max(np.abs(scan["nlte"])) > 0.0)
+        # table origin far from every change of the discrete quasi-static state, then the
+        # changes bracketed by adjacent floats *in table coordinates* [origin, origin + P)
+        c0 = _code(scan)
+        coarse = theta[np.any(c0 != np.roll(c0, -1, axis=0), axis=1)]
+        origin = _quiet_origin(coarse, period)
+        grid = origin + theta
+        scan_u = {k: np.asarray(v) for k, v in sig(jnp.asarray(grid)).items()}
+        lo, hi = _signature_brackets(sig, grid, scan_u, period)
+        geo = _engagement_angles(mesh, period)
+        jumps = np.unique(np.mod(np.concatenate([geo, hi]), period))
+        jumps = jumps[np.concatenate([[True], np.diff(jumps) > 1e-12 * period])]
+        if jumps.size > 1 and jumps[-1] > period * (1 - 1e-12) and jumps[0] < 1e-12 * period:
+            jumps = jumps[:-1]
+        lo_u, hi_u = lo, hi
+        knots, cell_first, max_extra = PeriodicHermiteTable.layout(
+            origin, period, n_table * n_mesh, np.concatenate([lo_u, hi_u])
+        )
+        side = np.zeros(knots.shape)
+        side[np.isin(knots, lo_u)] = -1.0
+        side[np.isin(knots, hi_u)] = 1.0
+        return cls(
+            mesh=mesh,
+            mods=mods,
+            inertias_kg_m2=jnp.asarray(inert),
+            pinion_torque_Nm=jnp.asarray(torque),
+            damping_ratio=jnp.asarray(zeta),
+            table_knots=jnp.asarray(knots),
+            table_cell_first=jnp.asarray(cell_first, dtype=jnp.int32),
+            table_side=jnp.asarray(side),
+            formulation=formulation,
+            nlte_terms=bool(nlte_terms),
+            nlte_method=nlte_method,
+            nlte_harmonics=int(nlte_harmonics),
+            excitation=excitation,
+            period_rad=float(period),
+            jump_thetas=tuple(float(t) for t in jumps),
+            n_table=n_table,
+            table_origin=float(origin),
+            table_max_extra=max_extra,
+        )
+
+    # ------------------------------------------------------------------ constants
+    @property
+    def pair(self) -> GearPair:
+        return self.mesh.pair
+
+    @property
+    def cos_bb(self) -> float:
+        return math.cos(self.mesh.pair.base_helix_angle_rad)
+
+    @property
+    def mesh_period_rad(self) -> float:
+        """One mesh period in theta, 2 pi / z1 (rad)."""
+        return self.mesh.pair.mesh_period_rad
+
+    @property
+    def static_force_N(self):
+        """F_S = C_m0 / (Rb1 cos b_b) (N) (Section 3)."""
+        return self.pinion_torque_Nm / (self.pair.base_radii_m[0] * self.cos_bb)
+
+    @property
+    def equivalent_mass_kg(self):
+        """m_eq = J1 J2 / (J1 Rb2^2 + J2 Rb1^2) (kg), Eq. (16)."""
+        j1, j2 = self.inertias_kg_m2[0], self.inertias_kg_m2[1]
+        rb1, rb2 = self.pair.base_radii_m
+        return j1 * j2 / (j1 * rb2**2 + j2 * rb1**2)
+
+    @property
+    def nlte_inertia_ratio(self):
+        """kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2): NLTE'' coefficient of Eq.
+        (16) over m_eq (dimensionless)."""
+        rb2 = self.pair.base_radii_m[1]
+        return self.inertias_kg_m2[1] / (rb2**2 * self.equivalent_mass_kg)
+
+    # ------------------------------------------------------------------ quasi-static
+    def _qs(self, theta):
+        """(x_S, k_S, NLTE) at theta: exact unilateral quasi-static solve (Eq. (17))."""
+        cells, delta_e, nlte = contact_gaps(self.mesh, self.mods, theta)
+        y, k_s = unilateral_solve_pairwise(cells.stiffness_N_per_m, delta_e, self.static_force_N)
+        return jnp.stack([y / self.cos_bb, k_s, nlte])
+
+    def _qs_with_slope(self, theta):
+        theta = jnp.asarray(theta, dtype=float)
+        return jax.jvp(self._qs, (theta,), (jnp.ones((), dtype=float),))
+
+    def prepare(self) -> "TorsionalModel":
+        """Fill the derived quantities (excitation table, k_m, x_ref, omega_n, kappa and the
+        spectral NLTE''). Call inside ``jit`` so that they stay differentiable functions of
+        the model data; idempotent."""
+        if self.derived is not None:
+            return self
+        delta = 1e-9 * self.period_rad
+        at = self.table_knots + self.table_side * delta
+        vals, slopes = jax.vmap(self._qs_with_slope)(at)
+        vals = vals - (self.table_side * delta)[:, None] * slopes  # back to the knot
+        n_mesh = int(round(self.period_rad / self.mesh_period_rad))
+        table = PeriodicHermiteTable(
+            knots=self.table_knots, values=vals, slopes=slopes, cell_first=self.table_cell_first,
+            origin=self.table_origin, period=self.period_rad, n_cells=self.n_table * n_mesh,
+            max_extra=self.table_max_extra,
+        )
+        k_m = table.mean()[_K_S]
+        m_eq = self.equivalent_mass_kg
+        omega_n = jnp.sqrt(k_m * self.cos_bb**2 / m_eq)
+        x_ref = self.static_force_N / (k_m * self.cos_bb)
+        kappa = self.nlte_inertia_ratio if self._substitution else jnp.zeros(())
+        coeffs = None
+        if self.nlte_method == "spectral" and self.nlte_terms:
+            n = self.n_table * n_mesh
+            th = jnp.arange(n) * (self.period_rad / n)
+            nlte = jax.vmap(lambda t: contact_gaps(self.mesh, self.mods, t)[2])(th)
+            c = jnp.fft.rfft(nlte) / n
+            n_keep = self.nlte_harmonics * n_mesh
+            h = jnp.arange(n_keep + 1)
+            w = 2.0 * jnp.pi * h / self.period_rad
+            coeffs = jnp.where(h > 0, -(w**2) * 2.0 * c[: n_keep + 1], 0.0)
+        d = _Derived(table=table, k_m=k_m, x_ref=x_ref, omega_n=omega_n, kappa=kappa,
+                     nlte_dd_coeffs=coeffs)
+        return eqx.tree_at(lambda m: m.derived, self, d, is_leaf=lambda x: x is None)
+
+    def _d(self) -> _Derived:
+        if self.derived is None:
+            raise RuntimeError("call model.prepare() first (simulate() does it for you)")
+        return self.derived
+
+    @property
+    def _substitution(self) -> bool:
+        return self.nlte_terms and self.nlte_method == "substitution"
+
+    def excitations(self, theta):
+        """Tabulated (x_S, (sum k)^S, NLTE) at ``theta`` and their theta-derivatives:
+        two (3,) arrays (m, N/m, m and per rad). Requires :meth:`prepare`."""
+        return self._d().table(theta)
+
+    def natural_frequency_rad_s(self):
+        """omega_n = sqrt(k_m cos^2 b_b / m_eq) (rad/s) with the mean loaded stiffness."""
+        return self.prepare()._d().omega_n
+
+    def mean_stiffness_N_per_m(self):
+        """k_m: mean of the loaded quasi-static stiffness (sum k_i)^S over one period (N/m)."""
+        return self.prepare()._d().k_m
+
+    def _nlte_dd(self, theta):
+        """NLTE'' (m/rad^2) from the truncated Fourier series (spectral method)."""
+        c = self._d().nlte_dd_coeffs
+        h = jnp.arange(c.shape[0])
+        ph = 2.0 * jnp.pi * h * theta / self.period_rad
+        return jnp.sum(jnp.real(c) * jnp.cos(ph) - jnp.imag(c) * jnp.sin(ph))
+
+    # ------------------------------------------------------------------ dynamics
+    def _x_and_slope(self, theta, y, omega, exc):
+        """Physical approach x (m) and x' (m/rad) from the scaled state."""
+        d = self._d()
+        r = d.omega_n / omega
+        z = y[0] * d.x_ref
+        zp = y[1] * r * d.x_ref
+        if self._substitution:
+            val, der = exc
+            return z - d.kappa * val[_NLTE], zp - d.kappa * der[_NLTE]
+        return z, zp
+
+    def _static_part(self, theta, exc):
+        """(x_static, k_S) used by te/perturbation: x_S, or TE_S without NLTE terms."""
+        if self.excitation == "inline":
+            q = self._qs(theta)
+        else:
+            q = exc[0]
+        x_static = q[_X_S] if self.nlte_terms else q[_X_S] + q[_NLTE]
+        return x_static, q[_K_S]
+
+    def _mesh_terms(self, theta, x, exc):
+        """((F_elastic - F_t) / F_t, F_D (N)) at theta for the transverse approach x."""
+        d = self._d()
+        f_s = self.static_force_N
+        if self.formulation == "reference":
+            cells, delta_e, _ = contact_gaps(self.mesh, self.mods, theta)
+            loads = cells.stiffness_N_per_m * jnp.maximum(x * self.cos_bb - delta_e, 0.0)
+            f_d = jnp.sum(loads)  # Eq. (22)
+            return f_d / f_s - 1.0, f_d
+        x_static, k_s = self._static_part(theta, exc)
+        x_d = x - x_static
+        stiff = k_s if self.formulation == "te" else d.k_m
+        f_d = f_s + k_s * self.cos_bb * x_d  # Eq. (24), loaded stiffness for both
+        return stiff * self.cos_bb * x_d / f_s, f_d
+
+    def _exc(self, theta):
+        needs = self._substitution or (self.formulation != "reference" and self.excitation == "table")
+        return self._d().table(theta) if needs else None
+
+    def vector_field(self, theta, y, omega):
+        """dy/dtheta for the scaled state ``y = (z/x_ref, z'/(r x_ref))``, Eqs. (16), (20),
+        (47a) (see module docstring); ``omega`` is the pinion speed Omega1 (rad/s)."""
+        d = self._d()
+        r = d.omega_n / omega
+        exc = self._exc(theta)
+        x, xp = self._x_and_slope(theta, y, omega, exc)
+        resid, _ = self._mesh_terms(theta, x, exc)
+        acc = -r * (resid + 2.0 * self.damping_ratio * xp / (r * d.x_ref))
+        if self.nlte_terms and self.nlte_method == "spectral":
+            acc = acc - self.nlte_inertia_ratio * self._nlte_dd(theta) / (r * d.x_ref)
+        return jnp.stack([r * y[1], acc])
+
+    def initial_state(self, omega, theta0=0.0):
+        """Scaled state at ``theta0`` on the quasi-static solution: x = x_S, x' = x_S'
+        (dynamic part x_D = x_D' = 0)."""
+        d = self._d()
+        r = d.omega_n / omega
+        val, der = d.table(jnp.asarray(theta0, dtype=float))
+        x_s, x_s_p = val[_X_S], der[_X_S]
+        if self.formulation != "reference" and not self.nlte_terms:
+            x_s, x_s_p = x_s + val[_NLTE], x_s_p + der[_NLTE]
+        if self._substitution:
+            x_s = x_s + d.kappa * val[_NLTE]
+            x_s_p = x_s_p + d.kappa * der[_NLTE]
+        return jnp.stack([x_s / d.x_ref, x_s_p / (r * d.x_ref)])
+
+    def outputs(self, theta, y, omega) -> ModelOutputs:
+        """Mesh force F_D (N, Eq. (22) or (24)) and DTE = x + NLTE (m) at one angle."""
+        exc = self._d().table(theta)
+        x, _ = self._x_and_slope(theta, y, omega, exc)
+        _, f_d = self._mesh_terms(theta, x, exc)
+        if self.formulation != "reference" and not self.nlte_terms:
+            dte = x  # NLTE = 0 in this model (paper Fig. 10)
+        else:
+            dte = x + exc[0][_NLTE]
+        return ModelOutputs(mesh_force_N=f_d, dte_m=dte, accel_m_s2=None)
+
+    def decay_rate_per_rad(self, omega):
+        """Free-decay rate of the linearised model per radian of theta,
+        ``zeta omega_n / Omega`` (sizes the automatic transient)."""
+        return self.damping_ratio * self._d().omega_n / omega
+
+
+# ---------------------------------------------------------------------- build helpers
+def _nonzero(x) -> bool:
+    return bool(np.any(np.asarray(x) != 0.0))
+
+
+def _excitation_period(pair: GearPair, mods: ToothModifications) -> float:
+    """Period of the excitation in theta: lcm of the mesh period and the rotations that
+    carry errors (pinion: z1 mesh periods, gear: z2 mesh periods)."""
+    n = 1
+    if mods.pitch_errors_m is not None:
+        f1, f2 = mods.pitch_errors_m
+        if _nonzero(np.diff(np.asarray(f1))):
+            n = math.lcm(n, pair.z1)
+        if _nonzero(np.diff(np.asarray(f2))):
+            n = math.lcm(n, pair.z2)
+    if mods.eccentricity_m is not None:
+        e = np.asarray(mods.eccentricity_m)
+        if e[0] != 0.0:
+            n = math.lcm(n, pair.z1)
+        if e[1] != 0.0:
+            n = math.lcm(n, pair.z2)
+    if n > 4 * max(pair.z1, pair.z2):
+        warnings.warn(
+            f"the excitation period is {n} mesh periods (errors on both gears give the "
+            "hunting period): simulations over whole periods will be costly",
+            stacklevel=3,
+        )
+    return n * pair.mesh_period_rad
+
+
+def _signature_fn(mesh, mods, force):
+    """Jitted, vmapped discrete state of the quasi-static solution at angles theta: loaded
+    cells, the cell realising NLTE, and, per cell, inside/outside the path of contact and
+    inside/outside each tip-relief zone (where the gaps, hence TE_S and NLTE, have kinks;
+    the zones follow :mod:`gearjax.modifications`)."""
+    p = mesh.pair
+    cos_bb = math.cos(p.base_helix_angle_rad)
+    xi_a, xi_e = p.contact_limits_m
+    ext = np.asarray(mods.relief_extent, dtype=float) * p.path_of_contact_m
+    has_relief = np.asarray(mods.relief_amplitude_m, dtype=float) > 0
+
+    @jax.jit
+    @jax.vmap
+    def sig(theta):
+        cells, delta_e, nlte = contact_gaps(mesh, mods, theta)
+        k = cells.stiffness_N_per_m
+        y, _ = unilateral_solve_pairwise(k, delta_e, force)
+        r = mesh.removed_material(mods, cells, theta)
+        zone = jnp.zeros(cells.xi_m.shape, dtype=jnp.int32)
+        if has_relief[0]:
+            zone = zone + (cells.xi_m > xi_e - ext[0]).astype(jnp.int32)
+        if has_relief[1]:
+            zone = zone + 2 * (cells.xi_m < xi_a + ext[1]).astype(jnp.int32)
+        return {
+            "loaded": (k > 0) & (delta_e < y),
+            "nlte_arg": jnp.argmin(jnp.where(cells.inside, r, jnp.inf)),
+            "inside": cells.inside,
+            "zone": jnp.where(cells.inside, zone, -1),
+            "nlte": nlte,
+            "x_s": y / cos_bb,
+        }
+
+    return sig
+
+
+def _code(d) -> np.ndarray:
+    n = np.asarray(d["nlte_arg"]).shape[0]
+    parts = [np.asarray(d["nlte_arg"]).reshape(n, 1)]
+    parts += [np.asarray(d[k]).reshape(n, -1) for k in ("loaded", "inside", "zone")]
+    return np.concatenate([q.astype(np.int64) for q in parts], axis=1)
+
+
+def _signature_brackets(sig, theta, scan, period):
+    """Pairs of adjacent floats (lo, hi), ``theta[0] <= lo < hi <= theta[0] + period``,
+    bracketing every change of the quasi-static active set or of the cell realising NLTE:
+    bisection from the uniform scan ``theta`` (several changes in one scan interval are
+    found one after the other)."""
+    c = _code(scan)
+    nxt = np.roll(c, -1, axis=0)
+    changed = np.any(c != nxt, axis=1)
+    h = period / len(theta)
+    a = theta[changed].copy()
+    b = a + h
+    ca, cb = c[changed], nxt[changed]
+    los, his = [], []
+    for _ in range(64):  # rounds: one change per open interval per round
+        if a.size == 0:
+            break
+        lo, hi = a.copy(), b.copy()
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            interior = (mid > lo) & (mid < hi)
+            if not np.any(interior):
+                break
+            same = np.all(_code(sig(jnp.asarray(mid))) == ca, axis=1)
+            lo = np.where(interior & same, mid, lo)
+            hi = np.where(interior & ~same, mid, hi)
+        los.append(lo)
+        his.append(hi)
+        c_hi = _code(sig(jnp.asarray(hi)))
+        more = np.any(c_hi != cb, axis=1)  # another change between hi and b
+        a, b, ca, cb = hi[more], b[more], c_hi[more], cb[more]
+    if not los:
+        return np.zeros(0), np.zeros(0)
+    return np.concatenate(los), np.concatenate(his)
+
+
+def _engagement_angles(mesh, period) -> np.ndarray:
+    """Angles where cells enter (xi = xi_start) or leave (xi = xi_end) the path of contact:
+    ``Rb1 theta - n p_bt - eta tan(b_b) = 0`` or ``g_alpha`` (see :mod:`gearjax.mesh`)."""
+    p = mesh.pair
+    pm = p.mesh_period_rad
+    n_mesh = int(round(period / pm))
+    eta = (np.arange(mesh.cells_per_line) + 0.5) * (p.face_width_m / mesh.cells_per_line)
+    shift = eta * math.tan(abs(p.base_helix_angle_rad))
+    base = np.concatenate([shift, shift + p.path_of_contact_m]) / p.base_radii_m[0]
+    k = np.arange(-int(np.ceil(base.max() / pm)) - 1, n_mesh + 1)
+    return np.mod((base[None, :] + pm * k[:, None]).ravel(), period)
+
+
+def _quiet_origin(points, period) -> float:
+    """A table origin far from every jump (middle of the widest gap between them)."""
+    if len(points) == 0:
+        return 0.0
+    p = np.sort(np.mod(points, period))
+    gaps = np.diff(np.concatenate([p, [p[0] + period]]))
+    i = int(np.argmax(gaps))
+    return float(np.mod(p[i] + 0.5 * gaps[i], period))

@@ -1,0 +1,335 @@
+"""Steady-state dynamic response at one pinion speed: diffrax in theta = Omega1 t.
+
+:func:`simulate` works for any model exposing the simulation interface (the torsional model
+:class:`gearjax.models.torsional.TorsionalModel` today, the 3D model later):
+
+``prepare()``
+    returns the model with its derived quantities filled (called inside ``jit``).
+``initial_state(omega)``
+    state at theta = 0 with the quasi-static deflection X_S (dynamic part zero).
+``vector_field(theta, y, omega)``
+    dy/dtheta.
+``outputs(theta, y, omega)``
+    a :class:`~gearjax.models.torsional.ModelOutputs` (mesh force, DTE, acceleration or
+    None).
+``decay_rate_per_rad(omega)``
+    slowest free-decay rate per radian of theta (sizes the automatic transient).
+``period_rad``, ``mesh_period_rad``, ``jump_thetas``, ``static_force_N``, ``formulation``.
+
+Integration scheme
+------------------
+1. *Transient*: one ``diffeqsolve`` from theta = 0 over ``n_transient`` excitation periods,
+   saving only the final state. ``n_transient`` is either given, or (``None``) chosen per
+   speed so that the free response of the linearised model decays by ``transient_decay``:
+   ``n = ceil(ln(1/transient_decay) / (decay_rate * period))`` clipped to
+   ``[min_transient_periods, max_transient_periods]``. The number of integration steps per
+   radian grows like ``1/Omega`` while the periods needed for the decay grow like
+   ``Omega``, so the automatic length gives every speed about the same cost -- which is what
+   a vmapped sweep wants, because diffrax runs the batch in lockstep and the slowest speed
+   sets the cost.
+2. *Measured periods*: a ``lax.scan`` over ``n_measured_periods`` windows of one period;
+   each window is one ``diffeqsolve`` that saves the state on a uniform grid of
+   ``samples_per_mesh_period`` points per mesh period by dense (interpolated) output, which
+   does not constrain the step size. The model outputs are evaluated on the grid and
+   reduced to per-period extrema immediately; only those (and, optionally, the signals) are
+   kept.
+
+Jumps: the right-hand side of a gear model jumps or kinks at angles that do not depend on
+speed (cell engagement, quasi-static active-set changes, NLTE kinks), given by
+``model.jump_thetas`` in one period; each window passes them, shifted, to the step-size
+controller as ``jump_ts`` (``PIDController(jump_ts=...)``), so that steps end on them and
+the error estimate never straddles a discontinuity. State-dependent kinks of the reference
+contact law (cells losing or regaining contact) are left to the error control.
+
+Metrics (per speed): max and min mesh force, dynamic factor ``max F_D / F_S``, DTE and
+acceleration peak-to-peak over all measured periods, a contact-loss flag (``min F_D <= 0``:
+total separation of the teeth for the reference formulation, a tensile -- unphysical --
+mesh force for the linear te/perturbation formulations), the convergence measure (the
+largest relative change of the per-period extrema between the last two measured periods,
+forces relative to F_S, DTE relative to the DTE peak-to-peak) and ``converged``
+(``convergence <= convergence_tol`` and the solver succeeded). A failed integration (step
+limit, non-finite state) gives ``solver_ok = False``, ``converged = False`` and NaN metrics:
+never a silent NaN.
+
+All operations on the metric path are differentiable (max/min over the sampled grid are
+exact maxima of the samples); pass ``adjoint=diffrax.ForwardMode()`` (default) for
+forward-mode derivatives through the solve.
+"""
+
+from __future__ import annotations
+
+import math
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["simulate", "SimulationResult", "Signals", "default_solver", "SimulationError"]
+
+
+class SimulationError(ValueError):
+    """Invalid simulation input: names the field, its value and the reason."""
+
+    def __init__(self, field: str, value, reason: str):
+        self.field = field
+        self.value = value
+        super().__init__(f"{field}={value!r}: {reason}")
+
+
+# Solver and tolerances per formulation, chosen by measurement (see module
+# ``benchmarks/bench_sweep_sdof.py`` and the docstring of :func:`default_solver`).
+_DEFAULTS = {
+    "reference": ("dopri8", 1e-7, 1e-9),
+    "te": ("dopri8", 1e-7, 1e-9),
+    "perturbation": ("dopri8", 1e-7, 1e-9),
+}
+
+_SOLVERS = {
+    "tsit5": diffrax.Tsit5,
+    "dopri5": diffrax.Dopri5,
+    "dopri8": diffrax.Dopri8,
+    "bosh3": diffrax.Bosh3,
+}
+
+
+def default_solver(formulation: str):
+    """(solver, rtol, atol) used when :func:`simulate` is given none, for a formulation.
+
+    rtol/atol act on the dimensionless state (lengths relative to the mean static approach
+    x_ref). See the module docstring of :mod:`gearjax.simulate` for the measurements.
+    """
+    name, rtol, atol = _DEFAULTS.get(formulation, _DEFAULTS["reference"])
+    return _SOLVERS[name](), rtol, atol
+
+
+class Signals(eqx.Module):
+    """Time signals over the measured periods (leading axis: samples)."""
+
+    theta_rad: jax.Array
+    mesh_force_N: jax.Array
+    dte_m: jax.Array
+    accel_m_s2: jax.Array | None
+
+
+class SimulationResult(eqx.Module):
+    """Steady-state metrics at one speed (scalars; a leading speed axis after vmap).
+
+    Attributes
+    ----------
+    speed_rad_s : pinion speed Omega1 (rad/s).
+    max_mesh_force_N, min_mesh_force_N : extrema of the dynamic mesh force F_D (N).
+    dynamic_factor : max F_D / F_S.
+    dte_ptp_m : peak-to-peak dynamic transmission error (m).
+    accel_ptp_m_s2 : peak-to-peak acceleration (m/s^2); NaN for models without one.
+    contact_loss : min F_D <= 0 over the measured periods.
+    convergence : largest relative change of per-period extrema between the last two
+        measured periods.
+    converged : convergence <= tolerance and solver_ok.
+    solver_ok : the integration succeeded with finite states.
+    n_steps : accepted + rejected steps of all windows.
+    transient_periods : excitation periods integrated before measuring.
+    signals : :class:`Signals` or None.
+    """
+
+    speed_rad_s: jax.Array
+    max_mesh_force_N: jax.Array
+    min_mesh_force_N: jax.Array
+    dynamic_factor: jax.Array
+    dte_ptp_m: jax.Array
+    accel_ptp_m_s2: jax.Array
+    contact_loss: jax.Array
+    convergence: jax.Array
+    converged: jax.Array
+    solver_ok: jax.Array
+    n_steps: jax.Array
+    transient_periods: jax.Array
+    signals: Signals | None = None
+
+
+def _controller(rtol, atol, jump_ts):
+    return diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.0, icoeff=1.0, jump_ts=jump_ts)
+
+
+def simulate(
+    model,
+    omega,
+    n_transient_periods: int | None = None,
+    n_measured_periods: int = 3,
+    *,
+    solver=None,
+    rtol: float | None = None,
+    atol: float | None = None,
+    save_signals: bool = False,
+    samples_per_mesh_period: int = 128,
+    transient_decay: float = 1e-6,
+    min_transient_periods: int = 8,
+    max_transient_periods: int = 400,
+    convergence_tol: float = 1e-3,
+    max_steps: int = 2_000_000,
+    adjoint=None,
+) -> SimulationResult:
+    """Integrate ``model`` at pinion speed ``omega`` to steady state and measure it.
+
+    Jit- and vmap-compatible in ``omega`` (and in the array data of ``model``); all other
+    arguments are static configuration.
+
+    Parameters
+    ----------
+    model : a model with the simulation interface (module docstring).
+    omega : pinion speed Omega1 (rad/s), > 0.
+    n_transient_periods : excitation periods integrated before measuring; ``None`` chooses
+        them per speed from the model's decay rate (module docstring).
+    n_measured_periods : periods over which metrics are taken (>= 2 for the convergence
+        measure).
+    solver, rtol, atol : diffrax solver and tolerances on the dimensionless state; default
+        :func:`default_solver` for the model's formulation.
+    save_signals : also return the sampled signals over the measured periods.
+    samples_per_mesh_period : output grid density (extrema are maxima over this grid).
+    transient_decay, min_transient_periods, max_transient_periods : automatic transient.
+    convergence_tol : threshold on ``convergence`` for ``converged``.
+    max_steps : step limit of each ``diffeqsolve`` (exceeded -> ``solver_ok=False``).
+    adjoint : diffrax adjoint, default ``diffrax.ForwardMode()``.
+
+    Returns
+    -------
+    SimulationResult
+
+    Raises
+    ------
+    SimulationError
+        for a concrete non-positive or non-finite speed or inconsistent configuration.
+    """
+    _check_config(n_transient_periods, n_measured_periods, samples_per_mesh_period,
+                  transient_decay, min_transient_periods, max_transient_periods)
+    if not isinstance(omega, jax.core.Tracer):
+        w = np.asarray(omega, dtype=float)
+        if w.ndim != 0:
+            raise SimulationError("omega", w.shape, "simulate takes one speed; use sweep()")
+        if not (np.isfinite(w) and w > 0):
+            raise SimulationError("omega", float(w), "pinion speed must be finite and > 0 (rad/s)")
+    if hasattr(model, "prepare"):
+        model = model.prepare()
+    d_solver, d_rtol, d_atol = default_solver(getattr(model, "formulation", "reference"))
+    solver = d_solver if solver is None else solver
+    rtol = d_rtol if rtol is None else rtol
+    atol = d_atol if atol is None else atol
+    adjoint = diffrax.ForwardMode() if adjoint is None else adjoint
+
+    omega = jnp.asarray(omega, dtype=float)
+    period = float(model.period_rad)
+    jumps = np.asarray(model.jump_thetas, dtype=float)
+    n_mesh = int(round(period / model.mesh_period_rad))
+    n_samples = samples_per_mesh_period * n_mesh
+    term = diffrax.ODETerm(lambda t, y, args: model.vector_field(t, y, args))
+
+    # ---------------------------------------------------------------- transient
+    if n_transient_periods is None:
+        rate = model.decay_rate_per_rad(omega)
+        n_auto = jnp.ceil(math.log(1.0 / transient_decay) / (rate * period))
+        n_tr = jnp.clip(jnp.nan_to_num(n_auto, nan=max_transient_periods),
+                        min_transient_periods, max_transient_periods)
+        n_max = max_transient_periods
+    else:
+        n_tr = jnp.asarray(float(n_transient_periods))
+        n_max = int(n_transient_periods)
+    t_tr = n_tr * period
+    y0 = model.initial_state(omega)
+    if n_max > 0:
+        jt = (np.arange(n_max)[:, None] * period + jumps[None, :]).ravel()
+        jt = jt[(jt > 0)]
+        sol = diffrax.diffeqsolve(
+            term, solver, t0=0.0, t1=t_tr, dt0=None, y0=y0, args=omega,
+            saveat=diffrax.SaveAt(t1=True),
+            stepsize_controller=_controller(rtol, atol, jnp.asarray(jt)),
+            max_steps=max_steps, adjoint=adjoint, throw=False,
+        )
+        y_start = sol.ys[-1]
+        ok0 = sol.result == diffrax.RESULTS.successful
+        steps0 = sol.stats["num_steps"]
+    else:
+        y_start, ok0, steps0 = y0, jnp.asarray(True), jnp.asarray(0)
+
+    # ---------------------------------------------------------------- measured periods
+    grid = jnp.arange(n_samples) * (period / n_samples)
+    wjumps = jnp.asarray(np.concatenate([jumps[jumps > 0], [period]]))
+
+    def window(carry, k):
+        y, ok, steps = carry
+        t0 = t_tr + k * period
+        ts = t0 + grid
+        sol = diffrax.diffeqsolve(
+            term, solver, t0=t0, t1=t0 + period, dt0=None, y0=y, args=omega,
+            saveat=diffrax.SaveAt(ts=ts, t1=True),
+            stepsize_controller=_controller(rtol, atol, t0 + wjumps),
+            max_steps=max_steps, adjoint=adjoint, throw=False,
+        )
+        ys = sol.ys
+        out = jax.vmap(lambda t, yy: model.outputs(t, yy, omega))(ts, ys[:-1])
+        ext = [jnp.max(out.mesh_force_N), jnp.min(out.mesh_force_N),
+               jnp.max(out.dte_m), jnp.min(out.dte_m)]
+        acc = out.accel_m_s2
+        if acc is not None:
+            ext += [jnp.max(acc), jnp.min(acc)]
+        ok = ok & (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(ys))
+        sig = (ts, out.mesh_force_N, out.dte_m, acc) if save_signals else None
+        return (ys[-1], ok, steps + sol.stats["num_steps"]), (jnp.stack(ext), sig)
+
+    (_, ok, steps), (ext, sig) = jax.lax.scan(
+        window, (y_start, ok0, steps0), jnp.arange(n_measured_periods, dtype=float)
+    )
+    f_s = model.static_force_N
+    f_max = jnp.max(ext[:, 0])
+    f_min = jnp.min(ext[:, 1])
+    dte_ptp = jnp.max(ext[:, 2]) - jnp.min(ext[:, 3])
+    has_acc = ext.shape[1] > 4
+    acc_ptp = jnp.max(ext[:, 4]) - jnp.min(ext[:, 5]) if has_acc else jnp.asarray(jnp.nan)
+    # convergence: last two periods; forces / F_S, DTE / DTE ptp, accel / accel ptp
+    scales = [f_s, f_s, dte_ptp, dte_ptp] + ([acc_ptp, acc_ptp] if has_acc else [])
+    scales = jnp.stack([jnp.maximum(jnp.abs(s), 1e-300) for s in scales])
+    if n_measured_periods >= 2:
+        conv = jnp.max(jnp.abs(ext[-1] - ext[-2]) / scales)
+    else:
+        conv = jnp.asarray(jnp.inf)
+    finite = jnp.isfinite(f_max) & jnp.isfinite(f_min) & jnp.isfinite(dte_ptp)
+    ok = ok & finite
+    nan = jnp.asarray(jnp.nan)
+    bad = lambda v: jnp.where(ok, v, nan)
+    signals = None
+    if save_signals:
+        ts, fd, dte, acc = sig
+        signals = Signals(
+            theta_rad=ts.reshape(-1), mesh_force_N=fd.reshape(-1), dte_m=dte.reshape(-1),
+            accel_m_s2=None if acc is None else acc.reshape(-1),
+        )
+    return SimulationResult(
+        speed_rad_s=omega,
+        max_mesh_force_N=bad(f_max),
+        min_mesh_force_N=bad(f_min),
+        dynamic_factor=bad(f_max / f_s),
+        dte_ptp_m=bad(dte_ptp),
+        accel_ptp_m_s2=bad(acc_ptp) if has_acc else nan,
+        contact_loss=ok & (f_min <= 0.0),
+        convergence=jnp.where(ok, conv, jnp.inf),
+        converged=ok & (conv <= convergence_tol),
+        solver_ok=ok,
+        n_steps=steps,
+        transient_periods=n_tr,
+        signals=signals,
+    )
+
+
+def _check_config(n_tr, n_meas, n_samp, decay, n_min, n_max):
+    if n_tr is not None and (int(n_tr) != n_tr or n_tr < 0):
+        raise SimulationError("n_transient_periods", n_tr, "must be None or an integer >= 0")
+    if int(n_meas) != n_meas or n_meas < 1:
+        raise SimulationError("n_measured_periods", n_meas, "must be an integer >= 1")
+    if int(n_samp) != n_samp or n_samp < 4:
+        raise SimulationError("samples_per_mesh_period", n_samp, "must be an integer >= 4")
+    if not (0.0 < decay < 1.0):
+        raise SimulationError("transient_decay", decay, "must lie in (0, 1)")
+    if not (0 <= n_min <= n_max):
+        raise SimulationError(
+            "min_transient_periods", n_min, f"must satisfy 0 <= min <= max_transient_periods={n_max}"
+        )

@@ -1,0 +1,289 @@
+"""Speed sweeps: one jitted, vmapped :func:`gearjax.simulate.simulate` per chunk of speeds.
+
+* The speeds are the only batched input, so a new set of speeds (same chunk size) never
+  recompiles: the model's array data and the speeds are traced, only its static structure
+  (formulation, which terms exist, jump angles) and the simulation options are compiled in.
+  Chunks are padded to ``chunk_size`` by repeating the last speed.
+* Progress is printed per chunk to stderr; rows are appended to ``out_csv`` as chunks
+  complete (a header is written when the file is new or empty).
+* With several JAX devices the batch is split across them with ``jax.shard_map`` over a
+  1-D device mesh (each device runs its own vmapped, lockstep integration; no cross-device
+  synchronisation inside the solver loop). Speeds are padded to a multiple of
+  ``chunk_size`` (itself a multiple of the device count) and *interleaved*: the speeds are
+  sorted by estimated cost (low speeds cost more per period) and dealt round-robin, so every
+  device gets a similar mix, then the results are put back in the caller's order.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import sys
+import time
+from functools import partial
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .simulate import SimulationError, SimulationResult, simulate
+
+__all__ = ["sweep", "SweepResult", "CSV_COLUMNS"]
+
+CSV_COLUMNS = (
+    "speed_rad_s",
+    "formulation",
+    "max_mesh_force_N",
+    "dynamic_factor",
+    "dte_ptp_m",
+    "accel_ptp_m_s2",
+    "min_mesh_force_N",
+    "contact_loss",
+    "converged",
+)
+
+
+class SweepResult(eqx.Module):
+    """Metrics of a speed sweep, one entry per requested speed (caller's order).
+
+    Attributes
+    ----------
+    speed_rad_s, max_mesh_force_N, min_mesh_force_N, dynamic_factor, dte_ptp_m,
+    accel_ptp_m_s2, contact_loss, convergence, converged, solver_ok, n_steps,
+    transient_periods : NumPy arrays of shape (n_speeds,), see
+        :class:`gearjax.simulate.SimulationResult`.
+    formulation : the model's formulation (str).
+    """
+
+    speed_rad_s: np.ndarray
+    max_mesh_force_N: np.ndarray
+    min_mesh_force_N: np.ndarray
+    dynamic_factor: np.ndarray
+    dte_ptp_m: np.ndarray
+    accel_ptp_m_s2: np.ndarray
+    contact_loss: np.ndarray
+    convergence: np.ndarray
+    converged: np.ndarray
+    solver_ok: np.ndarray
+    n_steps: np.ndarray
+    transient_periods: np.ndarray
+    formulation: str = eqx.field(static=True)
+
+    def rows(self):
+        """CSV rows (dicts keyed by :data:`CSV_COLUMNS`)."""
+        return _rows(self, slice(None))
+
+
+_FIELDS = (
+    "speed_rad_s", "max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
+    "accel_ptp_m_s2", "contact_loss", "convergence", "converged", "solver_ok", "n_steps",
+    "transient_periods",
+)
+
+
+def _fmt(v):
+    v = float(v)
+    return "" if math.isnan(v) else repr(v)
+
+
+def _rows(res, sl):
+    out = []
+    for i in range(len(np.asarray(res.speed_rad_s)[sl])):
+        g = lambda name: np.asarray(getattr(res, name))[sl][i]
+        out.append({
+            "speed_rad_s": repr(float(g("speed_rad_s"))),
+            "formulation": res.formulation,
+            "max_mesh_force_N": _fmt(g("max_mesh_force_N")),
+            "dynamic_factor": _fmt(g("dynamic_factor")),
+            "dte_ptp_m": _fmt(g("dte_ptp_m")),
+            "accel_ptp_m_s2": _fmt(g("accel_ptp_m_s2")),
+            "min_mesh_force_N": _fmt(g("min_mesh_force_N")),
+            "contact_loss": str(bool(g("contact_loss"))),
+            "converged": str(bool(g("converged"))),
+        })
+    return out
+
+
+@partial(eqx.filter_jit, donate="none")
+def _batched(model, speeds, sim_kwargs):
+    return eqx.filter_vmap(lambda w: _metrics_only(simulate(model, w, **dict(sim_kwargs))))(speeds)
+
+
+def _metrics_only(res: SimulationResult):
+    return tuple(getattr(res, f) for f in _FIELDS)
+
+
+def _make_sharded(devices):
+    """A jitted function running ``_batched``'s body under shard_map over ``devices``."""
+    from jax.sharding import Mesh as DeviceMesh
+    from jax.sharding import PartitionSpec as P
+
+    dmesh = DeviceMesh(np.asarray(devices), ("speed",))
+
+    @partial(eqx.filter_jit, donate="none")
+    def run(model, speeds, sim_kwargs):
+        dyn, static = eqx.partition(model, eqx.is_array)
+
+        def body(dyn_, w):
+            m = eqx.combine(dyn_, static)
+            return eqx.filter_vmap(lambda s: _metrics_only(simulate(m, s, **dict(sim_kwargs))))(w)
+
+        f = jax.shard_map(
+            body, mesh=dmesh, in_specs=(P(), P("speed")), out_specs=P("speed"), check_vma=False
+        )
+        return f(dyn, speeds)
+
+    return run
+
+
+_SHARDED_CACHE: dict = {}
+
+
+def _cost_order(speeds):
+    """Indices of speeds sorted by decreasing estimated cost (cost ~ 1/speed per period)."""
+    return np.argsort(speeds, kind="stable")
+
+
+def sweep(
+    model,
+    speeds_rad_s,
+    chunk_size: int | None = None,
+    progress: bool = True,
+    out_csv: str | os.PathLike | None = None,
+    devices=None,
+    **simulate_kwargs,
+) -> SweepResult:
+    """Steady-state response over pinion speeds (one compiled, vmapped call per chunk).
+
+    Parameters
+    ----------
+    model : a model with the simulation interface (see :mod:`gearjax.simulate`).
+    speeds_rad_s : (n,) pinion speeds Omega1 (rad/s), finite and > 0.
+    chunk_size : speeds per compiled call (default: all, rounded up to a multiple of the
+        device count). Smaller chunks give earlier progress/CSV output; chunks are padded
+        so that every call has the same shape (one compilation).
+    progress : print one line per chunk to stderr.
+    out_csv : append one row per speed (columns :data:`CSV_COLUMNS`) as chunks complete.
+    devices : list of JAX devices to shard the speed axis over; ``None`` uses one device
+        (the default device), ``"all"`` every device of the default backend.
+    **simulate_kwargs : options of :func:`gearjax.simulate.simulate` (static).
+
+    Returns
+    -------
+    SweepResult (NumPy arrays, caller's order).
+
+    Raises
+    ------
+    SimulationError
+        for empty, non-finite or non-positive speeds or a bad chunk size.
+    """
+    speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
+    if speeds.size == 0:
+        raise SimulationError("speeds_rad_s", speeds_rad_s, "no speeds given")
+    bad = ~(np.isfinite(speeds) & (speeds > 0))
+    if np.any(bad):
+        raise SimulationError(
+            "speeds_rad_s", speeds[bad][:5].tolist(), "pinion speeds must be finite and > 0 (rad/s)"
+        )
+    if devices == "all":
+        devices = jax.devices()
+    n_dev = 1 if devices is None else len(devices)
+    if n_dev < 1:
+        raise SimulationError("devices", devices, "need at least one device")
+    if chunk_size is None:
+        chunk_size = speeds.size
+    if int(chunk_size) != chunk_size or chunk_size < 1:
+        raise SimulationError("chunk_size", chunk_size, "must be a positive integer")
+    chunk = int(math.ceil(int(chunk_size) / n_dev) * n_dev)
+    n_chunks = int(math.ceil(speeds.size / chunk))
+    total = n_chunks * chunk
+    sim_kwargs = tuple(sorted(simulate_kwargs.items()))
+    formulation = getattr(model, "formulation", "")
+
+    # order: within the whole sweep, sorted by cost, then dealt round-robin to the devices
+    order = _cost_order(speeds)
+    padded_idx = np.concatenate([order, np.full(total - speeds.size, order[-1])])
+    if n_dev > 1:
+        per = chunk // n_dev
+        # chunk c, device d, slot s <- sorted position (c * per + s) * n_dev + d
+        pos = np.arange(total).reshape(n_chunks * per, n_dev)  # row: interleaved group
+        layout = np.empty((n_chunks, n_dev, per), dtype=int)
+        for c in range(n_chunks):
+            for dv in range(n_dev):
+                layout[c, dv] = pos[c * per:(c + 1) * per, dv]
+        padded_idx = padded_idx[layout.reshape(-1)]
+        key = tuple(devices)
+        if key not in _SHARDED_CACHE:
+            _SHARDED_CACHE[key] = _make_sharded(devices)
+        fn = _SHARDED_CACHE[key]
+    else:
+        fn = _batched
+
+    results = {f: np.full(total, np.nan) for f in _FIELDS}
+    write_header = out_csv is not None and (
+        not os.path.exists(out_csv) or os.path.getsize(out_csv) == 0
+    )
+    t_start = time.perf_counter()
+    for c in range(n_chunks):
+        sel = padded_idx[c * chunk:(c + 1) * chunk]
+        w = jnp.asarray(speeds[sel])
+        if n_dev > 1:
+            from jax.sharding import NamedSharding, PartitionSpec, Mesh as DeviceMesh
+
+            w = jax.device_put(w, NamedSharding(DeviceMesh(np.asarray(devices), ("speed",)),
+                                                PartitionSpec("speed")))
+        t0 = time.perf_counter()
+        out = jax.device_get(fn(model, w, sim_kwargs))
+        dt = time.perf_counter() - t0
+        for f, v in zip(_FIELDS, out):
+            results[f][c * chunk:(c + 1) * chunk] = np.asarray(v, dtype=float)
+        # rows of the real (non-padded) speeds of this chunk, in sorted-speed order
+        first = {}
+        for j, i in enumerate(sel):
+            first.setdefault(int(i), c * chunk + j)
+        if out_csv is not None:
+            chunk_res = _gather(results, formulation, sorted(first.values(), key=lambda k: padded_idx[k]))
+            with open(out_csv, "a", newline="") as fh:
+                wr = csv.DictWriter(fh, fieldnames=CSV_COLUMNS)
+                if write_header:
+                    wr.writeheader()
+                    write_header = False
+                wr.writerows(chunk_res.rows())
+        if progress:
+            done = min((c + 1) * chunk, total)
+            conv = np.asarray(out[_FIELDS.index("converged")], dtype=bool)
+            print(
+                f"[gearjax.sweep] {formulation} chunk {c + 1}/{n_chunks}: {len(first)} speeds "
+                f"{speeds[sel].min():.4g}-{speeds[sel].max():.4g} rad/s in {dt:.2f} s "
+                f"({'incl. compile, ' if c == 0 else ''}{done}/{total} done, "
+                f"{int(np.sum(~conv))} not converged, elapsed {time.perf_counter() - t_start:.1f} s)",
+                file=sys.stderr, flush=True,
+            )
+    # back to the caller's order: the first padded slot holding each speed index
+    where = np.empty(speeds.size, dtype=int)
+    seen = np.zeros(speeds.size, dtype=bool)
+    for k, i in enumerate(padded_idx):
+        if not seen[i]:
+            where[i] = k
+            seen[i] = True
+    res = _gather(results, formulation, where)
+    failed = ~res.solver_ok.astype(bool)
+    if np.any(failed):
+        print(
+            f"[gearjax.sweep] WARNING: integration failed (step limit or non-finite state) at "
+            f"{int(failed.sum())} speed(s): {speeds[failed][:10].tolist()} rad/s; their metrics "
+            "are NaN and converged=False",
+            file=sys.stderr, flush=True,
+        )
+    return res
+
+
+def _gather(results, formulation, idx):
+    idx = np.asarray(idx, dtype=int)
+    kw = {f: results[f][idx] for f in _FIELDS}
+    for f in ("contact_loss", "converged", "solver_ok"):
+        kw[f] = kw[f].astype(bool)
+    kw["n_steps"] = kw["n_steps"].astype(np.int64)
+    return SweepResult(**kw, formulation=formulation)
