@@ -10,6 +10,7 @@
 
 import math
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -21,7 +22,9 @@ from gearjax.models.element import PinionGearElement
 from gearjax.models.geared3d import Geared3DModel, quasi_static_3d
 from gearjax.models.torsional import ModelError, TorsionalModel, solid_cylinder_inertias
 from gearjax.quasistatic import static_mesh_force
-from gearjax.simulate import simulate
+from gearjax.simulate import simulate as _simulate
+
+simulate = eqx.filter_jit(_simulate)  # one compilation per model structure, no eager tracing
 from gearjax.structure import (
     MOTOR_NODE,
     StructureBuilder,
@@ -170,7 +173,7 @@ def torsional_setup():
     mods = table1_relief("long")
     # J2 kept moderate so that the long relief's NLTE'' terms do not make the teeth separate
     j1, j2 = solid_cylinder_inertias(pair)[0], 0.05
-    s, fixed = torsional_structure(j1, j2, k_load=10.0)
+    s, fixed = torsional_structure(j1, j2, k_load=100.0)
     return mesh, mods, (j1, j2), s, fixed
 
 
@@ -186,23 +189,30 @@ def test_quasi_static_matches_torsional(torsional_setup):
                                np.asarray(qs1.loaded_stiffness_N_per_m), rtol=1e-12)
 
 
-@pytest.mark.parametrize("formulation", ["reference", "te", "perturbation"])
+@pytest.mark.parametrize("formulation", [
+    pytest.param("reference", marks=pytest.mark.slow), "te",
+    pytest.param("perturbation", marks=pytest.mark.slow)])
 def test_torsional_structure_matches_sdof_model(torsional_setup, formulation):
     """Two inertias with a soft resisting spring = the sdof model of Section 3 (Eqs. (16),
     (20), (47a)), long relief so that the NLTE'' terms (E of Eq. (14)) are active."""
     mesh, mods, inert, s, fixed = torsional_setup
     kw = dict(damping_ratio=0.05, formulation=formulation)
-    m3 = Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, n_table=256, **kw)
-    m1 = TorsionalModel.build(mesh, mods, inertias_kg_m2=inert, n_table=256, **kw)
+    m1 = TorsionalModel.build(mesh, mods, inertias_kg_m2=inert, excitation="inline", **kw)
+    # same k_m (damping, Eq. (47a)); the sdof model may average k(theta) differently
+    k_m = float(m1.mean_stiffness_N_per_m())
+    m3 = Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, n_table=64, mean_stiffness_N_per_m=k_m,
+                             mesh_vectors="mean" if formulation != "reference" else "cells", **kw)
     assert m3.nlte_terms and m1.nlte_terms
-    assert abs(float(m3.k_m / m1.mean_stiffness_N_per_m()) - 1) < 1e-12
     omega = 450.0
-    run = lambda m: simulate(m, omega, n_transient_periods=12, n_measured_periods=2)  # noqa: E731
+    # tight tolerances: the two codes scale their states differently
+    run = lambda m: simulate(m, omega, n_transient_periods=12, n_measured_periods=2,  # noqa: E731
+                             rtol=1e-9, atol=1e-11)
     r3, r1 = run(m3), run(m1)
-    assert bool(r3.solver_ok) and bool(r1.solver_ok)
-    np.testing.assert_allclose(float(r3.max_mesh_force_N), float(r1.max_mesh_force_N), rtol=2e-5)
-    np.testing.assert_allclose(float(r3.min_mesh_force_N), float(r1.min_mesh_force_N), rtol=2e-5)
-    np.testing.assert_allclose(float(r3.dte_ptp_m), float(r1.dte_ptp_m), rtol=2e-4)
+    assert bool(r3.solver_ok) and bool(r1.solver_ok) and not bool(r1.contact_loss)
+    assert float(r1.dynamic_factor) > 1.1  # a dynamic regime, not the static one
+    np.testing.assert_allclose(float(r3.max_mesh_force_N), float(r1.max_mesh_force_N), rtol=5e-5)
+    np.testing.assert_allclose(float(r3.min_mesh_force_N), float(r1.min_mesh_force_N), rtol=5e-5)
+    np.testing.assert_allclose(float(r3.dte_ptp_m), float(r1.dte_ptp_m), rtol=1e-4)
 
 
 # ---------------------------------------------------------------------- Eq. (42) vs (14)
@@ -228,18 +238,34 @@ def test_te_formulation_at_low_speed_is_quasi_static():
     common = dict(cells_per_line=2, mesh_vectors="mean", max_frequency_hz=3000.0, n_table=16)
     ref = Geared3DModel.baud_velex(False, mods, formulation="reference", **common)
     te = Geared3DModel.baud_velex(False, mods, formulation="te", **common)
+    init = eqx.filter_jit(lambda m, th: m.initial_state(1.0, th))
+    force = eqx.filter_jit(lambda m, th, y: m.outputs(th, y, 1.0).mesh_force_N)
     for th in (0.013, 0.1, 0.2):
-        ya, yb = ref.initial_state(1.0, th), te.initial_state(1.0, th)
+        ya, yb = init(ref, th), init(te, th)
         n = ref.n_reduced
         np.testing.assert_allclose(np.asarray(ya[:n]), np.asarray(yb[:n]), rtol=1e-6,
                                    atol=1e-9 * float(jnp.max(jnp.abs(ya[:n]))))
-        fa = float(ref.outputs(th, ya, 1.0).mesh_force_N)
-        fb = float(te.outputs(th, yb, 1.0).mesh_force_N)
+        fa = float(force(ref, th, ya))
+        fb = float(force(te, th, yb))
         assert abs(fa / float(ref.static_force_N) - 1) < 1e-9
         assert abs(fb / float(ref.static_force_N) - 1) < 1e-9
 
 
 # ---------------------------------------------------------------------- reduction, errors
+def test_reduced_basis_reproduces_static_solution(rig_te):
+    """Static correction makes the reduced basis exact for the quasi-static state: the
+    pinion-gear dofs of X_S from 6 kHz modes + pseudo-modes equal the full-basis ones."""
+    full = Geared3DModel.baud_velex(False, table1_relief("long"), cells_per_line=4,
+                                    formulation="te", n_table=32)
+    assert rig_te.n_reduced < full.n_reduced and rig_te.n_static > 0
+    phys = eqx.filter_jit(lambda m, th: m.t_local @ (m.q0 + m.initial_state(300.0, th)[: m.n_reduced]
+                                                       * m.scale_a))
+    for th in (0.0, 0.07):
+        np.testing.assert_allclose(np.asarray(phys(rig_te, th)), np.asarray(phys(full, th)),
+                                   rtol=1e-8, atol=1e-12)
+
+
+@pytest.mark.slow
 def test_reduced_model_close_to_full():
     common = dict(cells_per_line=2, formulation="reference", n_table=32)
     full = Geared3DModel.baud_velex(False, table1_relief("short"), **common)

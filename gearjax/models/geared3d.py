@@ -147,12 +147,16 @@ class Condensation(eqx.Module):
     f_c : (12,) condensed load (N, N m).
     c_w : W^T X for x = 0 (m).
     g_w : (12,) gradient of W^T X with respect to x.
+    x0_local : (12,) element dofs of X_0 = K_bar^-1 F_0 from the same condensation, so
+        that ``TE_S - NLTE - w_x0 = g_w^T (x - x0_local)`` is formed without cancelling the
+        large static wind-up of the shafts.
     """
 
     k_cc: jax.Array
     f_c: jax.Array
     c_w: jax.Array
     g_w: jax.Array
+    x0_local: jax.Array
 
 
 class QuasiStatic3D(eqx.Module):
@@ -353,6 +357,7 @@ class Geared3DModel(eqx.Module):
         max_frequency_hz: float | None = None,
         fixed_dofs=(),
         eccentric_masses_kg=None,
+        mean_stiffness_N_per_m: float | None = None,
         n_table: int = 256,
         participation_tol: float = 1e-3,
         qs_max_iter: int = 30,
@@ -383,6 +388,10 @@ class Geared3DModel(eqx.Module):
             structure.
         eccentric_masses_kg : (m1, m2) for the eccentricity terms; default the masses of
             the discs at the pinion and gear nodes.
+        mean_stiffness_N_per_m : k_m (N/m) of ``K_bar = K + k_m V V^T``; default the mean
+            of the loaded quasi-static stiffness over the ``n_table`` scan. The te
+            formulation is exact for any k_m (it only splits k(theta)); the perturbation
+            formulation and the damping use it as the mean mesh stiffness.
         n_table : samples per mesh period for k_m and the jump scan.
         participation_tol : modes whose share of the static mesh compliance
             ``(phi^T V)^2 / omega^2 / C_vv`` is below this are ignored when sizing the
@@ -493,9 +502,17 @@ class Geared3DModel(eqx.Module):
             bad = theta_tab[~np.asarray(qs.converged)]
             raise ModelError("qs_max_iter", qs_max_iter, f"active set did not converge at theta={bad[:3]}")
         k_m = float(np.mean(np.asarray(qs.loaded_stiffness_N_per_m)))
+        if mean_stiffness_N_per_m is not None:
+            k_m = float(mean_stiffness_N_per_m)
+            if not (math.isfinite(k_m) and k_m > 0):
+                raise ModelError("mean_stiffness_N_per_m", mean_stiffness_N_per_m, "must be finite and > 0")
         nlte_tab = np.asarray(qs.nlte_m)
         if nlte_terms is None:
             nlte_terms = bool(np.max(np.abs(nlte_tab - 0.0)) > 0.0)
+
+        v12 = v_loc12 * mask12
+        x0_loc = np.linalg.solve(np.asarray(cond.k_cc) + k_m * np.outer(v12, v12), np.asarray(cond.f_c))
+        cond = dataclasses.replace(cond, x0_local=jnp.asarray(x0_loc))
 
         # modal basis of (M, K_bar)
         kbar = K + k_m * np.outer(V, V)
@@ -630,8 +647,10 @@ class Geared3DModel(eqx.Module):
                 d = d + nlte
             return d, k_s
         qs = self.quasi_static(theta)
-        te = qs.te_s_m if not self.nlte_terms else qs.te_s_m - qs.nlte_m
-        return te - self.w_x0, qs.loaded_stiffness_N_per_m
+        d = self.cond.g_w @ (qs.x_local - self.cond.x0_local)  # W^T (X_S - X_0)
+        if not self.nlte_terms:
+            d = d + qs.nlte_m
+        return d, qs.loaded_stiffness_N_per_m
 
     def _static_q(self, theta):
         """Modal coordinates of the quasi-static X_S seen by this formulation."""
@@ -819,7 +838,8 @@ def _condense(K, F0, W, loc_pos, keep12) -> Condensation:
     f12[idx] = f_c
     g12 = np.zeros(12)
     g12[idx] = g_w
-    return Condensation(jnp.asarray(0.5 * (K12 + K12.T)), jnp.asarray(f12), jnp.asarray(c_w), jnp.asarray(g12))
+    return Condensation(jnp.asarray(0.5 * (K12 + K12.T)), jnp.asarray(f12), jnp.asarray(c_w), jnp.asarray(g12),
+                        jnp.zeros(12))
 
 
 def _disc_mass(structure, node, M_all) -> float:
