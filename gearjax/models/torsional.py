@@ -654,6 +654,25 @@ class TorsionalModel(eqx.Module):
             dte = x + exc[0][_NLTE]
         return ModelOutputs(mesh_force_N=f_d, dte_m=dte, accel_m_s2=None)
 
+    @property
+    def state_size(self) -> int:
+        """Number of (scaled) state components, 2."""
+        return 2
+
+    def homogeneous_vector_field(self, theta, y, omega):
+        """Linear homogeneous part of the equation of motion for the dynamic part
+        ``y = (x_D/x_ref, x_D'/(r x_ref))``: ``Omega^2 m_eq x_D'' + Omega c x_D' + k(theta)
+        cos^2(b_b) x_D = 0`` with ``k = (sum k_i)^S`` (te; the reference formulation
+        linearised about the quasi-static contact) or ``k_m`` (perturbation). Used by
+        :mod:`gearjax.stability`."""
+        d = self._d()
+        r = d.omega_n / omega
+        if self.formulation == "perturbation":
+            ratio = jnp.ones(())
+        else:
+            ratio = d.table(theta)[0][_K_S] / d.k_m
+        return jnp.stack([r * y[1], -r * (ratio * y[0] + 2.0 * self.damping_ratio * y[1])])
+
     def decay_rate_per_rad(self, omega):
         """Free-decay rate of the linearised model per radian of theta,
         ``zeta omega_n / Omega`` (sizes the automatic transient)."""
