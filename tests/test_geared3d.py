@@ -288,3 +288,36 @@ def test_clear_errors(torsional_setup):
     grounded = s.with_stiffness(np.diag(np.r_[np.zeros(5), 1e5, np.zeros(6)]), "pinion_ground", (0,))
     with pytest.raises(ModelError, match="free in torsion"):
         Geared3DModel.build(grounded, mesh, mods, fixed_dofs=fixed)
+
+
+def test_pinion_eccentricity_terms(torsional_setup):
+    """Eccentricity compiles the G term only where it belongs: an unbalance force of
+    magnitude m1 e1 rotating with the pinion, at the pinion (v, w) dofs (Eq. (14))."""
+    mesh, _, _, _, _ = torsional_setup
+    s = baud_velex_structure()
+    mods = ToothModifications.none().with_eccentricity([20e-6, 0.0], [0.3, 0.0])
+    m = Geared3DModel.build(s, mesh, mods, torque_node=MOTOR_NODE, max_frequency_hz=3000.0,
+                            n_table=16, formulation="reference")
+    assert m.ecc is not None and m.period_rad == pytest.approx(26 * mesh.pair.mesh_period_rad)
+    m1 = float(m.ecc.masses_kg[0])
+    for th in (0.0, 0.4, 1.3):
+        _, _, g = m._ecc_local(jnp.asarray(th))
+        g = np.asarray(g)
+        np.testing.assert_allclose(np.hypot(g[1], g[2]), m1 * 20e-6, rtol=1e-12)
+        assert np.all(g[[0, 3, 4, 5, 6, 9, 10, 11]] == 0) and np.all(g[7:9] == 0)  # no gear ecc.
+        # the unbalance points along the eccentric offset, whose normal projection is the
+        # geometric excess e cos(b_b) sin(theta - lambda) of the gaps (modifications.py)
+        np.testing.assert_allclose(-g[1] / m1, 20e-6 * math.sin(th - 0.3), atol=1e-18)
+    rhs = eqx.filter_jit(lambda m: m.vector_field(0.1, m.initial_state(300.0), 300.0))
+    assert bool(jnp.all(jnp.isfinite(rhs(m))))
+
+
+@pytest.mark.slow
+def test_sweep_vmaps_the_3d_model(rig_te):
+    from gearjax.sweep import sweep
+
+    r = sweep(rig_te, np.array([250.0, 500.0]), progress=False, n_transient_periods=10,
+              n_measured_periods=2)
+    assert np.all(r.solver_ok) and np.all(np.isfinite(r.accel_ptp_m_s2))
+    one = simulate(rig_te, 500.0, n_transient_periods=10, n_measured_periods=2)
+    np.testing.assert_allclose(r.max_mesh_force_N[1], float(one.max_mesh_force_N), rtol=1e-6)
