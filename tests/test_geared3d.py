@@ -19,7 +19,7 @@ import pytest
 from gearjax import Mesh, ToothModifications, baud_velex_pair, quasi_static, table1_relief
 from gearjax.analytic import analytic_relations
 from gearjax.models.element import PinionGearElement
-from gearjax.models.geared3d import Geared3DModel, quasi_static_3d
+from gearjax.models.geared3d import Condensation, Geared3DModel, quasi_static_3d
 from gearjax.models.torsional import ModelError, TorsionalModel, solid_cylinder_inertias
 from gearjax.quasistatic import static_mesh_force
 from gearjax.simulate import simulate as _simulate
@@ -178,11 +178,23 @@ def torsional_setup():
 
 
 def test_quasi_static_matches_torsional(torsional_setup):
+    """The condensed 12-dof active-set solve on a torsional-only structure (only the two
+    torsional dofs free) is the torsional quasi-static solution (Eq. (17))."""
     mesh, mods, _, s, fixed = torsional_setup
-    m = Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, formulation="reference", n_table=16)
+    free = [5, 11]
+    K = np.asarray(s.K)[np.ix_(free, free)]
+    rb1, rb2 = mesh.pair.base_radii_m
+    pos = -np.ones(12, dtype=int)
+    pos[5], pos[11] = 0, 1
+    cond = Condensation.build(K, np.array([TORQUE, 0.0]), np.array([rb1, rb2]), pos)
+    el = PinionGearElement.at_nodes(mesh, 12, 0, 1)
+    f_s = static_mesh_force(mesh.pair, TORQUE)
+    mask = jnp.asarray((pos >= 0).astype(float))
+    v_loc = el.mean_local_vector(64) * mask
     th = mesh.theta_grid(24)
-    qs3 = jax.vmap(m.quasi_static)(th)
-    qs1 = quasi_static(mesh, mods, th, m.static_force_N)
+    qs3 = jax.jit(jax.vmap(lambda t: quasi_static_3d(cond, el, mods, t, f_s, v_loc, "cells", 30, mask)))(th)
+    assert bool(jnp.all(qs3.converged))
+    qs1 = quasi_static(mesh, mods, th, f_s)
     np.testing.assert_allclose(np.asarray(qs3.te_s_m), np.asarray(qs1.te_s_m), rtol=1e-9)
     np.testing.assert_allclose(np.asarray(qs3.nlte_m), np.asarray(qs1.nlte_m), atol=1e-15)
     np.testing.assert_allclose(np.asarray(qs3.loaded_stiffness_N_per_m),
@@ -254,6 +266,7 @@ def test_te_formulation_at_low_speed_is_quasi_static():
 
 
 # ---------------------------------------------------------------------- reduction, errors
+@pytest.mark.slow  # (the reduced-basis relations of test_model_relations... imply it)
 def test_reduced_basis_reproduces_static_solution(rig_te):
     """Static correction makes the reduced basis exact for the quasi-static state: the
     pinion-gear dofs of X_S from 6 kHz modes + pseudo-modes equal the full-basis ones."""
@@ -290,6 +303,7 @@ def test_clear_errors(torsional_setup):
         Geared3DModel.build(grounded, mesh, mods, fixed_dofs=fixed)
 
 
+@pytest.mark.slow
 def test_pinion_eccentricity_terms(torsional_setup):
     """Eccentricity compiles the G term only where it belongs: an unbalance force of
     magnitude m1 e1 rotating with the pinion, at the pinion (v, w) dofs (Eq. (14))."""

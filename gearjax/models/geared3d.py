@@ -158,6 +158,23 @@ class Condensation(eqx.Module):
     g_w: jax.Array
     x0_local: jax.Array
 
+    @classmethod
+    def build(cls, K, F0, W, element_dofs, free12=None, k_m=None, v_local=None) -> "Condensation":
+        """Condense ``K`` (n, n), ``F0`` and ``W`` (n,) on the 12 ``element_dofs`` (indices
+        into K, -1 for a clamped element dof, whose component then stays zero).
+
+        With ``k_m`` and ``v_local`` (12,) also fills ``x0_local`` (element dofs of
+        ``K_bar^-1 F_0``); otherwise it is zero.
+        """
+        pos = np.asarray(element_dofs, dtype=int)
+        keep = pos >= 0 if free12 is None else np.asarray(free12, dtype=bool)
+        c = _condense(np.asarray(K, float), np.asarray(F0, float), np.asarray(W, float), pos, keep)
+        if k_m is not None:
+            v = np.asarray(v_local, float) * keep
+            x0 = np.linalg.solve(np.asarray(c.k_cc) + k_m * np.outer(v, v), np.asarray(c.f_c))
+            c = dataclasses.replace(c, x0_local=jnp.asarray(x0))
+        return c
+
 
 class QuasiStatic3D(eqx.Module):
     """Quasi-static 3D solution at one angle (a leading axis after vmap).
