@@ -617,6 +617,10 @@ class Geared3DModel(eqx.Module):
         return self.pinion_torque_Nm / (self.mesh.pair.base_radii_m[0] * self.cos_bb)
 
     @property
+    def output_names(self) -> tuple[str, ...]:
+        return ("mesh_force_N", "dte_m", "accel_m_s2")
+
+    @property
     def n_reduced(self) -> int:
         """Number of modal coordinates r (modes + static-correction pseudo-modes)."""
         return int(self.omega_r.shape[0])
