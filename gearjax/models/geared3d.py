@@ -463,9 +463,9 @@ class Geared3DModel(eqx.Module):
         cos_bb = math.cos(pair.base_helix_angle_rad)
         f_s = static_mesh_force(pair, torque)
 
-        # element on the full numbering; restrict vectors to free dofs through a projector
-        el_full = PinionGearElement.at_nodes(mesh, n_all, pn, gn)
-        v_loc12 = np.asarray(eqx.filter_jit(lambda e: e.mean_local_vector())(el_full))
+        # element on the full numbering; vectors are restricted to the free dofs below
+        el = PinionGearElement.at_nodes(mesh, n_all, pn, gn)
+        v_loc12 = np.asarray(eqx.filter_jit(lambda e: e.mean_local_vector())(el))
         mask12 = keep12.astype(float)
 
         def to_free(vec_all):
@@ -503,7 +503,6 @@ class Geared3DModel(eqx.Module):
             )
 
         # quasi-static scan with the condensed structure -> k_m
-        el = PinionGearElement.at_nodes(mesh, n_all, pn, gn)
         cond = _condense(K, F0, W, pos[loc_all], keep12)
         period = _excitation_period(pair, mods)
         n_mesh = int(round(period / pair.mesh_period_rad))
