@@ -81,7 +81,7 @@ class SimulationError(ValueError):
 # Solver and tolerances per formulation, chosen by measurement (see module
 # ``benchmarks/bench_sweep_sdof.py`` and the docstring of :func:`default_solver`).
 _DEFAULTS = {
-    "reference": ("dopri8", 1e-7, 1e-9),
+    "reference": ("tsit5", 1e-7, 1e-9),
     "te": ("dopri8", 1e-7, 1e-9),
     "perturbation": ("dopri8", 1e-7, 1e-9),
 }
@@ -164,8 +164,8 @@ def simulate(
     save_signals: bool = False,
     samples_per_mesh_period: int = 128,
     transient_decay: float = 1e-6,
-    min_transient_periods: int = 8,
-    max_transient_periods: int = 400,
+    min_transient_mesh_periods: int = 8,
+    max_transient_mesh_periods: int = 400,
     convergence_tol: float = 1e-3,
     max_steps: int = 2_000_000,
     adjoint=None,
@@ -187,7 +187,8 @@ def simulate(
         :func:`default_solver` for the model's formulation.
     save_signals : also return the sampled signals over the measured periods.
     samples_per_mesh_period : output grid density (extrema are maxima over this grid).
-    transient_decay, min_transient_periods, max_transient_periods : automatic transient.
+    transient_decay, min_transient_mesh_periods, max_transient_mesh_periods : automatic
+        transient (bounds in mesh periods, rounded up to whole excitation periods).
     convergence_tol : threshold on ``convergence`` for ``converged``.
     max_steps : step limit of each ``diffeqsolve`` (exceeded -> ``solver_ok=False``).
     adjoint : diffrax adjoint, default ``diffrax.ForwardMode()``.
@@ -202,7 +203,7 @@ def simulate(
         for a concrete non-positive or non-finite speed or inconsistent configuration.
     """
     _check_config(n_transient_periods, n_measured_periods, samples_per_mesh_period,
-                  transient_decay, min_transient_periods, max_transient_periods)
+                  transient_decay, min_transient_mesh_periods, max_transient_mesh_periods)
     if not isinstance(omega, jax.core.Tracer):
         w = np.asarray(omega, dtype=float)
         if w.ndim != 0:
@@ -224,61 +225,43 @@ def simulate(
     n_samples = samples_per_mesh_period * n_mesh
     term = diffrax.ODETerm(lambda t, y, args: model.vector_field(t, y, args))
 
-    # ---------------------------------------------------------------- transient
+    # ---------------------------------------------------------------- one solve
     if n_transient_periods is None:
+        n_min = int(math.ceil(min_transient_mesh_periods / n_mesh))
+        n_max = max(n_min, int(math.ceil(max_transient_mesh_periods / n_mesh)))
         rate = model.decay_rate_per_rad(omega)
         n_auto = jnp.ceil(math.log(1.0 / transient_decay) / (rate * period))
-        n_tr = jnp.clip(jnp.nan_to_num(n_auto, nan=max_transient_periods),
-                        min_transient_periods, max_transient_periods)
-        n_max = max_transient_periods
+        n_tr = jnp.clip(jnp.nan_to_num(n_auto, nan=n_max, posinf=n_max), n_min, n_max)
     else:
-        n_tr = jnp.asarray(float(n_transient_periods))
         n_max = int(n_transient_periods)
+        n_tr = jnp.asarray(float(n_max))
     t_tr = n_tr * period
+    t_end = t_tr + n_measured_periods * period
+    # samples at mid-cells: never exactly on an engagement angle (spur engagement is at 0)
+    ts = t_tr + (jnp.arange(n_measured_periods * n_samples) + 0.5) * (period / n_samples)
+    k = np.arange(n_max + n_measured_periods)
+    jt = (k[:, None] * period + jumps[None, :]).ravel()
+    jt = np.unique(jt[jt > 0])
+    jt = jnp.asarray(jt) if jt.size else None
     y0 = model.initial_state(omega)
-    if n_max > 0:
-        jt = (np.arange(n_max)[:, None] * period + jumps[None, :]).ravel()
-        jt = jt[(jt > 0)]
-        sol = diffrax.diffeqsolve(
-            term, solver, t0=0.0, t1=t_tr, dt0=None, y0=y0, args=omega,
-            saveat=diffrax.SaveAt(t1=True),
-            stepsize_controller=_controller(rtol, atol, jnp.asarray(jt)),
-            max_steps=max_steps, adjoint=adjoint, throw=False,
-        )
-        y_start = sol.ys[-1]
-        ok0 = sol.result == diffrax.RESULTS.successful
-        steps0 = sol.stats["num_steps"]
-    else:
-        y_start, ok0, steps0 = y0, jnp.asarray(True), jnp.asarray(0)
-
-    # ---------------------------------------------------------------- measured periods
-    grid = jnp.arange(n_samples) * (period / n_samples)
-    wjumps = jnp.asarray(np.concatenate([jumps[jumps > 0], [period]]))
-
-    def window(carry, k):
-        y, ok, steps = carry
-        t0 = t_tr + k * period
-        ts = t0 + grid
-        sol = diffrax.diffeqsolve(
-            term, solver, t0=t0, t1=t0 + period, dt0=None, y0=y, args=omega,
-            saveat=diffrax.SaveAt(ts=ts, t1=True),
-            stepsize_controller=_controller(rtol, atol, t0 + wjumps),
-            max_steps=max_steps, adjoint=adjoint, throw=False,
-        )
-        ys = sol.ys
-        out = jax.vmap(lambda t, yy: model.outputs(t, yy, omega))(ts, ys[:-1])
-        ext = [jnp.max(out.mesh_force_N), jnp.min(out.mesh_force_N),
-               jnp.max(out.dte_m), jnp.min(out.dte_m)]
-        acc = out.accel_m_s2
-        if acc is not None:
-            ext += [jnp.max(acc), jnp.min(acc)]
-        ok = ok & (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(ys))
-        sig = (ts, out.mesh_force_N, out.dte_m, acc) if save_signals else None
-        return (ys[-1], ok, steps + sol.stats["num_steps"]), (jnp.stack(ext), sig)
-
-    (_, ok, steps), (ext, sig) = jax.lax.scan(
-        window, (y_start, ok0, steps0), jnp.arange(n_measured_periods, dtype=float)
+    sol = diffrax.diffeqsolve(
+        term, solver, t0=0.0, t1=t_end, dt0=None, y0=y0, args=omega,
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=_controller(rtol, atol, jt),
+        max_steps=max_steps, adjoint=adjoint, throw=False,
     )
+    ys = sol.ys
+    ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(ys))
+    steps = sol.stats["num_steps"]
+    out = jax.vmap(lambda t, yy: model.outputs(t, yy, omega))(ts, ys)
+    per = lambda a: a.reshape(n_measured_periods, n_samples)  # noqa: E731
+    fd, dte = per(out.mesh_force_N), per(out.dte_m)
+    cols = [fd.max(1), fd.min(1), dte.max(1), dte.min(1)]
+    acc = None if out.accel_m_s2 is None else per(out.accel_m_s2)
+    if acc is not None:
+        cols += [acc.max(1), acc.min(1)]
+    ext = jnp.stack(cols, axis=1)  # (periods, extrema)
+    sig = (ts, out.mesh_force_N, out.dte_m, out.accel_m_s2)
     f_s = model.static_force_N
     f_max = jnp.max(ext[:, 0])
     f_min = jnp.min(ext[:, 1])
@@ -331,5 +314,6 @@ def _check_config(n_tr, n_meas, n_samp, decay, n_min, n_max):
         raise SimulationError("transient_decay", decay, "must lie in (0, 1)")
     if not (0 <= n_min <= n_max):
         raise SimulationError(
-            "min_transient_periods", n_min, f"must satisfy 0 <= min <= max_transient_periods={n_max}"
+            "min_transient_mesh_periods", n_min,
+            f"must satisfy 0 <= min <= max_transient_mesh_periods={n_max}",
         )

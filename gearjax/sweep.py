@@ -226,6 +226,7 @@ def sweep(
         not os.path.exists(out_csv) or os.path.getsize(out_csv) == 0
     )
     t_start = time.perf_counter()
+    n_done = 0
     for c in range(n_chunks):
         sel = padded_idx[c * chunk:(c + 1) * chunk]
         w = jnp.asarray(speeds[sel])
@@ -252,13 +253,15 @@ def sweep(
                     write_header = False
                 wr.writerows(chunk_res.rows())
         if progress:
-            done = min((c + 1) * chunk, total)
+            n_done += len(first)
             conv = np.asarray(out[_FIELDS.index("converged")], dtype=bool)
+            real = np.asarray(list(first.values())) - c * chunk
             print(
                 f"[gearjax.sweep] {formulation} chunk {c + 1}/{n_chunks}: {len(first)} speeds "
                 f"{speeds[sel].min():.4g}-{speeds[sel].max():.4g} rad/s in {dt:.2f} s "
-                f"({'incl. compile, ' if c == 0 else ''}{done}/{total} done, "
-                f"{int(np.sum(~conv))} not converged, elapsed {time.perf_counter() - t_start:.1f} s)",
+                f"({'incl. compile, ' if c == 0 else ''}{n_done}/{speeds.size} done, "
+                f"{int(np.sum(~conv[real]))} not converged, "
+                f"elapsed {time.perf_counter() - t_start:.1f} s)",
                 file=sys.stderr, flush=True,
             )
     # back to the caller's order: the first padded slot holding each speed index

@@ -103,6 +103,7 @@ m_eq = 1.81 kg). The 3D rig will supply the real shaft-line values.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from typing import Literal
@@ -358,6 +359,7 @@ class TorsionalModel(eqx.Module):
         nlte_harmonics: int = 64,
         excitation: str = "table",
         n_table: int = 256,
+        merge_spur_lines: bool = True,
     ) -> "TorsionalModel":
         """Build a torsional model (outside ``jit``: inputs are checked, jump angles found).
 
@@ -375,6 +377,11 @@ class TorsionalModel(eqx.Module):
         nlte_harmonics : mesh harmonics kept by the spectral method.
         excitation : ``"table"`` or ``"inline"`` (see module docstring).
         n_table : uniform table knots per mesh period (also the scan used to find jumps).
+        merge_spur_lines : for a spur pair without crowning every cell of a contact line
+            has the same position on the profile, stiffness per length and gap, so the
+            line is merged into one cell (``cells_per_line=1``, same total stiffness):
+            identical results up to round-off, 10-30x cheaper reference right-hand sides.
+            The stored ``mesh`` is then the merged one.
 
         Raises
         ------
@@ -414,6 +421,9 @@ class TorsionalModel(eqx.Module):
             raise ModelError(
                 "nlte_harmonics", nlte_harmonics, f"must lie in [1, n_table/2) = [1, {n_table // 2})"
             )
+        if (merge_spur_lines and mesh.pair.spur and mesh.cells_per_line > 1
+                and not _nonzero(mods.crowning_m)):
+            mesh = dataclasses.replace(mesh, cells_per_line=1)
         period = _excitation_period(mesh.pair, mods)
         force = static_mesh_force(mesh.pair, torque)
         n_mesh = int(round(period / mesh.pair.mesh_period_rad))

@@ -1,0 +1,123 @@
+"""Floquet stability of the linear time-periodic gear equations (parametric excitation).
+
+The te formulation (Eq. (20), ``k(theta) = (sum k_i)^S`` the loaded quasi-static stiffness)
+is linear with theta-periodic coefficients; its free response obeys the homogeneous
+equation ``Omega^2 m_eq x'' + Omega c x' + k(theta) cos^2(b_b) x = 0``. Over one excitation
+period P the state is mapped by the monodromy matrix ``Phi(P)``; its eigenvalues (Floquet
+multipliers) decide stability: every steady response of Eq. (20) is bounded and attracts
+the others iff the spectral radius ``rho = max |mu| < 1``. Inside a parametric instability
+zone (mesh frequency near ``2 omega_n / n``) ``rho > 1`` and the time integration grows
+like ``rho^(theta / P)``.
+
+``Phi(P)`` is computed by integrating the variational (here: the homogeneous matrix)
+equation ``Phi' = A(theta) Phi``, ``Phi(0) = I``, with diffrax (all columns under the same
+error control; the jumps of ``k(theta)`` passed as ``jump_ts``). For a linear system this
+*is* the Jacobian of the flow map, without the pitfall of ``jax.jacfwd`` through an
+adaptive solve, whose step sizes would be chosen for one primal trajectory only.
+
+Models provide ``homogeneous_vector_field(theta, y, omega)`` (linear in ``y``) and the
+simulation interface of :mod:`gearjax.simulate` (``prepare``, ``period_rad``,
+``jump_thetas``). For :class:`gearjax.models.torsional.TorsionalModel` the reference
+formulation is linearised about the quasi-static contact (same equation as te, valid while
+no cell changes contact), and the perturbation formulation has constant coefficients
+(``rho = exp(-zeta omega_n T)``, a check).
+"""
+
+from __future__ import annotations
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .simulate import SimulationError
+
+__all__ = ["monodromy", "floquet_multipliers", "spectral_radius"]
+
+
+def monodromy(model, omega, *, solver=None, rtol: float = 1e-10, atol: float = 1e-12,
+              max_steps: int = 1_000_000):
+    """Monodromy matrix of the homogeneous linear equation over one excitation period.
+
+    Parameters
+    ----------
+    model : model with ``homogeneous_vector_field`` (see module docstring).
+    omega : pinion speed Omega1 (rad/s), > 0 (traceable: jit/vmap friendly).
+    solver, rtol, atol, max_steps : diffrax options (default Dopri8, 1e-10, 1e-12 on the
+        model's dimensionless state).
+
+    Returns
+    -------
+    (n, n) array ``Phi(P)`` in the model's (scaled) state coordinates; NaN if the
+    integration failed.
+    """
+    if not hasattr(model, "homogeneous_vector_field"):
+        raise SimulationError(
+            "model", type(model).__name__, "has no homogeneous_vector_field (linear "
+            "time-periodic part); Floquet analysis needs one",
+        )
+    if hasattr(model, "prepare"):
+        model = model.prepare()
+    solver = diffrax.Dopri8() if solver is None else solver
+    omega = jnp.asarray(omega, dtype=float)
+    period = float(model.period_rad)
+    jumps = np.asarray(model.jump_thetas, dtype=float)
+    jumps = jumps[(jumps > 0) & (jumps < period)]
+    jumps = jnp.asarray(jumps) if jumps.size else None
+    n = model.state_size
+
+    def vf(t, phi, args):
+        return jax.vmap(lambda col: model.homogeneous_vector_field(t, col, args), in_axes=1,
+                        out_axes=1)(phi)
+
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(vf), solver, t0=0.0, t1=period, dt0=None, y0=jnp.eye(n), args=omega,
+        saveat=diffrax.SaveAt(t1=True),
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, jump_ts=jumps),
+        max_steps=max_steps, adjoint=diffrax.ForwardMode(), throw=False,
+    )
+    ok = sol.result == diffrax.RESULTS.successful
+    return jnp.where(ok, sol.ys[-1], jnp.nan)
+
+
+def floquet_multipliers(model, omega, **kwargs):
+    """Floquet multipliers (complex eigenvalues of :func:`monodromy`) at one speed,
+    sorted by decreasing modulus (NumPy, concrete ``omega``)."""
+    _check_speeds(np.atleast_1d(np.asarray(omega, dtype=float)))
+    phi = np.asarray(eqx.filter_jit(monodromy)(model, jnp.asarray(float(omega)), **kwargs))
+    if not np.all(np.isfinite(phi)):
+        raise SimulationError("omega", float(omega), "monodromy integration failed (step limit)")
+    mu = np.linalg.eigvals(phi)
+    return mu[np.argsort(-np.abs(mu))]
+
+
+@eqx.filter_jit
+def _rho(model, speeds, kwargs):
+    def one(w):
+        phi = monodromy(model, w, **dict(kwargs))
+        return jnp.max(jnp.abs(jnp.linalg.eigvals(phi)))
+
+    return jax.vmap(one)(speeds)
+
+
+def spectral_radius(model, speeds_rad_s, **kwargs) -> np.ndarray:
+    """Spectral radius ``max |mu|`` of the monodromy matrix at each speed (vmapped, one
+    compilation per model structure and number of speeds).
+
+    ``rho < 1``: asymptotically stable steady response; ``rho > 1``: parametric instability
+    (the linear te response grows like ``rho`` per period). NaN where the integration
+    failed. ``kwargs`` go to :func:`monodromy`.
+    """
+    speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
+    _check_speeds(speeds)
+    return np.asarray(_rho(model, jnp.asarray(speeds), tuple(sorted(kwargs.items()))))
+
+
+def _check_speeds(speeds):
+    bad = ~(np.isfinite(speeds) & (speeds > 0))
+    if speeds.size == 0 or np.any(bad):
+        raise SimulationError(
+            "speeds_rad_s", speeds[bad][:5].tolist() if speeds.size else [],
+            "need at least one finite pinion speed > 0 (rad/s)",
+        )

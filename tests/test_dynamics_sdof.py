@@ -1,0 +1,317 @@
+"""Sdof torsional dynamics (paper Section 3, Eqs. (16), (20), (24), (47a)) and simulate().
+
+Every check is against something independent of the code under test:
+
+* a harmonic oscillator written here, against its closed-form frequency response;
+* the perturbation formulation (constant k_m, Eq. (47a)) with the Table 1 long relief, so
+  that NLTE'' (with its Dirac parts) is active, against the closed-form steady state built
+  here harmonic by harmonic from the quasi-static TE_S and NLTE of
+  :func:`gearjax.quasi_static` (FFT);
+* the quasi-static limit (dynamic factor -> 1 as the speed -> 0);
+* Eq. (24) against the cell forces of Eq. (22), recomputed here with :func:`contact_gaps`;
+* the reference (Eq. (16)) against the TE-based formulation (Eq. (20)): identical when the
+  contact conditions are the quasi-static ones, different where contact is lost.
+"""
+
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from gearjax import Mesh, ToothModifications, baud_velex_pair, contact_gaps, quasi_static, table1_relief
+from gearjax.models.torsional import ModelError, TorsionalModel, solid_cylinder_inertias
+from gearjax.models.torsional import ModelOutputs
+from gearjax.simulate import SimulationError, simulate
+
+SAMPLES = 128  # simulate's default samples per mesh period
+
+
+def _vsim(**kw):
+    """Jitted simulate vmapped over speeds (one compilation per model structure)."""
+    return eqx.filter_jit(
+        eqx.filter_vmap(lambda m, w: simulate(m, w, **kw), in_axes=(None, 0))
+    )
+
+
+sim2 = _vsim(n_measured_periods=2)
+
+
+@pytest.fixture(scope="module")
+def spur():
+    return Mesh.build(baud_velex_pair(False))
+
+
+# ---------------------------------------------------------------------- harmonic oscillator
+class HarmonicOscillator(eqx.Module):
+    """m x_tt + c x_t + k x = k a cos(n theta), theta = Omega t: a 'mesh' whose TE_S is a
+    pure harmonic and whose stiffness is constant. State (x, x') with ' = d/dtheta."""
+
+    mass: float
+    stiffness: float
+    damping_ratio: float
+    amplitude: float
+    order: int = eqx.field(static=True)
+    formulation: str = eqx.field(static=True, default="perturbation")
+    jump_thetas: tuple = eqx.field(static=True, default=())
+
+    @property
+    def period_rad(self):
+        return 2 * math.pi / self.order
+
+    mesh_period_rad = period_rad
+
+    @property
+    def static_force_N(self):
+        return 100.0 * self.stiffness * self.amplitude  # never a "contact loss"
+
+    @property
+    def omega_n(self):
+        return math.sqrt(self.stiffness / self.mass)
+
+    def initial_state(self, omega):
+        return jnp.stack([jnp.asarray(self.amplitude), jnp.zeros(())])
+
+    def vector_field(self, theta, y, omega):
+        c = 2 * self.damping_ratio * math.sqrt(self.stiffness * self.mass)
+        f = self.stiffness * (self.amplitude * jnp.cos(self.order * theta) - y[0])
+        return jnp.stack([y[1], (f - omega * c * y[1]) / (omega**2 * self.mass)])
+
+    def outputs(self, theta, y, omega):
+        x_s = self.amplitude * jnp.cos(self.order * theta)
+        return ModelOutputs(mesh_force_N=self.static_force_N + self.stiffness * (y[0] - x_s),
+                            dte_m=y[0])
+
+    def decay_rate_per_rad(self, omega):
+        return self.damping_ratio * self.omega_n / omega
+
+
+def test_harmonic_excitation_matches_closed_form_frf():
+    """Steady amplitude and phase against H = k / (k - m nu^2 + i c nu), nu = n Omega."""
+    osc = HarmonicOscillator(mass=2.0, stiffness=8e8, damping_ratio=0.05, amplitude=1.0, order=26)
+    w_n = osc.omega_n / osc.order
+    speeds = jnp.asarray([0.4 * w_n, w_n, 1.7 * w_n])
+    run = _vsim(n_measured_periods=3, save_signals=True, rtol=1e-10, atol=1e-12)
+    res = run(osc, speeds)
+    for i, omega in enumerate(np.asarray(speeds)):
+        nu = osc.order * omega
+        c = 2 * osc.damping_ratio * math.sqrt(osc.stiffness * osc.mass)
+        h = osc.stiffness / (osc.stiffness - osc.mass * nu**2 + 1j * c * nu)
+        th = np.asarray(res.signals.theta_rad[i])
+        x = np.asarray(res.signals.dte_m[i])
+        basis = np.stack([np.cos(osc.order * th), -np.sin(osc.order * th)], axis=1)
+        (p, q), *_ = np.linalg.lstsq(basis, x, rcond=None)
+        fit = p + 1j * q  # x = Re(fit exp(i n theta))
+        assert abs(abs(fit) / abs(h) - 1) < 1e-6, (omega, abs(fit), abs(h))
+        assert abs(np.angle(fit / h)) < 1e-6
+        # sampled peak-to-peak: 128 samples per period at mid-cells underestimate the true
+        # 2|H|a by at most a factor cos(pi/128)
+        ratio = float(res.dte_ptp_m[i]) / (2 * abs(h) * osc.amplitude)
+        assert math.cos(math.pi / SAMPLES) - 1e-6 <= ratio <= 1 + 1e-6
+        assert bool(res.converged[i]) and not bool(res.contact_loss[i])
+        assert float(res.transient_periods[i]) >= 8
+    # at resonance |H| = 1 / (2 zeta) = 10
+    assert abs(float(res.dte_ptp_m[1]) / 2 * (2 * osc.damping_ratio) - 1) < 4e-4
+
+
+# ---------------------------------------------------------------------- Eq. (47a) closed form
+def _closed_form_perturbation(model, omega, n_per_sample=32):
+    """Steady state of Eq. (47a) harmonic by harmonic from quasi_static() (FFT), sampled at
+    simulate's phases (j + 1/2) P / 128. Returns (F_D, DTE) over one period."""
+    mesh, mods = model.mesh, model.mods
+    pair = mesh.pair
+    period = model.period_rad
+    n = SAMPLES * n_per_sample
+    theta = np.arange(n) * (period / n)
+    f_s = float(model.static_force_N)
+    qs = quasi_static(mesh, mods, jnp.asarray(theta), f_s)
+    x_s, nlte = np.asarray(qs.x_s_m), np.asarray(qs.nlte_m)
+    k_s = np.asarray(qs.loaded_stiffness_N_per_m)
+    j1, j2 = np.asarray(model.inertias_kg_m2)
+    rb1, rb2 = pair.base_radii_m
+    m_eq = j1 * j2 / (j1 * rb2**2 + j2 * rb1**2)
+    cos_b = math.cos(pair.base_helix_angle_rad)
+    k_m = float(model.mean_stiffness_N_per_m())
+    assert abs(k_m / k_s.mean() - 1) < 1e-3  # the model's k_m is the mean loaded stiffness
+    K = k_m * cos_b**2
+    c = 2 * float(model.damping_ratio) * math.sqrt(K * m_eq)
+    h = np.fft.fftfreq(n, d=1.0 / n)  # harmonic numbers of the period
+    nu = h * (2 * math.pi / period) * omega  # rad/s
+    rhs = K * np.fft.fft(x_s) + (j2 / rb2**2) * nu**2 * np.fft.fft(nlte)
+    x = np.real(np.fft.ifft(rhs / (K - m_eq * nu**2 + 1j * c * nu)))
+    f_d = f_s + k_s * cos_b * (x - x_s)  # Eq. (24) with the loaded stiffness
+    dte = x + nlte
+    pick = np.arange(SAMPLES) * n_per_sample + n_per_sample // 2
+    return f_d[pick], dte[pick]
+
+
+@pytest.mark.parametrize("j2", [None, 0.05])
+def test_perturbation_with_nlte_matches_closed_form(spur, j2):
+    """Eq. (47a), long relief (NLTE with kinks: NLTE'' has Dirac parts, removed exactly by
+    the substitution z = x + kappa NLTE) against the frequency-domain steady state. With
+    the default (solid) gear, kappa = J2 / (Rb2^2 m_eq) is about 30 and the NLTE'' forcing
+    dominates; with J2 = 0.05 kg m^2 (kappa = 1.3) both forcing terms matter."""
+    j1, j2_default = solid_cylinder_inertias(spur.pair)
+    model = TorsionalModel.build(spur, table1_relief("long"), formulation="perturbation",
+                                 inertias_kg_m2=(j1, j2 or j2_default))
+    assert model.nlte_terms
+    speeds = np.asarray([300.0, 780.0, 1200.0])
+    res = sim2(model, jnp.asarray(speeds))
+    f_s = float(model.static_force_N)
+    for i, omega in enumerate(speeds):
+        f_d, dte = _closed_form_perturbation(model, omega)
+        assert bool(res.converged[i])
+        # integration at rtol 1e-7 and a transient decayed to 1e-6: 1e-5 of the dynamic part
+        scale = np.max(np.abs(f_d - f_s))
+        assert scale > 0.05 * f_s
+        assert abs(float(res.max_mesh_force_N[i]) - f_d.max()) < 1e-5 * scale
+        assert abs(float(res.min_mesh_force_N[i]) - f_d.min()) < 1e-5 * scale
+        np.testing.assert_allclose(float(res.dte_ptp_m[i]), np.ptp(dte), rtol=1e-5)
+
+
+# ---------------------------------------------------------------------- quasi-static limit
+def test_low_speed_dynamic_factor_tends_to_one(spur):
+    """Omega -> 0: F_D -> F_S. The residual comes from the kinks of x_S (active-set changes
+    of the relieved flanks), which excite free vibrations of amplitude ~ jump of x_S' times
+    Omega / omega_n: it must shrink roughly in proportion to the speed."""
+    mods = table1_relief("short")
+    for form in ("reference", "te"):
+        model = TorsionalModel.build(spur, mods, formulation=form)
+        res = sim2(model, jnp.asarray([5.0, 20.0]))
+        dev = np.abs(np.asarray(res.dynamic_factor) - 1)
+        assert dev[0] < 3e-3, (form, dev)
+        assert dev[0] < 0.4 * dev[1], (form, dev)
+        assert np.all(np.asarray(res.converged))
+        low = np.abs(np.asarray(res.min_mesh_force_N) / float(model.static_force_N) - 1)
+        assert low[0] < 4e-3
+
+
+# ---------------------------------------------------------------------- Eq. (24)
+def test_eq24_mesh_force_from_cell_forces(spur):
+    """Reference formulation: the sum of the cell forces (Eq. (22)) equals
+    F_S + (sum k_i)^S cos(b_b) x_D (Eq. (24)) wherever the dynamically loaded cells are the
+    quasi-statically loaded ones; both sides recomputed here from public functions."""
+    mods = table1_relief("short")
+    model = TorsionalModel.build(spur, mods, formulation="reference")
+    run = _vsim(n_measured_periods=1, save_signals=True)
+    res = run(model, jnp.asarray([300.0]))
+    th = np.asarray(res.signals.theta_rad[0])
+    x = np.asarray(res.signals.dte_m[0])  # NLTE = 0 for the short relief: DTE = x
+    assert not model.nlte_terms
+    f_s = float(model.static_force_N)
+    qs = quasi_static(spur, mods, jnp.asarray(th), f_s)
+
+    def cell_forces(t, xx):
+        cells, de, _ = contact_gaps(spur, mods, t)
+        return cells.stiffness_N_per_m * jnp.maximum(xx - de, 0.0)  # spur: cos(b_b) = 1
+
+    loads = np.asarray(jax.vmap(cell_forces)(jnp.asarray(th), jnp.asarray(x)))
+    f22 = loads.sum(axis=1)
+    np.testing.assert_allclose(f22, np.asarray(res.signals.mesh_force_N[0]), rtol=1e-12)
+    f24 = f_s + np.asarray(qs.loaded_stiffness_N_per_m) * (x - np.asarray(qs.x_s_m))
+    same = np.all((loads > 0) == (np.asarray(qs.cell_load_N) > 0), axis=1)
+    assert same.mean() > 0.8  # the relieved tips change contact only near engagement
+    np.testing.assert_allclose(f22[same], f24[same], rtol=1e-9)
+    assert np.max(np.abs(f22 - f_s)) > 0.1 * f_s  # really dynamic
+
+
+# ---------------------------------------------------------------------- reference vs TE
+def test_reference_equals_te_without_contact_changes(spur):
+    """Perfect gears (every gap zero): the loaded cells are all cells in the path of
+    contact, statically and dynamically, as long as contact is not lost; then Eq. (20) is
+    an exact rewriting of Eq. (16) (Eq. (18) holds exactly). Where contact is lost the
+    linear TE-based equation cannot follow the separation."""
+    mods = ToothModifications.none()
+    speeds = jnp.asarray([200.0, 500.0, 900.0, 700.0])
+    ref = sim2(TorsionalModel.build(spur, mods, formulation="reference"), speeds)
+    te = sim2(TorsionalModel.build(spur, mods, formulation="te"), speeds)
+    loss = np.asarray(ref.contact_loss)
+    assert list(loss) == [False, False, False, True]
+    for f in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m"):
+        a, b = np.asarray(getattr(ref, f)), np.asarray(getattr(te, f))
+        # both integrated at rtol 1e-7: agreement to a few 1e-6
+        np.testing.assert_allclose(a[:3], b[:3], rtol=5e-6, err_msg=f)
+        assert abs(b[3] - a[3]) > 0.1 * max(abs(a[3]), abs(b[3])), f
+
+
+def test_reference_close_to_te_with_short_relief(spur):
+    """Table 1 short relief, 300 rad/s (no contact loss): the formulations agree to < 1 %.
+    They are not identical because the dynamic approach shifts the instants at which the
+    relieved tips come into contact (Eq. (18) is then an approximation); at 700 rad/s the
+    teeth separate and the TE-based result is off by tens of per cent (paper Section 6.3.1)."""
+    mods = table1_relief("short")
+    speeds = jnp.asarray([300.0, 700.0])
+    ref = sim2(TorsionalModel.build(spur, mods, formulation="reference"), speeds)
+    te = sim2(TorsionalModel.build(spur, mods, formulation="te"), speeds)
+    assert list(np.asarray(ref.contact_loss)) == [False, True]
+    for f in ("max_mesh_force_N", "dte_ptp_m"):
+        a, b = np.asarray(getattr(ref, f)), np.asarray(getattr(te, f))
+        assert abs(b[0] / a[0] - 1) < 1e-2, f
+        assert abs(b[1] / a[1] - 1) > 0.1, f
+
+
+# ---------------------------------------------------------------------- model options
+def test_merged_spur_lines_and_inline_excitation_agree(spur):
+    """Two optimisations are exact: merging the identical cells of a spur contact line, and
+    tabulating TE_S, NLTE, (sum k)^S (jump-aware Hermite table) instead of solving the
+    quasi-static contact in every right-hand side."""
+    mods = table1_relief("long")
+    w = jnp.asarray([450.0])
+    kw = dict(formulation="te", inertias_kg_m2=(solid_cylinder_inertias(spur.pair)[0], 0.05))
+    a = sim2(TorsionalModel.build(spur, mods, **kw), w)
+    b = sim2(TorsionalModel.build(spur, mods, excitation="inline", merge_spur_lines=False, **kw), w)
+    for f in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m"):
+        np.testing.assert_allclose(np.asarray(getattr(a, f)), np.asarray(getattr(b, f)), rtol=2e-6,
+                                   err_msg=f)
+
+
+def test_default_inertias_and_natural_frequency(spur):
+    pair = spur.pair
+    j1, j2 = solid_cylinder_inertias(pair)
+    r1, r2 = pair.pitch_radii_m
+    assert j1 == pytest.approx(7800 * math.pi * 0.050 * r1**4 / 2)
+    assert j2 == pytest.approx(7800 * math.pi * 0.040 * r2**4 / 2)
+    model = TorsionalModel.build(spur, table1_relief("short"))
+    rb1, rb2 = pair.base_radii_m
+    m_eq = j1 * j2 / (j1 * rb2**2 + j2 * rb1**2)
+    assert float(model.equivalent_mass_kg) == pytest.approx(m_eq)
+    w_n = math.sqrt(float(model.mean_stiffness_N_per_m()) / m_eq)
+    assert float(model.natural_frequency_rad_s()) == pytest.approx(w_n)
+    # main critical pinion speed (mesh frequency = omega_n) for the spur pair
+    assert 700 < w_n / pair.z1 < 850
+
+
+# ---------------------------------------------------------------------- errors and flags
+def test_clear_errors(spur):
+    mods = table1_relief("short")
+    with pytest.raises(ModelError, match="damping_ratio=1.0"):
+        TorsionalModel.build(spur, mods, damping_ratio=1.0)
+    with pytest.raises(ModelError, match="damping_ratio=-0.1"):
+        TorsionalModel.build(spur, mods, damping_ratio=-0.1)
+    with pytest.raises(ModelError, match="formulation='eq99'"):
+        TorsionalModel.build(spur, mods, formulation="eq99")
+    with pytest.raises(ModelError, match="pinion_torque_Nm=-5"):
+        TorsionalModel.build(spur, mods, pinion_torque_Nm=-5)
+    with pytest.raises(ModelError, match="inertias_kg_m2"):
+        TorsionalModel.build(spur, mods, inertias_kg_m2=(1.0, 0.0))
+    model = TorsionalModel.build(spur, mods, formulation="perturbation")
+    with pytest.raises(SimulationError, match="omega=0.0"):
+        simulate(model, 0.0)
+    with pytest.raises(SimulationError, match="omega=-3.0"):
+        simulate(model, -3.0)
+    with pytest.raises(SimulationError, match="n_measured_periods=0"):
+        simulate(model, 100.0, n_measured_periods=0)
+
+
+def test_failed_integration_is_flagged_not_silent(spur):
+    """A step limit that is too small: solver_ok=False, converged=False, NaN metrics."""
+    model = TorsionalModel.build(spur, table1_relief("short"), formulation="perturbation")
+    run = _vsim(n_measured_periods=2, max_steps=20)
+    res = run(model, jnp.asarray([300.0]))
+    assert not bool(res.solver_ok[0]) and not bool(res.converged[0])
+    assert np.isnan(float(res.dynamic_factor[0])) and np.isnan(float(res.dte_ptp_m[0]))
+    assert not bool(res.contact_loss[0])

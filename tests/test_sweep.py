@@ -1,0 +1,128 @@
+"""Speed sweeps: one compilation for repeated sweeps, CSV/progress output, caller's order,
+agreement with single-speed simulations, and sharding across (fake) devices."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import equinox as eqx
+import numpy as np
+import pytest
+
+import gearjax.sweep as sweep_mod
+from gearjax import Mesh, baud_velex_pair, table1_relief
+from gearjax.models.torsional import TorsionalModel
+from gearjax.simulate import SimulationError, simulate
+from gearjax.sweep import CSV_COLUMNS, sweep
+
+OPTS = dict(n_transient_periods=12, n_measured_periods=2)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
+                                formulation="perturbation")
+
+
+def test_repeated_sweeps_trace_once(model, monkeypatch):
+    """New speeds (and new array data of the model) never retrace the chunk function."""
+    counted = eqx.debug.assert_max_traces(simulate, max_traces=1)
+    monkeypatch.setattr(sweep_mod, "simulate", counted)
+    a = sweep(model, [900.0, 100.0, 300.0, 500.0, 700.0, 200.0, 400.0], chunk_size=4,
+              progress=False, **OPTS)
+    b = sweep(model, [150.0, 250.0, 350.0], chunk_size=4, progress=False, **OPTS)
+    damped = TorsionalModel.build(model.mesh, model.mods, formulation="perturbation",
+                                  damping_ratio=0.08)
+    c = sweep(damped, [150.0, 250.0, 350.0], chunk_size=4, progress=False, **OPTS)
+    assert eqx.debug.get_num_traces(counted) <= 1
+    assert a.speed_rad_s.tolist() == [900.0, 100.0, 300.0, 500.0, 700.0, 200.0, 400.0]
+    assert np.all(c.dynamic_factor < b.dynamic_factor)  # more damping, same speeds
+    # caller's order is kept and each entry is the single-speed simulation
+    one = eqx.filter_jit(simulate)(model, np.float64(300.0), **OPTS)
+    i = 2
+    for f in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m"):
+        np.testing.assert_allclose(getattr(a, f)[i], float(getattr(one, f)), rtol=1e-10, err_msg=f)
+    # convergence is a difference of nearly equal extrema over F_S: compare absolutely
+    assert abs(a.convergence[i] - float(one.convergence)) < 1e-11
+    assert np.all(np.isnan(a.accel_ptp_m_s2))  # torsional model: no acceleration observable
+
+
+def test_csv_rows_and_progress(model, tmp_path, capsys):
+    out = tmp_path / "sweep.csv"
+    speeds = [120.0, 640.0, 330.0, 880.0, 450.0]
+    res = sweep(model, speeds, chunk_size=2, out_csv=out, **OPTS)
+    err = capsys.readouterr().err
+    assert "chunk 1/3" in err and "chunk 3/3" in err and "5/5 done" in err
+    with open(out, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert tuple(rows[0].keys()) == CSV_COLUMNS
+    assert sorted(float(r["speed_rad_s"]) for r in rows) == sorted(speeds)
+    for r in rows:
+        i = speeds.index(float(r["speed_rad_s"]))
+        assert r["formulation"] == "perturbation"
+        assert r["accel_ptp_m_s2"] == ""
+        assert float(r["max_mesh_force_N"]) == res.max_mesh_force_N[i]
+        assert float(r["dynamic_factor"]) == res.dynamic_factor[i]
+        assert r["contact_loss"] == str(bool(res.contact_loss[i]))
+        assert r["converged"] == str(bool(res.converged[i]))
+    # a second sweep appends rows (header written once)
+    sweep(model, [500.0], out_csv=out, progress=False, **OPTS)
+    with open(out) as fh:
+        lines = fh.read().splitlines()
+    assert len(lines) == 1 + 5 + 1 and lines.count(",".join(CSV_COLUMNS)) == 1
+
+
+def test_bad_input(model):
+    with pytest.raises(SimulationError, match="speeds_rad_s"):
+        sweep(model, [100.0, 0.0], progress=False)
+    with pytest.raises(SimulationError, match="speeds_rad_s"):
+        sweep(model, [], progress=False)
+    with pytest.raises(SimulationError, match="speeds_rad_s"):
+        sweep(model, [100.0, float("nan")], progress=False)
+    with pytest.raises(SimulationError, match="chunk_size=0"):
+        sweep(model, [100.0], chunk_size=0, progress=False)
+
+
+_SHARDED = textwrap.dedent(
+    """
+    import json
+    import numpy as np
+    import jax
+    from gearjax import Mesh, baud_velex_pair, table1_relief
+    from gearjax.models.torsional import TorsionalModel
+    from gearjax.sweep import sweep
+    assert len(jax.devices()) == 4, jax.devices()
+    m = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
+                             formulation="perturbation")
+    speeds = [700.0, 90.0, 1200.0, 310.0, 520.0, 860.0, 150.0]
+    kw = dict(n_transient_periods=12, n_measured_periods=2, progress=False)
+    a = sweep(m, speeds, **kw)
+    b = sweep(m, speeds, devices="all", chunk_size=5, **kw)
+    fields = ["speed_rad_s", "max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m",
+              "convergence", "n_steps"]
+    print(json.dumps({f: [np.asarray(getattr(r, f)).tolist() for r in (a, b)] for f in fields}
+                     | {"flags": [[np.asarray(getattr(r, f)).tolist() for r in (a, b)]
+                                  for f in ("converged", "contact_loss", "solver_ok")]}))
+    """
+)
+
+
+def test_sharded_equals_unsharded():
+    """Four fake CPU devices (shard_map over the speed axis, interleaved, padded to a
+    multiple of the device count) give exactly the single-device results, in order."""
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4")
+    out = subprocess.run([sys.executable, "-c", _SHARDED], env=env, capture_output=True,
+                         text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    data = json.loads(out.stdout.strip().splitlines()[-1])
+    a, b = data["speed_rad_s"]
+    assert a == b == [700.0, 90.0, 1200.0, 310.0, 520.0, 860.0, 150.0]
+    for f in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m", "convergence", "n_steps"):
+        np.testing.assert_array_equal(*data[f], err_msg=f)
+    for pair in data["flags"]:
+        assert pair[0] == pair[1]
