@@ -116,7 +116,7 @@ import numpy as np
 from ..geometry import GearPair
 from ..mesh import Mesh
 from ..modifications import ToothModifications
-from ..quasistatic import contact_gaps, static_mesh_force
+from ..quasistatic import contact_gaps, solve_unilateral, static_mesh_force
 
 __all__ = [
     "TorsionalModel",
@@ -515,7 +515,12 @@ class TorsionalModel(eqx.Module):
     def _qs(self, theta):
         """(x_S, k_S, NLTE) at theta: exact unilateral quasi-static solve (Eq. (17))."""
         cells, delta_e, nlte = contact_gaps(self.mesh, self.mods, theta)
-        y, k_s = unilateral_solve_pairwise(cells.stiffness_N_per_m, delta_e, self.static_force_N)
+        k = cells.stiffness_N_per_m
+        if self.excitation == "inline":  # inside the vector field: no sort
+            y, k_s = unilateral_solve_pairwise(k, delta_e, self.static_force_N)
+        else:  # table knots: sort-based root, O(n log n) for the 160 helical cells
+            y, _ = solve_unilateral(k, delta_e, self.static_force_N)
+            k_s = jnp.sum(jnp.where((k > 0) & (delta_e < y), k, 0.0))
         return jnp.stack([y / self.cos_bb, k_s, nlte])
 
     def _qs_with_slope(self, theta):
@@ -735,7 +740,7 @@ def _signature_fn(mesh, mods, force):
     def sig(theta):
         cells, delta_e, nlte = contact_gaps(mesh, mods, theta)
         k = cells.stiffness_N_per_m
-        y, _ = unilateral_solve_pairwise(k, delta_e, force)
+        y, _ = solve_unilateral(k, delta_e, force)
         r = mesh.removed_material(mods, cells, theta)
         zone = jnp.zeros(cells.xi_m.shape, dtype=jnp.int32)
         if has_relief[0]:
