@@ -86,7 +86,7 @@ def scipy_metrics(model, omega, n_transient, rhs="jax", n_measured=3, samples=12
     from scipy.integrate import solve_ivp
 
     mp = eqx.filter_jit(lambda m: m.prepare())(model)
-    name, rtol, atol = _scipy_method(model.formulation)
+    name, rtol, atol = _scipy_method(model)
     period = model.period_rad
     jumps = np.asarray(mp.jump_thetas)
     w = float(omega)
@@ -115,8 +115,9 @@ def scipy_metrics(model, omega, n_transient, rhs="jax", n_measured=3, samples=12
     return float(jnp.max(out.mesh_force_N) / mp.static_force_N), dt
 
 
-def _scipy_method(formulation):
-    solver, rtol, atol = default_solver(formulation)
+def _scipy_method(model):
+    density = len(model.jump_thetas) * model.mesh_period_rad / model.period_rad
+    solver, rtol, atol = default_solver(model.formulation, density)
     return ("DOP853" if isinstance(solver, diffrax.Dopri8) else "RK45"), rtol, atol
 
 
@@ -196,7 +197,7 @@ def sweep_table(args):
         scale = len(speeds) / len(sub)
         sj = float(np.sum(t_jax) * scale)
         sn = float(np.sum(t_np) * scale) if t_np else float("nan")
-        solver = type(default_solver(form)[0]).__name__
+        solver = {"DOP853": "Dopri8", "RK45": "Tsit5"}[_scipy_method(model)[0]]
         for n_dev, comp, run, r in rows:
             print(f"{form:13s} {solver:7s} {n_dev:7d} {comp:11.2f} {run:8.2f} "
                   f"{run / len(speeds) * 1e3:8.2f} {int(r.n_steps.max()):9d} "

@@ -142,7 +142,10 @@ _SHARDED_CACHE: dict = {}
 
 
 def _cost_order(speeds):
-    """Indices of speeds sorted by decreasing estimated cost (cost ~ 1/speed per period)."""
+    """Indices of the speeds in cost order. The cost is monotonic in speed (with the
+    automatic transient it grows slowly with speed; with a fixed transient it falls like
+    1/speed), so sorting by speed is sorting by cost: contiguous chunks hold similar costs
+    (good for lockstep), and dealing each chunk round-robin to the devices balances them."""
     return np.argsort(speeds, kind="stable")
 
 
@@ -202,7 +205,8 @@ def sweep(
     sim_kwargs = tuple(sorted(simulate_kwargs.items()))
     formulation = getattr(model, "formulation", "")
 
-    # order: within the whole sweep, sorted by cost, then dealt round-robin to the devices
+    # order: the whole sweep sorted by cost (speed), chunks of consecutive speeds, each chunk
+    # dealt round-robin to the devices
     order = _cost_order(speeds)
     padded_idx = np.concatenate([order, np.full(total - speeds.size, order[-1])])
     if n_dev > 1:
