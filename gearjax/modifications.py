@@ -29,6 +29,7 @@ the path of contact (see :mod:`gearjax.quasistatic`).
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Literal
 
 import equinox as eqx
@@ -179,6 +180,29 @@ class ToothModifications(eqx.Module):
         b = pair.face_width_m
         r = r + self.crowning_m * (2.0 * eta / b - 1.0) ** 2
         return r
+
+    def excitation_period_rad(self, pair) -> float:
+        """Period of the excitation in theta (rad): the lcm of the mesh period and the
+        rotations that carry errors (pinion: z1 mesh periods, gear: z2 mesh periods).
+
+        Warns when errors on both gears make it the hunting period (costly simulations).
+        """
+        n = 1
+        if self.pitch_errors_m is not None:
+            for f, z in zip(self.pitch_errors_m, (pair.z1, pair.z2)):
+                if np.any(np.diff(np.asarray(f)) != 0.0):
+                    n = math.lcm(n, z)
+        if self.eccentricity_m is not None:
+            for e, z in zip(np.asarray(self.eccentricity_m), (pair.z1, pair.z2)):
+                if e != 0.0:
+                    n = math.lcm(n, z)
+        if n > 4 * max(pair.z1, pair.z2):
+            warnings.warn(
+                f"the excitation period is {n} mesh periods (errors on both gears give the "
+                "hunting period): simulations over whole periods will be costly",
+                stacklevel=3,
+            )
+        return n * pair.mesh_period_rad
 
     def check_against(self, pair) -> None:
         """Check array sizes against the pair's tooth numbers (clear error if wrong)."""

@@ -504,7 +504,7 @@ class Geared3DModel(eqx.Module):
 
         # quasi-static scan with the condensed structure -> k_m
         cond = _condense(K, F0, W, pos[loc_all], keep12)
-        period = _excitation_period(pair, mods)
+        period = mods.excitation_period_rad(pair)
         n_mesh = int(round(period / pair.mesh_period_rad))
         n_tab = int(n_table) * n_mesh
         if int(n_table) < 16:
@@ -867,29 +867,6 @@ def _disc_mass(structure, node, M_all) -> float:
         if node in e.nodes:
             return e.param("mass_kg")
     return float(M_all[6 * node + 1, 6 * node + 1])
-
-
-def _nonzero(x) -> bool:
-    return bool(np.any(np.asarray(x) != 0.0))
-
-
-def _excitation_period(pair, mods) -> float:
-    """Period of the excitation in theta: lcm of the mesh period and the rotations that
-    carry errors (pinion: z1 mesh periods, gear: z2 mesh periods)."""
-    n = 1
-    if mods.pitch_errors_m is not None:
-        f1, f2 = mods.pitch_errors_m
-        if _nonzero(np.diff(np.asarray(f1))):
-            n = math.lcm(n, pair.z1)
-        if _nonzero(np.diff(np.asarray(f2))):
-            n = math.lcm(n, pair.z2)
-    if mods.eccentricity_m is not None:
-        e = np.asarray(mods.eccentricity_m)
-        if e[0] != 0.0:
-            n = math.lcm(n, pair.z1)
-        if e[1] != 0.0:
-            n = math.lcm(n, pair.z2)
-    return n * pair.mesh_period_rad
 
 
 def _jump_angles(model: Geared3DModel, theta, qs) -> np.ndarray:

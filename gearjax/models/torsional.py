@@ -126,7 +126,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import warnings
 from typing import Literal
 
 import equinox as eqx
@@ -445,7 +444,7 @@ class TorsionalModel(eqx.Module):
         if (merge_spur_lines and mesh.pair.spur and mesh.cells_per_line > 1
                 and not _nonzero(mods.crowning_m)):
             mesh = dataclasses.replace(mesh, cells_per_line=1)
-        period = _excitation_period(mesh.pair, mods)
+        period = mods.excitation_period_rad(mesh.pair)
         force = static_mesh_force(mesh.pair, torque)
         n_mesh = int(round(period / mesh.pair.mesh_period_rad))
         sig = _signature_fn(mesh, mods, force)
@@ -728,31 +727,6 @@ def _jit_prepare(model):
 # ---------------------------------------------------------------------- build helpers
 def _nonzero(x) -> bool:
     return bool(np.any(np.asarray(x) != 0.0))
-
-
-def _excitation_period(pair: GearPair, mods: ToothModifications) -> float:
-    """Period of the excitation in theta: lcm of the mesh period and the rotations that
-    carry errors (pinion: z1 mesh periods, gear: z2 mesh periods)."""
-    n = 1
-    if mods.pitch_errors_m is not None:
-        f1, f2 = mods.pitch_errors_m
-        if _nonzero(np.diff(np.asarray(f1))):
-            n = math.lcm(n, pair.z1)
-        if _nonzero(np.diff(np.asarray(f2))):
-            n = math.lcm(n, pair.z2)
-    if mods.eccentricity_m is not None:
-        e = np.asarray(mods.eccentricity_m)
-        if e[0] != 0.0:
-            n = math.lcm(n, pair.z1)
-        if e[1] != 0.0:
-            n = math.lcm(n, pair.z2)
-    if n > 4 * max(pair.z1, pair.z2):
-        warnings.warn(
-            f"the excitation period is {n} mesh periods (errors on both gears give the "
-            "hunting period): simulations over whole periods will be costly",
-            stacklevel=3,
-        )
-    return n * pair.mesh_period_rad
 
 
 def _signature_fn(mesh, mods, force):
