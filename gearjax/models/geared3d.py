@@ -460,7 +460,6 @@ class Geared3DModel(eqx.Module):
 
         pair = mesh.pair
         rb1, rb2 = pair.base_radii_m
-        cos_bb = math.cos(pair.base_helix_angle_rad)
         f_s = static_mesh_force(pair, torque)
 
         # element on the full numbering; vectors are restricted to the free dofs below
