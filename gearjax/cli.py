@@ -12,6 +12,7 @@ The CLI only parses arguments and formats results; all physics lives in the libr
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import sys
@@ -76,7 +77,14 @@ def _parser() -> argparse.ArgumentParser:
                     help="output folder for results.csv and summary.json")
     sw.add_argument("--chunk", type=int, default=None,
                     help="speeds per compiled call (progress and CSV rows per chunk)")
+    for name in _EXTENSIONS:
+        importlib.import_module(name).register(sub, _add_rig, _add_scenario)
     return ap
+
+
+# Modules adding sub-commands: each defines ``register(subparsers, add_rig, add_scenario)``
+# that adds its parsers with ``set_defaults(func=...)``; ``func(args) -> int``.
+_EXTENSIONS: tuple[str, ...] = ()
 
 
 def _add_scenario(p: argparse.ArgumentParser):
@@ -308,6 +316,8 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_quasistatic(args)
         if args.command == "sweep":
             return _cmd_sweep(args)
+        if hasattr(args, "func"):
+            return args.func(args)
     except (GeometryError, ModificationError, RigError, ValueError) as exc:
         return _fail(str(exc))
     return _fail(f"unknown command {args.command!r}")

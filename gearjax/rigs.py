@@ -35,6 +35,11 @@ class Rig:
     pinion_pitch_errors_m : (z1,) cumulative pitch deviations of the pinion (m), used by
         ``--pitch-errors``.
     description : one line for reports.
+    structure_factory : ``f(pair) -> Structure`` building the 3D shaft lines (with
+        ``pinion_node`` and ``gear_node`` set); default the Baud-Velex structure.
+    motor_node : node whose torsional dof carries the motor torque C_m0.
+    encoder_positions : ``{position: (node_I, node_II)}`` of the TE encoders (Fig. 7).
+    modifications_default : tooth modifications of a rig file (``relief="file"``), or None.
     """
 
     name: str
@@ -42,16 +47,45 @@ class Rig:
     pinion_torque_Nm: float
     pinion_pitch_errors_m: np.ndarray
     description: str
+    structure_factory: object = None
+    motor_node: int | None = None
+    encoder_positions: dict | None = None
+    modifications_default: ToothModifications | None = None
 
     def structure(self):
-        """The rig's shafts, discs, bearings and couplings (:mod:`gearjax.structure.rigs`),
-        with the centre line set by this rig's gear pair."""
+        """The rig's shafts, discs, bearings and couplings, with the centre line set by
+        this rig's gear pair (default :func:`gearjax.structure.rigs.baud_velex_structure`)."""
+        if self.structure_factory is not None:
+            return self.structure_factory(self.pair)
         from .structure.rigs import baud_velex_structure
 
         return baud_velex_structure(
             centre_distance_m=self.pair.centre_distance_m,
             working_pressure_angle_rad=self.pair.working_pressure_angle_rad,
         )
+
+    @property
+    def torque_node(self) -> int:
+        """Node carrying C_m0 (default the Baud-Velex motor node)."""
+        if self.motor_node is not None:
+            return int(self.motor_node)
+        from .structure.rigs import MOTOR_NODE
+
+        return MOTOR_NODE
+
+    def encoder_nodes(self, position: int = 1) -> tuple[int, int]:
+        """Nodes (I, II) of encoder position ``position`` (Fig. 7, Eq. (9))."""
+        if self.encoder_positions is None:
+            from .structure.rigs import encoder_nodes
+
+            try:
+                return encoder_nodes(position)
+            except ValueError as exc:
+                raise RigError(f"encoders={position!r}: {exc}") from None
+        if position not in self.encoder_positions:
+            raise RigError(f"encoders={position!r}: rig {self.name!r} defines encoder positions "
+                           f"{sorted(self.encoder_positions)}")
+        return tuple(int(n) for n in self.encoder_positions[position])
 
     def modifications(
         self,
@@ -137,15 +171,13 @@ def system_3d(rig: Rig, law: str = "iso6336", encoder_position: int = 1):
     from .mesh import Mesh
     from .models.element import PinionGearElement
     from .quasistatic import static_mesh_force
-    from .structure.rigs import MOTOR_NODE, encoder_nodes
-
     structure = rig.structure()
     mesh = Mesh.build(rig.pair, law)
     element = PinionGearElement.at_nodes(mesh, structure.n_dof, structure.pinion_node, structure.gear_node)
-    node_i, node_ii = encoder_nodes(encoder_position)
+    node_i, node_ii = rig.encoder_nodes(encoder_position)
     W = element.torsional_vector(structure.dof(node_i, "theta"), structure.dof(node_ii, "theta"))
     F0 = np.zeros(structure.n_dof)
-    F0[structure.dof(MOTOR_NODE, "theta")] = rig.pinion_torque_Nm
+    F0[structure.dof(rig.torque_node, "theta")] = rig.pinion_torque_Nm
     return {
         "structure": structure,
         "mesh": mesh,

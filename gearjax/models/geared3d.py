@@ -599,6 +599,26 @@ class Geared3DModel(eqx.Module):
         kwargs.setdefault("encoder_nodes", encoder_nodes(encoder_position))
         return cls.build(baud_velex_structure(), mesh, mods, **kwargs)
 
+    @classmethod
+    def from_rig(
+        cls,
+        rig,
+        mods: ToothModifications | None = None,
+        *,
+        law: str = "iso6336",
+        cells_per_line: int | None = None,
+        encoder_position: int = 1,
+        **kwargs,
+    ) -> "Geared3DModel":
+        """A 3D model of a :class:`gearjax.rigs.Rig` (built-in or rig file): its structure,
+        gear pair, motor node, torque and encoder positions; ``kwargs`` go to
+        :meth:`build`."""
+        mesh = Mesh.build(rig.pair, law, cells_per_line=cells_per_line)
+        kwargs.setdefault("torque_node", rig.torque_node)
+        kwargs.setdefault("encoder_nodes", rig.encoder_nodes(encoder_position))
+        kwargs.setdefault("pinion_torque_Nm", rig.pinion_torque_Nm)
+        return cls.build(rig.structure(), mesh, mods, **kwargs)
+
     # ------------------------------------------------------------------ constants
     @property
     def cos_bb(self) -> float:
