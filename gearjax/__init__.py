@@ -24,7 +24,9 @@ from .quasistatic import contact_gaps as contact_gaps
 from .quasistatic import quasi_static as quasi_static
 from .quasistatic import solve_unilateral as solve_unilateral
 from .quasistatic import static_mesh_force as static_mesh_force
+from .rigfile import load_rig as load_rig
 from .rigs import Rig as Rig
+from .rigs import RigError as RigError
 from .rigs import get_rig as get_rig
 
 __version__ = "0.1.0"

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 
 import numpy as np
 
@@ -133,7 +134,12 @@ RIGS = {
 
 
 def get_rig(name: str) -> Rig:
-    """A built-in rig by name (``baud-velex-spur`` or ``baud-velex-helical``)."""
+    """A built-in rig by name (``baud-velex-spur`` or ``baud-velex-helical``), or a rig
+    file (a name ending in ``.toml`` or an existing path; see :mod:`gearjax.rigfile`)."""
+    if name not in RIGS and (str(name).endswith(".toml") or os.path.isfile(name)):
+        from .rigfile import load_rig
+
+        return load_rig(name)
     try:
         return RIGS[name]()
     except KeyError:
