@@ -84,7 +84,7 @@ def _parser() -> argparse.ArgumentParser:
 
 # Modules adding sub-commands: each defines ``register(subparsers, add_rig, add_scenario)``
 # that adds its parsers with ``set_defaults(func=...)``; ``func(args) -> int``.
-_EXTENSIONS: tuple[str, ...] = ()
+_EXTENSIONS: tuple[str, ...] = ("gearjax.cli_design",)
 
 
 def _add_scenario(p: argparse.ArgumentParser):

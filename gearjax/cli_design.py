@@ -1,0 +1,174 @@
+"""``gearjax optimise`` and ``gearjax harris-map``: tip-relief design from the command line.
+
+Registered through the ``_EXTENSIONS`` hook of :mod:`gearjax.cli`. All physics lives in
+:mod:`gearjax.design`; this module parses options and formats results.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+
+import numpy as np
+
+__all__ = ["register"]
+
+_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
+
+
+class _Bad(ValueError):
+    pass
+
+
+def _range(text: str, option: str, lo: float, hi: float, integer_n: bool = True):
+    try:
+        a, b, n = text.split(":")
+        a, b, n = float(a), float(b), int(n)
+    except ValueError:
+        raise _Bad(f"{option}={text!r}: expected A:B:N, e.g. 300:500:8") from None
+    if not (lo <= a <= b <= hi and n >= 1 and math.isfinite(b)):
+        raise _Bad(f"{option}={text!r}: need {lo:g} <= A <= B <= {hi:g} and N >= 1")
+    return np.linspace(a, b, n)
+
+
+def _common(p, add_rig):
+    add_rig(p)
+    p.add_argument("--model", default="torsional", choices=["torsional", "3d"],
+                   help="dynamic model (torsional only for now)")
+    p.add_argument("--objective", default="peak-force", choices=list(_OBJECTIVES),
+                   help="peak-force (N), dynamic-factor, dte-ptp (m) over --speeds, or te-ptp / "
+                        "te-rms (quasi-static TE_S fluctuation at the rig torque)")
+    p.add_argument("--speeds", default="330:480:8", metavar="A:B:N",
+                   help="pinion speeds (rad/s) of the dynamic objectives (default 330:480:8, "
+                        "around the main critical speed with the rig line inertias)")
+    p.add_argument("--formulation", default="te", choices=["te", "perturbation", "reference"])
+    p.add_argument("--shape", default="linear", choices=["linear", "parabolic"])
+    p.add_argument("--damping", type=float, default=0.03, help="damping ratio zeta (default 0.03)")
+    p.add_argument("--amplitudes", default="2e-6:30e-6:7", metavar="A:B:N",
+                   help="map grid of amplitudes (m), default 2e-6:30e-6:7")
+    p.add_argument("--extents", default="0.1:0.8:7", metavar="A:B:N",
+                   help="map grid of extents, default 0.1:0.8:7")
+    p.add_argument("--out", default="design_out", help="output directory (figures, JSON)")
+
+
+def register(subparsers, add_rig, add_scenario):
+    """Add the ``optimise`` and ``harris-map`` sub-commands."""
+    opt = subparsers.add_parser("optimise", help="optimise the tip relief (optax, exact gradients)")
+    _common(opt, add_rig)
+    opt.add_argument("--separate", action="store_true",
+                     help="separate pinion and gear reliefs (4 variables; no map)")
+    opt.add_argument("--starts", type=int, default=2,
+                     help="multi-start grid points per variable (default 2)")
+    opt.add_argument("--max-iter", type=int, default=30, help="optimiser steps per start")
+    opt.add_argument("--learning-rate", type=float, default=0.1)
+    opt.add_argument("--no-map", action="store_true", help="skip the Harris map")
+    opt.set_defaults(func=_cmd_optimise)
+    hm = subparsers.add_parser("harris-map", help="objective over an (amplitude, extent) grid")
+    _common(hm, add_rig)
+    hm.set_defaults(func=_cmd_harris_map)
+
+
+def _setup(args, separate=False):
+    from .design import ReliefSpace, make_objective
+    from .mesh import Mesh
+    from .rigs import get_rig
+
+    if args.model != "torsional":
+        raise _Bad(f"--model={args.model!r}: tip-relief design runs on the torsional model only "
+                   "for now (the 3D model has no design gradients yet)")
+    if not (0.0 <= args.damping < 1.0):
+        raise _Bad(f"--damping={args.damping!r}: must lie in [0, 1)")
+    speeds = _range(args.speeds, "--speeds", 1e-6, 1e6)
+    amps = _range(args.amplitudes, "--amplitudes", 0.0, 40e-6)
+    exts = _range(args.extents, "--extents", 0.02, 0.98)
+    rig = get_rig(args.rig)
+    mesh = Mesh.build(rig.pair, args.stiffness)
+    space = ReliefSpace(shape=args.shape, shared=not separate)
+    kw = {}
+    if args.objective in ("peak-force", "dynamic-factor", "dte-ptp"):
+        kw = dict(formulation=args.formulation, damping_ratio=args.damping)
+    obj = make_objective(args.objective, mesh, space, speeds_rad_s=speeds,
+                         torques_Nm=rig.pinion_torque_Nm, **kw)
+    return rig, obj, amps, exts
+
+
+def _cmd_harris_map(args) -> int:
+    from .design import harris_map, plot_design_map
+
+    try:
+        rig, obj, amps, exts = _setup(args)
+    except _Bad as exc:
+        return _fail(str(exc))
+    hmap = harris_map(obj, amps, exts)
+    os.makedirs(args.out, exist_ok=True)
+    fig = plot_design_map(hmap, os.path.join(args.out, "harris_map.png"),
+                          marks={"short": (13.3e-6, 0.2), "long": (13.3e-6, 0.5)},
+                          title=f"{rig.name}: {args.objective}")
+    i, j = np.unravel_index(np.nanargmin(hmap.exact), hmap.exact.shape)
+    out = {"rig": rig.name, "objective": args.objective, "amplitudes_m": amps.tolist(),
+           "extents": exts.tolist(), "exact": hmap.exact.tolist(), "smooth": hmap.smooth.tolist(),
+           "best_amplitude_m": float(amps[i]), "best_extent": float(exts[j]),
+           "best_objective": float(hmap.exact[i, j]), "wall_time_s": hmap.wall_time_s,
+           "map_png": fig}
+    with open(os.path.join(args.out, "harris_map.json"), "w") as fh:
+        json.dump(out, fh, indent=2)
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        print(f"  {rig.name}: {args.objective} over {amps.size} x {exts.size} reliefs "
+              f"({hmap.wall_time_s:.1f} s)")
+        print(f"  best grid point: amplitude_m {amps[i]:.3e}  extent {exts[j]:.3f}  "
+              f"objective {hmap.exact[i, j]:.6g}")
+        print(f"  wrote {fig}")
+    return 0
+
+
+def _cmd_optimise(args) -> int:
+    from .design import coarse_starts, harris_map, multi_start, plot_design_map, plot_history
+
+    if args.starts < 1:
+        return _fail(f"--starts={args.starts}: need at least 1 start per variable")
+    if args.max_iter < 1:
+        return _fail(f"--max-iter={args.max_iter}: need at least 1 step")
+    if not (0 < args.learning_rate <= 10):
+        return _fail(f"--learning-rate={args.learning_rate}: must lie in (0, 10]")
+    try:
+        rig, obj, amps, exts = _setup(args, separate=args.separate)
+    except _Bad as exc:
+        return _fail(str(exc))
+    starts = coarse_starts(obj.space, args.starts)
+    best, runs = multi_start(obj, starts, max_iter=args.max_iter,
+                             learning_rate=args.learning_rate)
+    os.makedirs(args.out, exist_ok=True)
+    out = {"rig": rig.name, "model": args.model, "objective": args.objective,
+           "shape": args.shape, "shared": not args.separate}
+    out.update(best.as_dict(obj.space))
+    out["runs"] = [r.as_dict(obj.space) for r in runs]
+    out["history_png"] = plot_history(runs, os.path.join(args.out, "history.png"), args.objective)
+    if not args.no_map and not args.separate:
+        hmap = harris_map(obj, amps, exts)
+        out["map_png"] = plot_design_map(
+            hmap, os.path.join(args.out, "map.png"), results=runs,
+            marks={"short": (13.3e-6, 0.2), "long": (13.3e-6, 0.5)},
+            title=f"{rig.name}: {args.objective}")
+    with open(os.path.join(args.out, "optimum.json"), "w") as fh:
+        json.dump(out, fh, indent=2)
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    names = obj.space.names
+    print(f"  {rig.name}: {args.objective} ({args.model}, {args.shape} relief), "
+          f"{len(runs)} starts")
+    for n in names:
+        print(f"  {n:14s} {out[n]:.6g}")
+    print(f"  objective before {best.exact0:.6g}  after {best.exact:.6g} "
+          f"(smoothed {best.smooth0:.6g} -> {best.smooth:.6g}), stop: {best.stop_reason}")
+    print(f"  wrote {out['history_png']}" + (f", {out['map_png']}" if "map_png" in out else ""))
+    return 0
+
+
+def _fail(msg: str) -> int:
+    print(f"gearjax: error: {msg}", file=sys.stderr)
+    return 2

@@ -1,0 +1,724 @@
+"""Differentiable tip-relief design: objectives, gradients, an optax optimiser, Harris maps.
+
+The design variables are the tip-relief amplitude ``P_c`` (m) and extent ``L_c`` (fraction
+of the path of contact) of pinion and gear (paper Section 2.2.1, Fig. 4), shared by both
+gears (``x = (P_c, L_c)``) or separate (``x = (P_c1, P_c2, L_c1, L_c2)``), with a linear or
+parabolic shape (:class:`ReliefSpace`).
+
+Objectives (:data:`OBJECTIVES`)
+-------------------------------
+* ``"te-ptp"`` / ``"te-rms"``: peak-to-peak / RMS fluctuation of the quasi-static
+  transmission error under load TE_S (Eq. (10), unilateral contact of Eq. (17)) over one
+  mesh period, at one or several pinion torques (several: RMS over the loads for te-rms,
+  smooth maximum over the loads for te-ptp).
+* ``"peak-force"``: the largest dynamic mesh force F_D (N, Eq. (22)/(24)) over a range of
+  pinion speeds, from the sdof torsional model (Eqs. (16), (20), (47a)) at steady state.
+* ``"dynamic-factor"``: the same divided by the static force F_S (Eq. (23)).
+* ``"dte-ptp"``: the largest peak-to-peak dynamic transmission error (m) over the speeds.
+
+Smooth maximum
+--------------
+The maximum over speeds (and over loads, and the extrema of TE_S over the mesh period for
+te-ptp) is replaced by ``smax_beta(v) = scale * logsumexp(beta v / scale) / beta`` with
+``beta = sharpness`` (default :data:`DEFAULT_SHARPNESS` = 200) and ``scale`` the natural
+unit of the objective (F_S for forces, 1 for the dynamic factor, the mean static mesh
+deflection for transmission errors), so that ``max v <= smax <= max v + scale ln(n) /
+beta`` (at most 1.2 % of the unit for 12 speeds). The optimiser descends the smooth value;
+every evaluation reports the exact maximum beside it (``exact``). The maximum over time
+inside each steady-state period is the exact maximum of the sampled signal
+(:func:`gearjax.simulate.simulate`).
+
+Gradients
+---------
+Forward mode through the whole chain (mesh cells -> quasi-static table -> diffrax solve
+in ``diffrax.ForwardMode`` -> metric), ``jax.jacfwd`` over the 2-4 design variables. The
+switching angles of the quasi-static solution move with the design; the torsional model
+follows them with its angle map (see :mod:`gearjax.models.torsional`, "Derivatives with
+respect to the design"), valid while the discrete structure of the quasi-static solution
+is the one the model was built with: every evaluation checks it and :class:`DynamicObjective`
+rebuilds the model (a recompilation) when it changes. ``benchmarks/bench_gradients.py``
+compares forward mode with reverse mode (``diffrax.RecursiveCheckpointAdjoint``).
+
+Bounds
+------
+The optimiser works on unconstrained variables ``u``: ``x = lo + (hi - lo) sigmoid(u)``
+per variable, bounds ``[0, 40 um]`` for amplitudes and ``[0.02, 0.98]`` for extents by
+default (:class:`ReliefSpace`), so every iterate respects them.
+
+Inertias
+--------
+The torsional model's default inertias (solid cylinders of the gear bodies) are not the
+rig's shaft lines. For design studies :data:`RIG_LINE_INERTIAS_KG_M2` = (1.8e-2, 4.80)
+kg m^2 are the shaft-line inertias of the 3D Baud-Velex rig (:mod:`gearjax.structure.rigs`)
+that move with the mesh: pinion body 4.0e-3 + pinion shaft 5.1e-3 (45/60/50 mm over
+0.15/0.20/0.55 m) + motor-side coupling hub 9.2e-3 kg m^2 (the 0.15 kg m^2 motor rotor sits
+behind a 5e4 N m/rad coupling whose natural frequency, 580 rad/s, is far below the mesh
+frequencies, so it does not follow the mesh); gear body 4.76 + gear shaft and hubs
+~0.04 kg m^2. With them m_eq = 6.6 kg and the main critical pinion speed is about
+400 rad/s (short relief), against 777 rad/s with the default inertias.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from .mesh import Mesh
+from .modifications import ToothModifications
+from .quasistatic import quasi_static, static_mesh_force
+
+__all__ = [
+    "OBJECTIVES",
+    "DEFAULT_SHARPNESS",
+    "RIG_LINE_INERTIAS_KG_M2",
+    "DesignError",
+    "ReliefSpace",
+    "smooth_max",
+    "QuasiStaticObjective",
+    "DynamicObjective",
+    "Evaluation",
+    "OptimisationResult",
+    "optimise",
+    "multi_start",
+    "coarse_starts",
+    "harris_map",
+    "HarrisMap",
+    "harris_curves",
+    "plot_design_map",
+    "plot_history",
+    "plot_harris",
+]
+
+OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
+DYNAMIC_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp")
+DEFAULT_SHARPNESS = 200.0
+RIG_LINE_INERTIAS_KG_M2 = (1.8e-2, 4.80)
+
+
+class DesignError(ValueError):
+    """Invalid design input: the message names the field, its value and the reason."""
+
+    def __init__(self, field: str, value, reason: str):
+        self.field = field
+        self.value = value
+        super().__init__(f"{field}={value!r}: {reason}")
+
+
+def smooth_max(v, sharpness: float = DEFAULT_SHARPNESS, scale=1.0):
+    """``scale * logsumexp(sharpness * v / scale) / sharpness`` over all entries of ``v``:
+    a differentiable upper bound of ``max v``, exceeding it by at most ``scale ln(n) /
+    sharpness``."""
+    v = jnp.ravel(jnp.asarray(v))
+    return scale * jax.scipy.special.logsumexp(sharpness * v / scale) / sharpness
+
+
+@dataclasses.dataclass(frozen=True)
+class ReliefSpace:
+    """Tip-relief design variables and their bounds.
+
+    Attributes
+    ----------
+    shape : ``"linear"`` or ``"parabolic"`` relief (Fig. 4).
+    shared : one relief on both gears, ``x = (P_c (m), L_c)``; else per gear,
+        ``x = (P_c1, P_c2, L_c1, L_c2)``.
+    amplitude_bounds_m : (lo, hi) for the amplitudes (m), lo >= 0.
+    extent_bounds : (lo, hi) for the extents, inside (0, 1).
+    """
+
+    shape: str = "linear"
+    shared: bool = True
+    amplitude_bounds_m: tuple = (0.0, 40e-6)
+    extent_bounds: tuple = (0.02, 0.98)
+
+    def __post_init__(self):
+        if self.shape not in ("linear", "parabolic"):
+            raise DesignError("shape", self.shape, "must be 'linear' or 'parabolic'")
+        a0, a1 = self.amplitude_bounds_m
+        if not (0.0 <= a0 < a1 <= 1e-3):
+            raise DesignError("amplitude_bounds_m", self.amplitude_bounds_m,
+                              "need 0 <= lo < hi <= 1e-3 (m)")
+        e0, e1 = self.extent_bounds
+        if not (0.0 < e0 < e1 < 1.0):
+            raise DesignError("extent_bounds", self.extent_bounds, "need 0 < lo < hi < 1")
+
+    @property
+    def names(self) -> tuple:
+        if self.shared:
+            return ("amplitude_m", "extent")
+        return ("amplitude1_m", "amplitude2_m", "extent1", "extent2")
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+    def _bounds(self):
+        a, e = self.amplitude_bounds_m, self.extent_bounds
+        if self.shared:
+            return np.array([a[0], e[0]]), np.array([a[1], e[1]])
+        return np.array([a[0], a[0], e[0], e[0]]), np.array([a[1], a[1], e[1], e[1]])
+
+    @property
+    def lower(self) -> np.ndarray:
+        return self._bounds()[0]
+
+    @property
+    def upper(self) -> np.ndarray:
+        return self._bounds()[1]
+
+    def check(self, x, field: str = "x") -> np.ndarray:
+        """``x`` as a float array, or :class:`DesignError` naming ``field``."""
+        x = np.asarray(x, dtype=float)
+        if x.shape != (self.size,):
+            raise DesignError(field, x.tolist(), f"expected {self.size} values {self.names}")
+        lo, hi = self._bounds()
+        if not np.all(np.isfinite(x)) or np.any(x < lo) or np.any(x > hi):
+            raise DesignError(field, x.tolist(), f"outside the bounds {lo.tolist()} .. {hi.tolist()} "
+                                                 f"of {self.names}")
+        return x
+
+    def mods(self, x) -> ToothModifications:
+        """The :class:`ToothModifications` of design ``x`` (traceable)."""
+        x = jnp.asarray(x, dtype=float)
+        if self.shared:
+            amp, ext = jnp.stack([x[0], x[0]]), jnp.stack([x[1], x[1]])
+        else:
+            amp, ext = x[0:2], x[2:4]
+        return ToothModifications(amp, ext, self.shape)
+
+    def from_unconstrained(self, u):
+        """``x = lo + (hi - lo) sigmoid(u)`` (traceable)."""
+        lo, hi = self._bounds()
+        return jnp.asarray(lo) + jnp.asarray(hi - lo) * jax.nn.sigmoid(u)
+
+    def to_unconstrained(self, x):
+        lo, hi = self._bounds()
+        p = np.clip((np.asarray(x, dtype=float) - lo) / (hi - lo), 1e-12, 1 - 1e-12)
+        return np.log(p) - np.log1p(-p)
+
+
+class Evaluation(eqx.Module):
+    """One evaluation of an objective at a design.
+
+    Attributes
+    ----------
+    x : the design (see :class:`ReliefSpace`).
+    smooth : the smoothed objective (what the optimiser descends), SI units.
+    exact : the exact maximum / value beside it.
+    grad : d smooth / d x (same units over those of x), or None.
+    per_case : the per-speed (dynamic) or per-load (quasi-static) values.
+    structure_ok : the model's discrete structure matched (dynamic objectives), else True.
+    """
+
+    x: np.ndarray
+    smooth: float
+    exact: float
+    grad: np.ndarray | None
+    per_case: np.ndarray
+    structure_ok: bool = True
+
+
+def _value_and_jac(f, jac=jax.jacfwd):
+    """``x -> (df/dx, (f, aux))`` for ``f(x) = (value, aux)``, one pass."""
+    def g(x):
+        v, aux = f(x)
+        return v, (v, aux)
+
+    return jac(g, has_aux=True)
+
+
+# ---------------------------------------------------------------------------- quasi-static
+class QuasiStaticObjective:
+    """TE_S fluctuation objective ``"te-ptp"`` or ``"te-rms"`` (m) on one mesh period.
+
+    Parameters
+    ----------
+    mesh : the mesh (stiffness law, cells).
+    space : the :class:`ReliefSpace`.
+    torques_Nm : one or several pinion torques C_m0 (N m) (F_S = C_m0 / (Rb1 cos b_b)).
+    kind : ``"te-ptp"`` or ``"te-rms"``. For te-rms the smoothed value (the one descended)
+        is the mean square fluctuation over the loads divided by the scale (m): the RMS has
+        a V-shaped (non-differentiable) minimum where the fluctuation vanishes, the mean
+        square a smooth one; ``exact`` is the RMS (m).
+    n_positions : angles per mesh period.
+    sharpness : beta of the smooth maxima (module docstring); scale = mean static mesh
+        deflection F_S / (k_m cos b_b) at the first torque, k_m the mean geometric
+        mesh stiffness.
+    """
+
+    def __init__(self, mesh: Mesh, space: ReliefSpace, torques_Nm=254.8, kind: str = "te-rms",
+                 n_positions: int = 256, sharpness: float = DEFAULT_SHARPNESS):
+        if kind not in ("te-ptp", "te-rms"):
+            raise DesignError("objective", kind, "quasi-static objectives are 'te-ptp', 'te-rms'")
+        torques = np.atleast_1d(np.asarray(torques_Nm, dtype=float))
+        if torques.ndim != 1 or not np.all(np.isfinite(torques)) or np.any(torques <= 0):
+            raise DesignError("torques_Nm", torques.tolist(), "need finite torques > 0 (N m)")
+        if int(n_positions) < 16:
+            raise DesignError("n_positions", n_positions, "need >= 16 angles per mesh period")
+        self.mesh, self.space, self.kind = mesh, space, kind
+        self.forces_N = np.array([static_mesh_force(mesh.pair, t) for t in torques])
+        self.torques_Nm = torques
+        self.theta = mesh.theta_grid(int(n_positions))
+        self.sharpness = float(sharpness)
+        cos_bb = math.cos(mesh.pair.base_helix_angle_rad)
+        self.scale_m = float(self.forces_N[0] / (float(mesh.mean_stiffness()) * cos_bb))
+        self._value = eqx.filter_jit(self._values)
+        self._vjac = eqx.filter_jit(_value_and_jac(self._values))
+        self._grid = eqx.filter_jit(jax.vmap(self._values))
+
+    def _values(self, x):
+        mods = self.space.mods(x)
+        beta, s = self.sharpness, self.scale_m
+
+        def per_load(f):
+            te = quasi_static(self.mesh, mods, self.theta, f).te_s_m
+            if self.kind == "te-rms":
+                v = jnp.sqrt(jnp.mean((te - jnp.mean(te)) ** 2))
+                return v, v
+            smooth = smooth_max(te, beta, s) + smooth_max(-te, beta, s)
+            return smooth, jnp.max(te) - jnp.min(te)
+
+        sm, ex = jax.vmap(per_load)(jnp.asarray(self.forces_N))
+        if self.kind == "te-rms":  # descend the mean square (smooth at a zero minimum)
+            return jnp.mean(sm**2) / s, (jnp.sqrt(jnp.mean(ex**2)), ex)
+        return smooth_max(sm, beta, s), (jnp.max(ex), ex)
+
+    def __call__(self, x, grad: bool = True) -> Evaluation:
+        x = self.space.check(x)
+        if grad:
+            g, (sm, (ex, per)) = self._vjac(jnp.asarray(x))
+            return Evaluation(x, float(sm), float(ex), np.asarray(g), np.asarray(per))
+        sm, (ex, per) = self._value(jnp.asarray(x))
+        return Evaluation(x, float(sm), float(ex), None, np.asarray(per))
+
+    def grid(self, xs) -> tuple[np.ndarray, np.ndarray]:
+        """(smooth, exact) at every row of ``xs`` (n, size), one vmapped call."""
+        sm, (ex, _) = self._grid(jnp.asarray(xs, dtype=float))
+        return np.asarray(sm), np.asarray(ex)
+
+
+# ---------------------------------------------------------------------------- dynamic
+class DynamicObjective:
+    """Dynamic objective over a speed range with the sdof torsional model.
+
+    Parameters
+    ----------
+    mesh : the mesh.
+    space : the :class:`ReliefSpace`.
+    speeds_rad_s : pinion speeds Omega1 (rad/s) over which the maximum is taken.
+    kind : ``"peak-force"`` (N), ``"dynamic-factor"`` or ``"dte-ptp"`` (m).
+    formulation : ``"te"`` (Eq. (20), default), ``"perturbation"`` (Eq. (47a)) or
+        ``"reference"`` (Eq. (16)).
+    pinion_torque_Nm, inertias_kg_m2, damping_ratio : model data (defaults: 254.8 N m,
+        :data:`RIG_LINE_INERTIAS_KG_M2`, 0.03).
+    sharpness : beta of the smooth maximum over speeds (module docstring).
+    n_table : table knots per mesh period of the model.
+    sim_kwargs : options of :func:`gearjax.simulate.simulate` (static).
+    adjoint : diffrax adjoint for the gradient (default ``diffrax.ForwardMode()`` with
+        ``jax.jacfwd``; a ``RecursiveCheckpointAdjoint`` uses ``jax.jacrev``).
+    """
+
+    def __init__(self, mesh: Mesh, space: ReliefSpace, speeds_rad_s, kind: str = "peak-force", *,
+                 formulation: str = "te", pinion_torque_Nm: float = 254.8,
+                 inertias_kg_m2=RIG_LINE_INERTIAS_KG_M2, damping_ratio: float = 0.03,
+                 sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
+                 sim_kwargs: dict | None = None, adjoint=None):
+        if kind not in DYNAMIC_OBJECTIVES:
+            raise DesignError("objective", kind, f"dynamic objectives are {DYNAMIC_OBJECTIVES}")
+        speeds = np.atleast_1d(np.asarray(speeds_rad_s, dtype=float))
+        if speeds.ndim != 1 or not np.all(np.isfinite(speeds)) or np.any(speeds <= 0):
+            raise DesignError("speeds_rad_s", speeds.tolist(), "need finite pinion speeds > 0 (rad/s)")
+        self.mesh, self.space, self.kind = mesh, space, kind
+        self.speeds = speeds
+        self.formulation = formulation
+        self.model_kwargs = dict(pinion_torque_Nm=float(pinion_torque_Nm),
+                                 inertias_kg_m2=tuple(inertias_kg_m2),
+                                 damping_ratio=float(damping_ratio), formulation=formulation,
+                                 n_table=int(n_table))
+        self.sharpness = float(sharpness)
+        self.sim_kwargs = dict(sim_kwargs or {})
+        self.adjoint = diffrax.ForwardMode() if adjoint is None else adjoint
+        self.static_force_N = static_mesh_force(mesh.pair, pinion_torque_Nm)
+        cos_bb = math.cos(mesh.pair.base_helix_angle_rad)
+        self._x_ref_m = self.static_force_N / (float(mesh.mean_stiffness()) * cos_bb)
+        self.scale = self._scales()[DYNAMIC_OBJECTIVES.index(kind)]
+        self.model = None
+        self.n_builds = 0
+        self.build_time_s = 0.0
+        self._static = (space, tuple(float(v) for v in self._scales()), self.sharpness,
+                        tuple(sorted(self.sim_kwargs.items())))
+
+    # model management
+    def build(self, x, frozen: bool = False):
+        """A :class:`~gearjax.models.torsional.TorsionalModel` built at design ``x``;
+        ``frozen`` drops the angle map (switching angles fixed at ``x``: forward values
+        elsewhere are resolved to the table spacing, derivatives miss their motion)."""
+        from .models.torsional import TorsionalModel
+
+        t0 = time.perf_counter()
+        m = TorsionalModel.build(self.mesh, self.space.mods(np.asarray(x, dtype=float)),
+                                 **self.model_kwargs)
+        if frozen:
+            m = dataclasses.replace(m, jump_kinds=(0,) * len(m.jump_kinds))
+        self.n_builds += 1
+        self.build_time_s += time.perf_counter() - t0
+        return m
+
+    def _scales(self):
+        """Units of the three dynamic metrics: F_S (N), 1, mean static deflection (m)."""
+        return (self.static_force_N, 1.0, self._x_ref_m)
+
+    @property
+    def _index(self) -> int:
+        return DYNAMIC_OBJECTIVES.index(self.kind)
+
+    def __call__(self, x, grad: bool = True) -> Evaluation:
+        """Evaluate at ``x`` (and its gradient), rebuilding the model when its structure
+        does not match the design."""
+        x = self.space.check(x)
+        k = self._index
+        speeds = jnp.asarray(self.speeds)
+        for attempt in range(2):
+            if self.model is None:
+                self.model = self.build(x)
+            xj = jnp.asarray(x)
+            if grad:
+                g, (sm, (ex, per, ok)) = _dyn_vjac(self.model, xj, speeds, self._static,
+                                                   self.adjoint)
+                g = np.asarray(g)[k]
+            else:
+                sm, (ex, per, ok) = _dyn_values(self.model, xj, speeds, self._static)
+                g = None
+            if bool(ok) or attempt == 1:
+                break
+            self.model = None  # structure changed: rebuild at x
+        return Evaluation(x, float(sm[k]), float(ex[k]), g, np.asarray(per)[k], bool(ok))
+
+    def all_metrics(self, x, grad: bool = True):
+        """(smooth (3,), exact (3,), jacobian (3, size) or None) of peak-force,
+        dynamic-factor and dte-ptp at ``x`` from one set of solves (same model)."""
+        x = self.space.check(x)
+        if self.model is None:
+            self.model = self.build(x)
+        speeds = jnp.asarray(self.speeds)
+        if grad:
+            g, (sm, (ex, _, _)) = _dyn_vjac(self.model, jnp.asarray(x), speeds, self._static,
+                                            self.adjoint)
+            return np.asarray(sm), np.asarray(ex), np.asarray(g)
+        sm, (ex, _, _) = _dyn_values(self.model, jnp.asarray(x), speeds, self._static)
+        return np.asarray(sm), np.asarray(ex), None
+
+    def grid(self, xs, reference_x=None) -> tuple[np.ndarray, np.ndarray]:
+        """(smooth, exact) at every row of ``xs`` in one vmapped call, with a *frozen*
+        model built at ``reference_x`` (default: the middle row): switching angles of other
+        designs are resolved to the table spacing (1/n_table of a mesh period), which is
+        what a forward map needs (no derivatives)."""
+        xs = np.asarray(xs, dtype=float)
+        ref = xs[len(xs) // 2] if reference_x is None else reference_x
+        model = self.build(ref, frozen=True)
+        sm, (ex, _, _) = _dyn_grid(model, jnp.asarray(xs), jnp.asarray(self.speeds), self._static)
+        return np.asarray(sm)[:, self._index], np.asarray(ex)[:, self._index]
+
+
+def _dyn_values_impl(model, x, speeds, static, adjoint=None):
+    """Smooth and exact maxima over ``speeds`` of (max F_D, max F_D / F_S, DTE ptp)."""
+    from .simulate import simulate
+
+    space, scales, sharpness, sim_kw = static
+    m = eqx.tree_at(lambda mm: mm.mods, model, space.mods(x)).prepare()
+    kw = dict(sim_kw)
+    if adjoint is not None:
+        kw["adjoint"] = adjoint
+    res = jax.vmap(lambda w: simulate(m, w, **kw))(speeds)
+    per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])
+    sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
+    ok = m.derived.structure_ok & jnp.all(res.solver_ok)
+    return sm, (jnp.max(per, axis=1), per, ok)
+
+
+_dyn_values = eqx.filter_jit(_dyn_values_impl)
+
+
+@eqx.filter_jit
+def _dyn_vjac(model, x, speeds, static, adjoint):
+    reverse = isinstance(adjoint, diffrax.RecursiveCheckpointAdjoint)
+    jac = jax.jacrev if reverse else jax.jacfwd
+    return _value_and_jac(lambda y: _dyn_values_impl(model, y, speeds, static, adjoint), jac)(x)
+
+
+@eqx.filter_jit
+def _dyn_grid(model, xs, speeds, static):
+    return jax.vmap(lambda x: _dyn_values_impl(model, x, speeds, static))(xs)
+
+
+def make_objective(kind: str, mesh: Mesh, space: ReliefSpace, *, speeds_rad_s=None,
+                   torques_Nm=254.8, **kwargs):
+    """The objective ``kind`` of :data:`OBJECTIVES` (dynamic ones need ``speeds_rad_s``)."""
+    if kind not in OBJECTIVES:
+        raise DesignError("objective", kind, f"must be one of {OBJECTIVES}")
+    if kind in DYNAMIC_OBJECTIVES:
+        if speeds_rad_s is None:
+            raise DesignError("speeds_rad_s", None, f"objective {kind!r} needs a speed range")
+        return DynamicObjective(mesh, space, speeds_rad_s, kind,
+                                pinion_torque_Nm=float(np.atleast_1d(torques_Nm)[0]), **kwargs)
+    return QuasiStaticObjective(mesh, space, torques_Nm, kind, **kwargs)
+
+
+# ---------------------------------------------------------------------------- optimiser
+@dataclasses.dataclass
+class OptimisationResult:
+    """Result of :func:`optimise`.
+
+    Attributes
+    ----------
+    x, smooth, exact : the best design found and its smoothed / exact objective.
+    x0, smooth0, exact0 : the starting design and its objective.
+    history : list of dicts (iteration, x, smooth, exact, grad_norm_u, structure_ok).
+    iterations : optimiser steps taken.
+    stop_reason : ``"tolerance"``, ``"small-step"`` or ``"max-iter"``.
+    wall_time_s : seconds spent.
+    """
+
+    x: np.ndarray
+    smooth: float
+    exact: float
+    x0: np.ndarray
+    smooth0: float
+    exact0: float
+    history: list
+    iterations: int
+    stop_reason: str
+    wall_time_s: float
+
+    def as_dict(self, space: ReliefSpace) -> dict:
+        out = {n: float(v) for n, v in zip(space.names, self.x)}
+        out.update({"objective_before": self.exact0, "objective_after": self.exact,
+                    "smooth_before": self.smooth0, "smooth_after": self.smooth,
+                    "start": {n: float(v) for n, v in zip(space.names, self.x0)},
+                    "iterations": self.iterations, "stop_reason": self.stop_reason,
+                    "wall_time_s": self.wall_time_s})
+        return out
+
+
+def optimise(objective, x0, *, learning_rate: float = 0.15, max_iter: int = 60,
+             rtol: float = 1e-4, patience: int = 8, step_tol: float = 1e-4,
+             callback=None) -> OptimisationResult:
+    """Minimise ``objective`` (a :class:`QuasiStaticObjective` or :class:`DynamicObjective`)
+    from ``x0`` with optax Adam on the unconstrained variables of its
+    :class:`ReliefSpace` (bounds hold by construction), learning rate decayed by cosine
+    to 5 % over ``max_iter``.
+
+    Stopping rule: the best smoothed value has not improved by more than ``rtol``
+    (relative) for ``patience`` iterations ("tolerance"), or the Adam step in ``u`` is
+    below ``step_tol`` ("small-step"), or ``max_iter`` steps ("max-iter"). Returns the best
+    iterate (by the smoothed value) with the history.
+    """
+    space = objective.space
+    x0 = space.check(x0, "x0")
+    t0 = time.perf_counter()
+    sched = optax.cosine_decay_schedule(learning_rate, max(1, max_iter), alpha=0.05)
+    opt = optax.adam(sched)
+    u = jnp.asarray(space.to_unconstrained(x0))
+    state = opt.init(u)
+    hist = []
+    best = None
+    since = 0
+    reason = "max-iter"
+    first = None
+    it = 0
+    for it in range(max_iter + 1):
+        x = np.asarray(space.from_unconstrained(u))
+        x = np.clip(x, space.lower, space.upper)
+        ev = objective(x, grad=True)
+        if first is None:
+            first = ev
+        dxdu = np.asarray(jax.vmap(jax.grad(lambda v, i: space.from_unconstrained(v)[i],
+                                            argnums=0), in_axes=(None, 0))(
+            u, jnp.arange(space.size))).diagonal()
+        g_u = ev.grad * dxdu
+        hist.append({"iteration": it, "x": x.tolist(), "smooth": ev.smooth, "exact": ev.exact,
+                     "grad_norm_u": float(np.linalg.norm(g_u)), "structure_ok": ev.structure_ok})
+        if callback is not None:
+            callback(hist[-1])
+        if best is None or ev.smooth < best.smooth * (1 - rtol) - 1e-300:
+            since = 0
+        else:
+            since += 1
+        if best is None or ev.smooth < best.smooth:
+            best = ev
+        if since >= patience:
+            reason = "tolerance"
+            break
+        if it == max_iter:
+            break
+        upd, state = opt.update(jnp.asarray(g_u), state, u)
+        if float(jnp.max(jnp.abs(upd))) < step_tol:
+            reason = "small-step"
+            break
+        u = optax.apply_updates(u, upd)
+    return OptimisationResult(
+        x=best.x, smooth=best.smooth, exact=best.exact, x0=x0, smooth0=first.smooth,
+        exact0=first.exact, history=hist, iterations=it, stop_reason=reason,
+        wall_time_s=time.perf_counter() - t0,
+    )
+
+
+def coarse_starts(space: ReliefSpace, n_per_axis: int = 2) -> np.ndarray:
+    """Starting designs on a coarse grid inside the bounds (interior points at
+    ``(i + 1) / (n + 1)`` of each range), shape ``(n_per_axis ** size, size)``."""
+    lo, hi = space.lower, space.upper
+    f = (np.arange(n_per_axis) + 1.0) / (n_per_axis + 1.0)
+    axes = [lo[i] + (hi[i] - lo[i]) * f for i in range(space.size)]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, space.size)
+
+
+def multi_start(objective, starts, **kwargs) -> tuple[OptimisationResult, list]:
+    """:func:`optimise` from every row of ``starts``; returns (best by exact value, all)."""
+    results = [optimise(objective, x0, **kwargs) for x0 in np.asarray(starts, dtype=float)]
+    return min(results, key=lambda r: r.exact), results
+
+
+# ---------------------------------------------------------------------------- Harris maps
+@dataclasses.dataclass
+class HarrisMap:
+    """Objective over a grid of (amplitude, extent) of a shared relief.
+
+    Attributes: ``amplitudes_m`` (na,), ``extents`` (ne,), ``smooth`` and ``exact``
+    (na, ne), ``objective`` (name), ``wall_time_s``.
+    """
+
+    amplitudes_m: np.ndarray
+    extents: np.ndarray
+    smooth: np.ndarray
+    exact: np.ndarray
+    objective: str
+    wall_time_s: float
+
+
+def harris_map(objective, amplitudes_m, extents) -> HarrisMap:
+    """The objective over the grid ``amplitudes_m x extents`` (shared relief), computed by
+    the objective's vmapped ``grid`` in one call."""
+    if objective.space.size != 2:
+        raise DesignError("space", objective.space.names, "a Harris map needs a shared relief")
+    a = np.asarray(amplitudes_m, dtype=float)
+    e = np.asarray(extents, dtype=float)
+    xs = np.stack(np.meshgrid(a, e, indexing="ij"), -1).reshape(-1, 2)
+    for x in xs:
+        objective.space.check(x, "grid point")
+    t0 = time.perf_counter()
+    sm, ex = objective.grid(xs)
+    return HarrisMap(a, e, sm.reshape(a.size, e.size), ex.reshape(a.size, e.size),
+                     objective.kind, time.perf_counter() - t0)
+
+
+def harris_curves(mesh: Mesh, reliefs: dict, torques_Nm, n_positions: int = 256) -> dict:
+    """Classic Harris plot data: TE_S peak-to-peak (m) against pinion torque for several
+    reliefs (``{name: ToothModifications}``), vmapped over the torques for each relief.
+    Returns ``{"torques_Nm": (n,), name: (n,) ...}``."""
+    torques = np.asarray(torques_Nm, dtype=float)
+    forces = jnp.asarray([static_mesh_force(mesh.pair, t) for t in torques])
+    theta = mesh.theta_grid(int(n_positions))
+    out = {"torques_Nm": torques}
+
+    @eqx.filter_jit
+    def ptp(mods):
+        def one(f):
+            te = quasi_static(mesh, mods, theta, f).te_s_m
+            return jnp.max(te) - jnp.min(te)
+
+        return jax.vmap(one)(forces)
+
+    for name, mods in reliefs.items():
+        out[name] = np.asarray(ptp(mods))
+    return out
+
+
+# ---------------------------------------------------------------------------- plots
+def _pyplot():
+    from .plotting import _pyplot as p
+
+    return p()
+
+
+_UNITS = {"peak-force": ("peak dynamic mesh force", 1e-3, "kN"),
+          "dynamic-factor": ("peak dynamic factor", 1.0, "-"),
+          "dte-ptp": ("peak DTE peak-to-peak", 1e6, "um"),
+          "te-ptp": ("TE$_S$ peak-to-peak", 1e6, "um"),
+          "te-rms": ("TE$_S$ RMS fluctuation", 1e6, "um")}
+
+
+def plot_design_map(hmap: HarrisMap, path: str, results=(), marks: dict | None = None,
+                    title: str = ""):
+    """Contour map of the exact objective over (extent, amplitude) with optimiser paths
+    (``results``: :class:`OptimisationResult` of a shared relief) and named points
+    (``marks``: ``{label: (amplitude_m, extent)}``)."""
+    plt = _pyplot()
+    label, f, unit = _UNITS.get(hmap.objective, (hmap.objective, 1.0, ""))
+    fig, ax = plt.subplots(figsize=(7, 5.5), constrained_layout=True)
+    cs = ax.contourf(hmap.extents, hmap.amplitudes_m * 1e6, hmap.exact * f, levels=24,
+                     cmap="viridis")
+    fig.colorbar(cs, ax=ax, label=f"{label} [{unit}]")
+    for k, r in enumerate(results):
+        xs = np.array([h["x"] for h in r.history])
+        ax.plot(xs[:, 1], xs[:, 0] * 1e6, "w.-", lw=1.0, ms=3,
+                label="optimiser paths" if k == 0 else None)
+        ax.plot(xs[-1, 1], xs[-1, 0] * 1e6, "r*", ms=10)
+    for name, (a, e) in (marks or {}).items():
+        ax.plot(e, a * 1e6, "o", mfc="none", mec="w", ms=9)
+        ax.annotate(name, (e, a * 1e6), color="w", xytext=(5, 5), textcoords="offset points")
+    ax.set_xlabel("relief extent L$_c$ [fraction of path of contact]")
+    ax.set_ylabel("relief amplitude P$_c$ [um]")
+    ax.set_title(title or f"Harris map: {label}")
+    if results:
+        ax.legend(loc="upper right")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_history(results, path: str, objective: str = "", title: str = ""):
+    """Smoothed and exact objective against iteration for one or several runs."""
+    plt = _pyplot()
+    if isinstance(results, OptimisationResult):
+        results = [results]
+    label, f, unit = _UNITS.get(objective, (objective or "objective", 1.0, ""))
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    for k, r in enumerate(results):
+        it = [h["iteration"] for h in r.history]
+        (ln,) = ax.plot(it, [h["exact"] * f for h in r.history], "-", lw=1.4,
+                        label="exact" if k == 0 else None)
+        ax.plot(it, [h["smooth"] * f for h in r.history], "--", lw=1.0, color=ln.get_color(),
+                label="smoothed" if k == 0 else None)
+    ax.set_xlabel("iteration")
+    ax.set_ylabel(f"{label} [{unit}]")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title(title or "optimisation history")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_harris(curves: dict, path: str, title: str = ""):
+    """Classic Harris plot: TE_S peak-to-peak (um) against pinion torque (N m)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    t = curves["torques_Nm"]
+    for name, v in curves.items():
+        if name != "torques_Nm":
+            ax.plot(t, np.asarray(v) * 1e6, "-o", ms=3, label=name)
+    ax.set_xlabel("pinion torque C$_{m0}$ [N m]")
+    ax.set_ylabel("TE$_S$ peak-to-peak [um]")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title(title or "Harris plot")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
