@@ -1,0 +1,414 @@
+"""Periodic steady state without transients: shooting with the monodromy matrix.
+
+The te (Eq. (42) / sdof Eq. (20)) and perturbation (Eq. (48a) / sdof Eq. (47a))
+formulations are linear time-periodic systems in the angle ``theta = Omega1 t``::
+
+    y' = A(theta) y + b(theta),      A, b periodic with the excitation period P,
+
+so their steady state is fixed by one period. With ``y_p`` the solution from any start
+``y_s`` (here the quasi-static state of ``model.initial_state``) and ``Phi`` the monodromy
+matrix (``Phi' = A(theta) Phi``, ``Phi(0) = I``), the periodic start ``y*`` solves::
+
+    (I - Phi) y* = y_p(P) - Phi y_s                                   (shooting)
+
+``Phi`` and ``y_p`` come from *one* ``diffeqsolve`` over one period of the augmented state
+``(y, Phi)``, ``Phi' = (df/dy) Phi`` with ``df/dy`` applied by forward-mode linearisation
+of the model's ``vector_field`` (exact for an affine vector field, and the same matrix as
+:func:`gearjax.stability.monodromy`, which integrates the model's
+``homogeneous_vector_field``: checked in ``tests/test_steady.py``; the 3D model has only the
+full vector field, hence the linearisation here). Both share one error control and the
+jump angles of the model (:class:`gearjax.simulate.PeriodicJumpController`).
+
+The reference formulation (Eq. (14) / (16)) is piecewise linear in ``y``: the same
+step is a Newton iteration ``y <- y + (I - Phi(y))^-1 (y_P(y) - y)`` on the periodicity
+residual (quadratic convergence while the set of loaded cells along the orbit stays the
+same; ``max_newton`` iterations, stopped when the step is below ``newton_tol`` on the
+dimensionless state). Where teeth separate the periodic orbit found may be unstable or
+not the one a transient reaches: :func:`steady_sweep` then *continues* from it with
+:func:`gearjax.simulate.simulate` (its automatic transient), so the sweep stays exact
+where it matters.
+
+Metrics: the periodic start is handed to :func:`gearjax.simulate.simulate` (through a thin
+wrapper whose ``initial_state`` is ``y*``) with no transient and ``n_measured_periods``
+(default 2) measured periods: every metric has exactly the meaning it has in ``simulate``
+(max/min mesh force, dynamic factor, DTE and acceleration peak-to-peak, contact loss) and
+``convergence`` measures how periodic ``y*`` really is. ``converged`` additionally requires
+the Floquet spectral radius ``rho = max |mu(Phi)| < 1`` (an unstable periodic orbit, e.g.
+inside a parametric instability zone of the te formulation, is never what a transient
+shows: the linear response grows like ``rho`` per period) and, for the reference, the
+Newton iteration to have converged.
+
+Why shooting and not harmonic balance (the issue allowed either): ``k(theta)`` of a spur
+pair is a square wave (jumps at every engagement, ``model.jump_thetas``), so its Fourier
+coefficients decay like 1/h and a harmonic balance of H harmonics has Gibbs errors of
+O(1) at the jumps and O(1/H) in the peak mesh force; shooting integrates across the jumps
+exactly (steps end at them) and its error is the integration tolerance times
+``1/(1 - rho)``. The cost of shooting is ``n + 1`` columns over one period against one
+column over a transient of up to ``max_transient_mesh_periods`` periods
+(``benchmarks/bench_work_precision.py`` measures both); the matrix columns share every
+excitation evaluation (only ``A(theta) Phi`` is batched), so for small ``n`` (sdof: 2,
+reduced 3D: a few tens) a period of ``Phi`` costs about one period of ``y``.
+
+Spectral radius: ``rho`` is estimated by repeated normalised squaring of ``Phi``
+(``log rho = lim 2^-m log ||Phi^(2^m)||``), matrix products only, so it also runs on
+accelerators where a non-symmetric eigensolver is not available.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from typing import Any
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .simulate import PeriodicJumpController, SimulationError, SimulationResult, simulate
+from .sweep import _FIELDS, SweepResult
+
+__all__ = [
+    "periodic_state",
+    "PeriodicState",
+    "steady_state",
+    "SteadyStateResult",
+    "steady_sweep",
+    "SteadySweepResult",
+    "spectral_radius_of",
+]
+
+LINEAR_FORMULATIONS = ("te", "perturbation")
+
+# Shooting solver: Dopri8 at rtol 1e-9 (benchmarks/bench_work_precision.py: the periodic
+# start is amplified by 1/(1 - rho), so the single period is integrated tighter than a
+# transient needs).
+_SHOOT_DEFAULT = ("dopri8", 1e-9, 1e-11)
+
+
+class PeriodicState(eqx.Module):
+    """Periodic start of the steady response at one speed (scalars / (n,) arrays; a
+    leading speed axis after vmap).
+
+    Attributes
+    ----------
+    y0 : (n,) model state at theta = 0 on the periodic orbit (the model's dimensionless
+        state).
+    spectral_radius : max |Floquet multiplier| of the monodromy matrix at ``y0``
+        (< 1: the periodic orbit attracts; >= 1: parametric instability).
+    residual : norm of the last shooting step (dimensionless state); for affine
+        formulations the single step is exact and ``residual`` is the norm of that step.
+    newton_iterations : shooting steps taken (1 for te/perturbation).
+    ok : the period integrations succeeded and ``y0`` is finite.
+    n_steps : integration steps of all shooting solves.
+    """
+
+    y0: jax.Array
+    spectral_radius: jax.Array
+    residual: jax.Array
+    newton_iterations: jax.Array
+    ok: jax.Array
+    n_steps: jax.Array
+
+
+class SteadyStateResult(eqx.Module):
+    """:class:`gearjax.simulate.SimulationResult` of the periodic orbit plus its
+    :class:`PeriodicState` (``periodic``)."""
+
+    result: SimulationResult
+    periodic: PeriodicState
+
+
+class _StartAt(eqx.Module):
+    """The wrapped model, with ``initial_state`` returning ``y0`` (everything else
+    delegated): lets :func:`simulate` measure from the periodic start."""
+
+    model: Any
+    y0: jax.Array
+
+    def prepare(self):
+        m = self.model.prepare() if hasattr(self.model, "prepare") else self.model
+        return _StartAt(m, self.y0)
+
+    def initial_state(self, omega, theta0=0.0):
+        return self.y0
+
+    def vector_field(self, theta, y, omega):
+        return self.model.vector_field(theta, y, omega)
+
+    def outputs(self, theta, y, omega):
+        return self.model.outputs(theta, y, omega)
+
+    def decay_rate_per_rad(self, omega):
+        return self.model.decay_rate_per_rad(omega)
+
+    def __getattr__(self, name):
+        if name.startswith("_") or name in ("model", "y0"):
+            raise AttributeError(name)
+        return getattr(self.model, name)
+
+
+def spectral_radius_of(phi, squarings: int = 40):
+    """Spectral radius of a square matrix by normalised repeated squaring (matrix
+    products only): ``log rho ~ sum_j 2^-j log s_j + 2^-m log ||B_m||`` with
+    ``A_0 = phi``, ``s_j = ||A_j||_F``, ``A_{j+1} = (A_j / s_j)^2``. Error
+    ``O(2^-m log cond)`` plus the ratio of the two largest moduli to the power ``2^m``."""
+    def body(carry, _):
+        a, acc, w = carry
+        s = jnp.sqrt(jnp.sum(a * a))
+        s = jnp.where(s > 0, s, 1.0)
+        b = a / s
+        return (b @ b, acc + w * jnp.log(s), w / 2), None
+
+    (a, acc, w), _ = jax.lax.scan(body, (phi, jnp.zeros((), phi.dtype), jnp.ones((), phi.dtype)),
+                                  None, length=squarings)
+    s = jnp.sqrt(jnp.sum(a * a))
+    return jnp.exp(acc + w * jnp.log(jnp.maximum(s, 1e-300)))
+
+
+def _controller(model, rtol, atol):
+    pid = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.0, icoeff=1.0)
+    jumps = np.asarray(model.jump_thetas, dtype=float)
+    if jumps.size == 0:
+        return pid
+    return PeriodicJumpController(pid, jnp.asarray(np.sort(jumps)), float(model.period_rad))
+
+
+def _one_period(model, omega, y_start, solver, rtol, atol, max_steps):
+    """(y(P), Phi(P), ok, steps): the state and the monodromy matrix of the linearised
+    flow after one excitation period from ``y_start`` (one diffeqsolve)."""
+    n = y_start.shape[0]
+
+    def vf(t, state, args):
+        y, phi = state
+        fy, lin = jax.linearize(lambda yy: model.vector_field(t, yy, args), y)
+        return fy, jax.vmap(lin, in_axes=1, out_axes=1)(phi)
+
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(vf), solver, t0=0.0, t1=float(model.period_rad), dt0=None,
+        y0=(y_start, jnp.eye(n, dtype=y_start.dtype)), args=omega,
+        saveat=diffrax.SaveAt(t1=True), stepsize_controller=_controller(model, rtol, atol),
+        max_steps=max_steps, adjoint=diffrax.ForwardMode(), throw=False,
+    )
+    y_p, phi = sol.ys[0][-1], sol.ys[1][-1]
+    ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(phi)) & jnp.all(
+        jnp.isfinite(y_p))
+    return y_p, phi, ok, sol.stats["num_steps"]
+
+
+def _solver_options(solver, rtol, atol):
+    name, d_rtol, d_atol = _SHOOT_DEFAULT
+    solver = diffrax.Dopri8() if solver is None else solver
+    return solver, (d_rtol if rtol is None else rtol), (d_atol if atol is None else atol)
+
+
+def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
+                   atol: float | None = None, max_newton: int = 8, newton_tol: float = 1e-10,
+                   max_steps: int = 1_000_000) -> PeriodicState:
+    """Periodic start ``y*`` of the steady response at pinion speed ``omega`` (rad/s) by
+    shooting (module docstring). Jit/vmap-compatible in ``omega`` and the model's arrays.
+
+    Parameters
+    ----------
+    model : a model with the simulation interface of :mod:`gearjax.simulate`.
+    omega : pinion speed Omega1 (rad/s).
+    solver, rtol, atol : diffrax solver and tolerances of the period integration (default
+        Dopri8, 1e-9, 1e-11 on the model's dimensionless state).
+    max_newton, newton_tol : Newton iterations for the (nonlinear) reference formulation;
+        te/perturbation take exactly one step (exact for an affine vector field).
+    max_steps : step limit of each period integration.
+    """
+    if hasattr(model, "prepare"):
+        model = model.prepare()
+    solver, rtol, atol = _solver_options(solver, rtol, atol)
+    omega = jnp.asarray(omega, dtype=float)
+    y_s = model.initial_state(omega)
+    n = y_s.shape[0]
+    eye = jnp.eye(n, dtype=y_s.dtype)
+
+    def step(y):
+        y_p, phi, ok, steps = _one_period(model, omega, y, solver, rtol, atol, max_steps)
+        dy = jnp.linalg.solve(eye - phi, y_p - y)
+        return y + dy, phi, ok, steps, jnp.sqrt(jnp.sum(dy * dy))
+
+    y1, phi, ok, steps, res = step(y_s)
+    it = jnp.ones((), dtype=jnp.int32)
+    linear = getattr(model, "formulation", "reference") in LINEAR_FORMULATIONS
+    if not linear and max_newton > 1:
+        def cond(c):
+            y, phi, ok, steps, res, it = c
+            return ok & (res > newton_tol * (1.0 + jnp.sqrt(jnp.sum(y * y)))) & (it < max_newton)
+
+        def body(c):
+            y, _, ok, steps, _, it = c
+            y2, phi2, ok2, st2, res2 = step(y)
+            return y2, phi2, ok & ok2, steps + st2, res2, it + 1
+
+        y1, phi, ok, steps, res, it = jax.lax.while_loop(cond, body, (y1, phi, ok, steps, res, it))
+    ok = ok & jnp.all(jnp.isfinite(y1))
+    rho = spectral_radius_of(jnp.where(ok, phi, 0.0))
+    nan = jnp.asarray(jnp.nan)
+    return PeriodicState(
+        y0=jnp.where(ok, y1, nan), spectral_radius=jnp.where(ok, rho, nan),
+        residual=jnp.where(ok, res, nan), newton_iterations=it, ok=ok, n_steps=steps,
+    )
+
+
+def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
+                 rtol: float | None = None, atol: float | None = None, max_newton: int = 8,
+                 newton_tol: float = 1e-10, measure_solver=None,
+                 measure_rtol: float | None = None, measure_atol: float | None = None,
+                 convergence_tol: float = 1e-3, **simulate_kwargs) -> SteadyStateResult:
+    """Steady-state metrics at one speed from the periodic orbit (no transient, no
+    continuation: see :func:`steady_sweep` for that). Jit/vmap-compatible.
+
+    The metrics are those of :func:`gearjax.simulate.simulate` over ``n_measured_periods``
+    periods started on ``y*`` (``measure_*``: its solver options, default
+    ``simulate``'s). ``converged`` = simulate's (the orbit is periodic to
+    ``convergence_tol``) and ``spectral_radius < 1`` and, for the reference formulation,
+    the Newton residual below ``newton_tol``.
+    """
+    if n_measured_periods < 2:
+        raise SimulationError("n_measured_periods", n_measured_periods,
+                              "need >= 2 periods to measure periodicity")
+    if hasattr(model, "prepare"):
+        model = model.prepare()
+    ps = periodic_state(model, omega, solver=solver, rtol=rtol, atol=atol,
+                        max_newton=max_newton, newton_tol=newton_tol)
+    y0 = jnp.where(ps.ok, ps.y0, model.initial_state(jnp.asarray(omega, dtype=float)))
+    res = simulate(_StartAt(model, y0), omega, n_transient_periods=0,
+                   n_measured_periods=n_measured_periods, solver=measure_solver,
+                   rtol=measure_rtol, atol=measure_atol, convergence_tol=convergence_tol,
+                   **simulate_kwargs)
+    linear = getattr(model, "formulation", "reference") in LINEAR_FORMULATIONS
+    newton_ok = True if linear else ps.residual <= newton_tol * (1.0 + jnp.sqrt(jnp.sum(ps.y0**2)))
+    good = ps.ok & res.solver_ok
+    nan = jnp.asarray(jnp.nan)
+    bad = lambda v: jnp.where(good, v, nan)  # noqa: E731
+    res = eqx.tree_at(
+        lambda r: (r.max_mesh_force_N, r.min_mesh_force_N, r.dynamic_factor, r.dte_ptp_m,
+                   r.accel_ptp_m_s2, r.converged, r.solver_ok, r.contact_loss, r.n_steps),
+        res,
+        (bad(res.max_mesh_force_N), bad(res.min_mesh_force_N), bad(res.dynamic_factor),
+         bad(res.dte_ptp_m), bad(res.accel_ptp_m_s2),
+         res.converged & good & (ps.spectral_radius < 1.0) & newton_ok, good,
+         res.contact_loss & good, res.n_steps + ps.n_steps),
+    )
+    return SteadyStateResult(result=res, periodic=ps)
+
+
+# ---------------------------------------------------------------------- sweeps
+class SteadySweepResult(SweepResult):
+    """:class:`gearjax.sweep.SweepResult` of :func:`steady_sweep`, with per speed the
+    Floquet ``spectral_radius`` of the orbit and ``continued`` (the metrics come from a
+    diffrax transient started on the periodic orbit, see :func:`steady_sweep`)."""
+
+    spectral_radius: np.ndarray
+    continued: np.ndarray
+
+
+@eqx.filter_jit
+def _steady_batch(model, speeds, kwargs):
+    def one(w):
+        out = steady_state(model, w, **dict(kwargs))
+        r = out.result
+        return tuple(getattr(r, f) for f in _FIELDS) + (out.periodic.spectral_radius,
+                                                        out.periodic.y0)
+    return jax.vmap(one)(speeds)
+
+
+@eqx.filter_jit
+def _continue_batch(model, speeds, y0s, kwargs):
+    def one(w, y0):
+        r = simulate(_StartAt(model, y0), w, **dict(kwargs))
+        return tuple(getattr(r, f) for f in _FIELDS)
+    return jax.vmap(one)(speeds, y0s)
+
+
+def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress: bool = True,
+                 continuation: bool = True, continuation_kwargs: dict | None = None,
+                 **steady_kwargs) -> SteadySweepResult:
+    """Steady state over pinion speeds by shooting (vmapped, one compilation per chunk
+    shape), returning the :class:`~gearjax.sweep.SweepResult` fields of
+    :func:`gearjax.sweep.sweep` with the same meaning.
+
+    Reference formulation: at every speed where the periodic orbit shows contact loss,
+    is unstable (``spectral_radius >= 1``) or was not found (Newton not converged), the
+    metrics are replaced by a :func:`gearjax.simulate.simulate` run *started on the
+    periodic orbit* with its automatic transient (``continuation_kwargs`` go to it), so
+    that those speeds are exactly what ``sweep`` computes. te/perturbation are never
+    continued: their steady response is unique; inside a parametric instability zone
+    they read ``converged=False`` with ``spectral_radius >= 1``.
+
+    ``transient_periods`` is 0 for shooting speeds and the transient used for continued
+    ones; ``n_steps`` counts shooting and measuring steps.
+    """
+    speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
+    if speeds.size == 0 or not np.all(np.isfinite(speeds) & (speeds > 0)):
+        raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
+                              "need at least one finite pinion speed > 0 (rad/s)")
+    chunk = speeds.size if chunk_size is None else int(chunk_size)
+    if chunk < 1:
+        raise SimulationError("chunk_size", chunk_size, "must be a positive integer")
+    n_chunks = int(math.ceil(speeds.size / chunk))
+    order = np.argsort(speeds, kind="stable")
+    padded = np.concatenate([order, np.full(n_chunks * chunk - speeds.size, order[-1])])
+    kw = tuple(sorted(steady_kwargs.items()))
+    out = {f: np.full(speeds.size, np.nan) for f in _FIELDS}
+    rho = np.full(speeds.size, np.nan)
+    y0s = None
+    t_start = time.perf_counter()
+    for c in range(n_chunks):
+        sel = padded[c * chunk:(c + 1) * chunk]
+        t0 = time.perf_counter()
+        res = jax.device_get(_steady_batch(model, jnp.asarray(speeds[sel]), kw))
+        for f, v in zip(_FIELDS, res[:len(_FIELDS)]):
+            out[f][sel] = np.asarray(v, dtype=float)
+        rho[sel] = np.asarray(res[-2], dtype=float)
+        y = np.asarray(res[-1])
+        if y0s is None:
+            y0s = np.full((speeds.size, y.shape[1]), np.nan)
+        y0s[sel] = y
+        if progress:
+            print(f"[gearjax.steady] chunk {c + 1}/{n_chunks}: {len(set(sel.tolist()))} speeds "
+                  f"in {time.perf_counter() - t0:.2f} s", file=sys.stderr, flush=True)
+    out["transient_periods"][:] = 0.0
+    continued = np.zeros(speeds.size, dtype=bool)
+    formulation = getattr(model, "formulation", "")
+    if continuation and formulation not in LINEAR_FORMULATIONS:
+        need = ((out["contact_loss"] > 0) | ~(rho < 1.0) | ~(out["converged"] > 0))
+        idx = np.flatnonzero(need)
+        if idx.size:
+            start = np.where(np.isfinite(y0s[idx]).all(axis=1)[:, None], y0s[idx], np.nan)
+            # a failed shooting falls back to the quasi-static start of simulate
+            ok_start = np.isfinite(start).all(axis=1)
+            if not ok_start.all():
+                y_qs = np.asarray(_initial_states(model, jnp.asarray(speeds[idx])))
+                start = np.where(ok_start[:, None], start, y_qs)
+            ckw = tuple(sorted((continuation_kwargs or {}).items()))
+            t0 = time.perf_counter()
+            res = jax.device_get(_continue_batch(model, jnp.asarray(speeds[idx]),
+                                                 jnp.asarray(start), ckw))
+            for f, v in zip(_FIELDS, res):
+                out[f][idx] = np.asarray(v, dtype=float)
+            continued[idx] = True
+            if progress:
+                print(f"[gearjax.steady] continued {idx.size} speed(s) with contact loss or "
+                      f"without a stable orbit by simulate in {time.perf_counter() - t0:.2f} s",
+                      file=sys.stderr, flush=True)
+    if progress:
+        print(f"[gearjax.steady] {formulation}: {speeds.size} speeds in "
+              f"{time.perf_counter() - t_start:.2f} s", file=sys.stderr, flush=True)
+    for f in ("contact_loss", "converged", "solver_ok"):
+        out[f] = out[f] > 0
+    out["n_steps"] = out["n_steps"].astype(np.int64)
+    return SteadySweepResult(**out, formulation=formulation, spectral_radius=rho,
+                             continued=continued)
+
+
+@eqx.filter_jit
+def _initial_states(model, speeds):
+    m = model.prepare() if hasattr(model, "prepare") else model
+    return jax.vmap(m.initial_state)(speeds)

@@ -1,0 +1,188 @@
+"""Periodic steady state by shooting (gearjax.steady) against independent results.
+
+* a constant-stiffness oscillator under harmonic excitation: the periodic start and the
+  peak-to-peak response against the closed-form frequency response;
+* the monodromy matrix of the shooting against :func:`gearjax.stability.monodromy` (the
+  model's own homogeneous equation, a different integration);
+* the sdof model (te, perturbation, reference) against long diffrax transients of
+  :func:`gearjax.simulate.simulate` with the decay of the transient guaranteed by the
+  Floquet multipliers of :mod:`gearjax.stability`;
+* the 3D rigs (spur and helical, te formulation) against long transients (slow).
+"""
+
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from gearjax import Mesh, baud_velex_pair, table1_relief
+from gearjax.models.torsional import ModelOutputs, TorsionalModel
+from gearjax.simulate import SimulationError, simulate
+from gearjax.stability import monodromy, spectral_radius
+from gearjax.steady import (
+    periodic_state,
+    spectral_radius_of,
+    steady_state,
+    steady_sweep,
+)
+from gearjax.sweep import SweepResult
+
+SAMPLES = 128
+
+
+class Oscillator(eqx.Module):
+    """m x_tt + c x_t + k x = k a cos(n theta), theta = Omega t (constant stiffness,
+    harmonic 'TE'); state (x, x') with ' = d/dtheta (written here, not from gearjax)."""
+
+    mass: float
+    stiffness: float
+    damping_ratio: float
+    amplitude: float
+    order: int = eqx.field(static=True)
+    formulation: str = eqx.field(static=True, default="te")
+    jump_thetas: tuple = eqx.field(static=True, default=())
+
+    @property
+    def period_rad(self):
+        return 2 * math.pi / self.order
+
+    mesh_period_rad = period_rad
+
+    @property
+    def static_force_N(self):
+        return 100.0 * self.stiffness * self.amplitude
+
+    @property
+    def omega_n(self):
+        return math.sqrt(self.stiffness / self.mass)
+
+    def initial_state(self, omega):
+        return jnp.stack([jnp.asarray(self.amplitude), jnp.zeros(())])
+
+    def vector_field(self, theta, y, omega):
+        c = 2 * self.damping_ratio * math.sqrt(self.stiffness * self.mass)
+        f = self.stiffness * (self.amplitude * jnp.cos(self.order * theta) - y[0])
+        return jnp.stack([y[1], (f - omega * c * y[1]) / (omega**2 * self.mass)])
+
+    def outputs(self, theta, y, omega):
+        x_s = self.amplitude * jnp.cos(self.order * theta)
+        return ModelOutputs(mesh_force_N=self.static_force_N + self.stiffness * (y[0] - x_s),
+                            dte_m=y[0])
+
+    def decay_rate_per_rad(self, omega):
+        return self.damping_ratio * self.omega_n / omega
+
+
+def _frf(osc, omega):
+    nu = osc.order * omega
+    c = 2 * osc.damping_ratio * math.sqrt(osc.stiffness * osc.mass)
+    return osc.stiffness / (osc.stiffness - osc.mass * nu**2 + 1j * c * nu)
+
+
+def test_harmonic_excitation_closed_form():
+    """Lightly damped (zeta = 0.005: a transient would need ~900 periods at resonance):
+    the periodic start is x(0) = a Re H, x'(0) = -n a Im H and ptp(x) = 2 |H| a."""
+    osc = Oscillator(mass=2.0, stiffness=8e8, damping_ratio=0.005, amplitude=1e-5, order=26)
+    w_n = osc.omega_n / osc.order
+    speeds = np.array([0.3 * w_n, w_n, 2.5 * w_n])
+    run = eqx.filter_jit(eqx.filter_vmap(
+        lambda m, w: steady_state(m, w, rtol=1e-11, atol=1e-13, measure_rtol=1e-10,
+                                  measure_atol=1e-12), in_axes=(None, 0)))
+    out = run(osc, jnp.asarray(speeds))
+    for i, w in enumerate(speeds):
+        h = _frf(osc, w)
+        y0 = np.asarray(out.periodic.y0[i])
+        scale = abs(h) * osc.amplitude
+        assert abs(y0[0] - osc.amplitude * h.real) < 1e-8 * scale
+        assert abs(y0[1] + osc.order * osc.amplitude * h.imag) < 1e-8 * scale * osc.order
+        ratio = float(out.result.dte_ptp_m[i]) / (2 * scale)
+        assert math.cos(math.pi / SAMPLES) - 1e-8 <= ratio <= 1 + 1e-8
+        assert bool(out.result.converged[i])
+        # free decay over one period exp(-zeta w_n T): the Floquet radius of the oscillator
+        rho = math.exp(-osc.damping_ratio * osc.omega_n * 2 * math.pi / (osc.order * w))
+        assert abs(float(out.periodic.spectral_radius[i]) / rho - 1) < 1e-6
+
+
+def test_spectral_radius_by_squaring_matches_eigenvalues():
+    rng = np.random.default_rng(0)
+    for scale in (0.3, 1.0, 2.0):
+        a = rng.normal(size=(6, 6))
+        a = scale * a / np.max(np.abs(np.linalg.eigvals(a)))
+        assert abs(float(spectral_radius_of(jnp.asarray(a))) / scale - 1) < 1e-6
+    rot = np.array([[0.0, -0.9], [0.9, 0.0]])  # complex pair, |mu| = 0.9
+    assert abs(float(spectral_radius_of(jnp.asarray(rot))) - 0.9) < 1e-9
+
+
+@pytest.fixture(scope="module")
+def spur():
+    return Mesh.build(baud_velex_pair(False))
+
+
+def _model(mesh, formulation):
+    return TorsionalModel.build(mesh, table1_relief("short"), formulation=formulation,
+                                damping_ratio=0.03)
+
+
+def test_monodromy_matches_stability_module(spur):
+    """The shooting's Phi (linearised full vector field, augmented solve) has the Floquet
+    spectral radius of gearjax.stability (homogeneous equation, separate solve); 1500 rad/s
+    lies in a parametric instability zone of the te model with this relief."""
+    model = _model(spur, "te")
+    speeds = np.array([380.0, 753.3, 1500.0])
+    ps = eqx.filter_jit(eqx.filter_vmap(lambda m, w: periodic_state(m, w), in_axes=(None, 0)))(
+        model, jnp.asarray(speeds))
+    rho_ref = spectral_radius(model, speeds)
+    np.testing.assert_allclose(np.asarray(ps.spectral_radius), rho_ref, rtol=1e-6)
+    assert rho_ref[-1] > 1.0
+
+
+@pytest.mark.parametrize("formulation", ["te", "perturbation", "reference"])
+def test_sdof_agrees_with_long_transient(spur, formulation):
+    """Against simulate with 1500 transient periods (the slowest Floquet multiplier at
+    these speeds is <= 0.97, so the transient has decayed by < 1e-19) at rtol 1e-10.
+    Includes 753 rad/s (te: rho = 0.96), where the automatic transient of sweep() is too
+    short and reads converged=False."""
+    model = _model(spur, formulation)
+    speeds = np.array([193.3, 380.0, 753.3, 1100.0])
+    rho = spectral_radius(model, speeds)
+    assert np.all(rho < 0.97), rho
+    long = eqx.filter_jit(eqx.filter_vmap(
+        lambda m, w: simulate(m, w, n_transient_periods=1500, n_measured_periods=2,
+                              rtol=1e-10, atol=1e-12), in_axes=(None, 0)))(model, jnp.asarray(speeds))
+    st = steady_sweep(model, speeds, progress=False, measure_rtol=1e-10, measure_atol=1e-12)
+    assert isinstance(st, SweepResult)
+    cl = np.asarray(long.contact_loss)
+    lin = formulation != "reference"
+    for name in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m"):
+        a, b = getattr(st, name), np.asarray(getattr(long, name))
+        scale = model.static_force_N if "force" in name else np.abs(b)
+        ok = np.abs(a - b) <= 1e-6 * scale
+        # reference with contact loss: continued by simulate, not shot; same attractor
+        assert np.all(ok | (~lin & cl)), (name, a, b)
+    assert np.all(st.converged) and np.all(np.asarray(long.converged))
+    np.testing.assert_array_equal(st.contact_loss, cl)
+    assert np.all(st.continued == (~lin & cl))
+    assert np.all(st.transient_periods[~st.continued] == 0)
+
+
+def test_unstable_te_is_flagged_not_silent(spur):
+    """Inside the parametric instability zone the periodic orbit exists but is unstable:
+    finite metrics of the orbit, converged=False, spectral_radius > 1."""
+    st = steady_sweep(_model(spur, "te"), [1500.0], progress=False)
+    assert st.spectral_radius[0] > 1.0 and not st.converged[0] and st.solver_ok[0]
+    assert np.isfinite(st.dynamic_factor[0])
+
+
+def test_clear_errors(spur):
+    model = _model(spur, "te")
+    with pytest.raises(SimulationError):
+        steady_sweep(model, [], progress=False)
+    with pytest.raises(SimulationError):
+        steady_sweep(model, [-1.0], progress=False)
+    with pytest.raises(SimulationError):
+        steady_state(model, 300.0, n_measured_periods=1)
