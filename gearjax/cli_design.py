@@ -43,7 +43,9 @@ def _common(p, add_rig):
     p.add_argument("--speeds", default="330:480:8", metavar="A:B:N",
                    help="pinion speeds (rad/s) of the dynamic objectives (default 330:480:8, "
                         "around the main critical speed with the rig line inertias)")
-    p.add_argument("--formulation", default="te", choices=["te", "perturbation", "reference"])
+    p.add_argument("--formulation", default="perturbation", choices=["perturbation", "te", "reference"],
+                   help="sdof formulation (default perturbation, Eq. (47a); te can be "
+                        "parametrically unstable near the critical speed)")
     p.add_argument("--shape", default="linear", choices=["linear", "parabolic"])
     p.add_argument("--damping", type=float, default=0.03, help="damping ratio zeta (default 0.03)")
     p.add_argument("--amplitudes", default="2e-6:30e-6:7", metavar="A:B:N",

@@ -1,0 +1,80 @@
+"""Gradient cost of the tip-relief design objective: forward value vs forward-mode gradient
+(``diffrax.ForwardMode`` + ``jax.jacfwd``) vs reverse mode
+(``diffrax.RecursiveCheckpointAdjoint`` + ``jax.jacrev``), compile time apart from run time.
+
+Objective: smoothed peak dynamic mesh force over N speeds (te formulation, Eq. (20)),
+spur Baud-Velex pair, rig line inertias, shared linear relief (2 design variables) or
+separate reliefs (4). Each timing is the median of ``--repeat`` runs after the first
+(compiling) call; ratios are to the forward value in the same process.
+
+    python benchmarks/bench_gradients.py [--speeds 8] [--separate] [--repeat 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import diffrax
+import jax
+import numpy as np
+
+import gearjax  # noqa: F401  (x64)
+from gearjax.design import DynamicObjective, ReliefSpace
+from gearjax.mesh import Mesh
+from gearjax.rigs import get_rig
+
+
+def _time(fn, repeat):
+    t0 = time.perf_counter()
+    out = fn()
+    jax.block_until_ready(out)
+    first = time.perf_counter() - t0
+    runs = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn())
+        runs.append(time.perf_counter() - t0)
+    run = float(np.median(runs))
+    return first - run, run, out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--speeds", type=int, default=8)
+    ap.add_argument("--separate", action="store_true")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--no-reverse", action="store_true")
+    args = ap.parse_args()
+    rig = get_rig("baud-velex-spur")
+    mesh = Mesh.build(rig.pair, "iso6336")
+    space = ReliefSpace(shared=not args.separate)
+    speeds = np.linspace(330.0, 480.0, args.speeds)
+    x = np.array([13.3e-6, 0.35]) if space.shared else np.array([13.3e-6, 12e-6, 0.35, 0.4])
+    fwd = DynamicObjective(mesh, space, speeds, "peak-force")
+    fwd.model = fwd.build(x)
+    rows = []
+    c, r, ev = _time(lambda: fwd(x, grad=False).smooth, args.repeat)
+    rows.append(("forward value", c, r, None))
+    c, r, ev_f = _time(lambda: fwd(x, grad=True).grad, args.repeat)
+    rows.append((f"jacfwd + ForwardMode ({space.size} vars)", c, r, ev_f))
+    if not args.no_reverse:
+        rev = DynamicObjective(mesh, space, speeds, "peak-force",
+                               adjoint=diffrax.RecursiveCheckpointAdjoint())
+        rev.model = fwd.model
+        c, r, ev_r = _time(lambda: rev(x, grad=True).grad, args.repeat)
+        rows.append(("jacrev + RecursiveCheckpointAdjoint", c, r, ev_r))
+    base = rows[0][2]
+    print(f"# {rig.name}, te, {args.speeds} speeds 330-480 rad/s, {space.size} design variables, "
+          f"build {fwd.build_time_s:.2f} s, {jax.device_count()} {jax.devices()[0].platform} device(s)")
+    print(f"{'what':40s} {'compile [s]':>12s} {'run [s]':>10s} {'run / forward':>14s}")
+    for name, c, r, _ in rows:
+        print(f"{name:40s} {c:12.2f} {r:10.3f} {r / base:14.2f}")
+    if len(rows) == 3:
+        g_f, g_r = np.asarray(rows[1][3]), np.asarray(rows[2][3])
+        print("forward vs reverse gradient, max relative difference:",
+              float(np.max(np.abs(g_f - g_r) / np.abs(g_f))))
+
+
+if __name__ == "__main__":
+    main()
