@@ -2,12 +2,18 @@
 (``diffrax.ForwardMode`` + ``jax.jacfwd``) vs reverse mode
 (``diffrax.RecursiveCheckpointAdjoint`` + ``jax.jacrev``), compile time apart from run time.
 
-Objective: smoothed peak dynamic mesh force over N speeds (te formulation, Eq. (20)),
+Objective: smoothed peak dynamic mesh force over N speeds (default formulation of
+:class:`gearjax.design.DynamicObjective`),
 spur Baud-Velex pair, rig line inertias, shared linear relief (2 design variables) or
 separate reliefs (4). Each timing is the median of ``--repeat`` runs after the first
 (compiling) call; ratios are to the forward value in the same process.
 
     python benchmarks/bench_gradients.py [--speeds 8] [--separate] [--repeat 3]
+
+Measured (te, 4 speeds, 2 variables, this 2-core CPU shared with other jobs): compile
+29 s / 58 s / 104 s and run 0.065 s / 0.34 s (5.2x) / 8.2 s (125x) for the forward value,
+jacfwd + ForwardMode and jacrev + RecursiveCheckpointAdjoint; the two gradients agree to
+5.5e-10. Forward mode wins, as expected for 2-4 design variables.
 """
 
 from __future__ import annotations
@@ -65,7 +71,7 @@ def main():
         c, r, ev_r = _time(lambda: rev(x, grad=True).grad, args.repeat)
         rows.append(("jacrev + RecursiveCheckpointAdjoint", c, r, ev_r))
     base = rows[0][2]
-    print(f"# {rig.name}, te, {args.speeds} speeds 330-480 rad/s, {space.size} design variables, "
+    print(f"# {rig.name}, {fwd.formulation}, {args.speeds} speeds 330-480 rad/s, {space.size} design variables, "
           f"build {fwd.build_time_s:.2f} s, {jax.device_count()} {jax.devices()[0].platform} device(s)")
     print(f"{'what':40s} {'compile [s]':>12s} {'run [s]':>10s} {'run / forward':>14s}")
     for name, c, r, _ in rows:
