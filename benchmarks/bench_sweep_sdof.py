@@ -59,7 +59,7 @@ import gearjax  # noqa: E402,F401
 import gearjax.sweep as sweep_mod  # noqa: E402
 from gearjax import Mesh, baud_velex_pair, table1_relief  # noqa: E402
 from gearjax.models.torsional import TorsionalModel  # noqa: E402
-from gearjax.simulate import default_solver, simulate  # noqa: E402
+from gearjax.simulate import default_solver, jump_density, simulate  # noqa: E402
 from gearjax.sweep import sweep  # noqa: E402
 
 ZETA = 0.03
@@ -116,8 +116,7 @@ def scipy_metrics(model, omega, n_transient, rhs="jax", n_measured=3, samples=12
 
 
 def _scipy_method(model):
-    density = len(model.jump_thetas) * model.mesh_period_rad / model.period_rad
-    solver, rtol, atol = default_solver(model.formulation, density)
+    solver, rtol, atol = default_solver(model.formulation, jump_density(model))
     return ("DOP853" if isinstance(solver, diffrax.Dopri8) else "RK45"), rtol, atol
 
 

@@ -33,8 +33,8 @@ that each compiles only its own terms (``' = d/dtheta``, ``theta = Omega1 t``):
 
 Quasi-static solution (Eq. (25))
 --------------------------------
-``TE_S``, ``NLTE`` and ``k(theta)`` come from the exact unilateral quasi-static solution,
-evaluated at every right-hand-side call (as the torsional model does), with either the
+``TE_S``, ``NLTE`` and ``k(theta)`` come from the exact unilateral quasi-static solution
+(tabulated once per call on a jump-aware periodic Hermite table, see below), with either the
 position-dependent cell vectors (``mesh_vectors="cells"``, the paper's Section 6.2: TE_S
 from Eq. (14) at very low speed) or the averaged ``V`` for every cell (``"mean"``, Eq. (27),
 the simplification of Section 4.2). The structure is condensed statically onto the 12
@@ -46,6 +46,22 @@ solution is a final solve with the converged set, hence differentiable almost ev
 With ``"mean"`` vectors the approach ``V^T X_S`` is exactly the torsional root (the pinion
 line is torsionally free, so the total mesh force is ``F_S``) and no iteration is needed.
 ``TE_S = W^T X_S + NLTE`` is recovered from the condensation at the encoder dofs.
+
+For te/perturbation the excitations ``(TE_S - NLTE - w_x0, k(theta), NLTE)`` do not depend
+on speed: :meth:`Geared3DModel.prepare` evaluates them (inside ``jit``, so they stay
+differentiable in the modifications) at the knots of a
+:class:`gearjax.models.torsional.PeriodicHermiteTable` -- ``n_table`` uniform knots per mesh
+period plus the two adjacent floats bracketing every change of the quasi-static active set,
+of the cells inside the path, of the cell realising NLTE and of the cells inside each relief
+zone (found by bisection at build time; several changes inside one scan interval, as the
+cells of a 3D contact line loading one after the other, are all found) -- with exact slopes
+by forward-mode AD. Hermite interpolation is then exact at the jumps of ``k(theta)`` and
+the kinks of ``TE_S`` and NLTE (measured on the spur rig, short relief: ``k`` to 5e-13,
+``TE_S`` to 3e-11 of its peak-to-peak). A lookup costs a few flops, against an active-set
+solve over the cells at every right-hand side (``excitation="inline"``, kept to check the
+table): a 16-speed te sweep of the reduced spur rig took 237 s inline and 65 s with the
+table (the latter with other jobs loading the 2 cores about 3x; the default solver choice,
+:func:`gearjax.simulate.jump_density`, matters as much).
 
 Inertial excitations E, F, G (text after Eq. (14))
 --------------------------------------------------
@@ -117,7 +133,13 @@ from ..mesh import Mesh
 from ..modifications import ToothModifications
 from ..quasistatic import contact_gaps, static_mesh_force
 from .element import PinionGearElement
-from .torsional import ModelError, ModelOutputs, unilateral_solve_pairwise
+from .torsional import (
+    ModelError,
+    ModelOutputs,
+    PeriodicHermiteTable,
+    _quiet_origin,
+    unilateral_solve_pairwise,
+)
 
 __all__ = [
     "Geared3DModel",
@@ -346,6 +368,10 @@ class Geared3DModel(eqx.Module):
     damping_ratio: jax.Array
     scale_a: jax.Array
     ecc: _Ecc | None
+    table_knots: jax.Array | None
+    table_cell_first: jax.Array | None
+    table_side: jax.Array | None
+    table: PeriodicHermiteTable | None
     formulation: str = eqx.field(static=True)
     mesh_vectors: str = eqx.field(static=True)
     nlte_terms: bool = eqx.field(static=True)
@@ -355,6 +381,10 @@ class Geared3DModel(eqx.Module):
     jump_thetas: tuple = eqx.field(static=True)
     decay_omega_rad_s: float = eqx.field(static=True)
     qs_max_iter: int = eqx.field(static=True)
+    table_origin: float = eqx.field(static=True, default=0.0)
+    table_cells: int = eqx.field(static=True, default=0)
+    table_max_extra: int = eqx.field(static=True, default=1)
+    excitation: str = eqx.field(static=True, default="table")
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -378,6 +408,7 @@ class Geared3DModel(eqx.Module):
         n_table: int = 256,
         participation_tol: float = 1e-3,
         qs_max_iter: int = 30,
+        excitation: str = "table",
     ) -> "Geared3DModel":
         """Build a 3D model (outside ``jit``: checks, modal basis, k_m, jump angles).
 
@@ -414,6 +445,11 @@ class Geared3DModel(eqx.Module):
             ``(phi^T V)^2 / omega^2 / C_vv`` is below this are ignored when sizing the
             transient (:meth:`decay_rate_per_rad`).
         qs_max_iter : maximum active-set iterations of the quasi-static solve.
+        excitation : te/perturbation only: ``"table"`` (default) tabulates ``TE_S - NLTE -
+            w_x0``, ``k(theta)`` and NLTE once (in :meth:`prepare`, inside ``jit``, so they
+            stay differentiable in the modifications) on a jump-aware periodic Hermite
+            table, or ``"inline"`` solves the quasi-static contact at every right-hand side
+            (slow with ``"cells"`` vectors; kept to check the table).
 
         Raises
         ------
@@ -426,6 +462,8 @@ class Geared3DModel(eqx.Module):
             raise ModelError("formulation", formulation, f"must be one of {FORMULATIONS}")
         if mesh_vectors not in MESH_VECTORS:
             raise ModelError("mesh_vectors", mesh_vectors, f"must be one of {MESH_VECTORS}")
+        if excitation not in ("table", "inline"):
+            raise ModelError("excitation", excitation, "must be 'table' or 'inline'")
         if mods is None:
             mods = ToothModifications.none()
         mods.check_against(mesh.pair)
@@ -574,9 +612,27 @@ class Geared3DModel(eqx.Module):
             formulation=formulation, mesh_vectors=mesh_vectors, nlte_terms=bool(nlte_terms),
             n_modes=int(red.n_modes), n_static=int(red.n_static), period_rad=float(period),
             jump_thetas=(), decay_omega_rad_s=decay_omega, qs_max_iter=int(qs_max_iter),
+            table_knots=None, table_cell_first=None, table_side=None, table=None,
+            excitation=excitation,
         )
-        jumps = _jump_angles(model, theta_tab, qs)
-        return dataclasses.replace(model, jump_thetas=tuple(float(t) for t in jumps))
+        lo, hi = _jump_brackets(model, theta_tab)
+        jumps = _bracket_midpoints(lo, hi, period)
+        model = dataclasses.replace(model, jump_thetas=tuple(float(t) for t in jumps))
+        if formulation != "reference" and excitation == "table":
+            # brackets again, bisected *in table coordinates* [origin, origin + P): folding
+            # adjacent floats near 0 into the table would merge them
+            origin = _quiet_origin(jumps, period)
+            lo_u, hi_u = _jump_brackets(model, origin + theta_tab, kinks=True)
+            knots, cell_first, max_extra = PeriodicHermiteTable.layout(
+                origin, period, n_tab, np.concatenate([lo_u, hi_u]))
+            side = np.zeros(knots.shape)
+            side[np.isin(knots, lo_u)] = -1.0
+            side[np.isin(knots, hi_u)] = 1.0
+            model = dataclasses.replace(
+                model, table_knots=jnp.asarray(knots), table_cell_first=jnp.asarray(cell_first, dtype=jnp.int32),
+                table_side=jnp.asarray(side), table_origin=float(origin), table_cells=n_tab,
+                table_max_extra=int(max_extra))
+        return model
 
     @classmethod
     def baud_velex(
@@ -664,8 +720,26 @@ class Geared3DModel(eqx.Module):
         return self.v_r @ self.c_v_r
 
     def prepare(self) -> "Geared3DModel":
-        """Everything is derived at build time; returns ``self`` (interface of simulate)."""
-        return self
+        """Fill the excitation table of the te/perturbation formulations (``excitation=
+        "table"``): exact quasi-static solves at the knots, slopes by forward-mode AD, the
+        knots bracketing every jump of ``k(theta)`` and kink of ``TE_S``/NLTE evaluated on
+        their own side. Call inside ``jit`` (simulate does) so that the table stays a
+        differentiable function of the model data; idempotent. Other models: ``self``."""
+        if self.table is not None or self.table_knots is None:
+            return self
+        delta = 1e-9 * self.period_rad
+
+        def one(t):
+            return jax.jvp(self._excitation_exact, (t,), (jnp.ones_like(t),))
+
+        at = self.table_knots + self.table_side * delta
+        vals, slopes = jax.vmap(one)(at)
+        vals = vals - (self.table_side * delta)[:, None] * slopes
+        table = PeriodicHermiteTable(
+            knots=self.table_knots, values=vals, slopes=slopes, cell_first=self.table_cell_first,
+            origin=self.table_origin, period=self.period_rad, n_cells=self.table_cells,
+            max_extra=self.table_max_extra)
+        return eqx.tree_at(lambda m: m.table, self, table, is_leaf=lambda x: x is None)
 
     # ------------------------------------------------------------------ quasi-static
     def quasi_static(self, theta) -> QuasiStatic3D:
@@ -675,7 +749,21 @@ class Geared3DModel(eqx.Module):
 
     def _excitation(self, theta):
         """(d, k) with d = TE_S - NLTE - w_x0 (or TE_S - w_x0 without NLTE terms) and the
-        loaded quasi-static stiffness k(theta), for te/perturbation."""
+        loaded quasi-static stiffness k(theta), for te/perturbation (tabulated after
+        :meth:`prepare`, else exact)."""
+        if self.table is not None:
+            vals, _ = self.table(theta)
+            return vals[0], vals[1]
+        d, k, _ = self._excitation_exact(theta)
+        return d, k
+
+    def _excitation_exact(self, theta):
+        """(d, k, NLTE) from the exact quasi-static solve at ``theta`` (stacked (3,))."""
+        d, k = self._excitation_solve(theta)
+        nlte = contact_gaps(self.mesh, self.mods, theta)[2]
+        return jnp.stack([d, k, nlte])
+
+    def _excitation_solve(self, theta):
         if self.mesh_vectors == "mean":
             # exact shortcut: V^T X_S is the torsional root (total mesh force F_S), and
             # X_S = X_0 + phi C_v (Eq. (29)) gives TE_S - NLTE = w_x0 + phi C_wv.
@@ -746,7 +834,10 @@ class Geared3DModel(eqx.Module):
         return e, ep, tl @ f_loc, g
 
     def _nlte_derivs(self, theta, order: int = 1):
-        f = lambda t: contact_gaps(self.mesh, self.mods, t)[2]  # noqa: E731
+        if self.table is not None:
+            f = lambda t: self.table(t)[0][2]  # noqa: E731  (exact at the kinks: knots)
+        else:
+            f = lambda t: contact_gaps(self.mesh, self.mods, t)[2]  # noqa: E731
         one = jnp.ones_like(theta)
         if order == 1:
             return jax.jvp(f, (theta,), (one,))
@@ -837,7 +928,8 @@ class Geared3DModel(eqx.Module):
             qpp = up - nl2 * e - nl1 * ep
         dte = self.w_r @ q
         if self.formulation == "reference" or self.nlte_terms:
-            dte = dte + contact_gaps(self.mesh, self.mods, theta)[2]
+            dte = dte + (self.table(theta)[0][2] if self.table is not None
+                         else contact_gaps(self.mesh, self.mods, theta)[2])
         return ModelOutputs(mesh_force_N=f_d, dte_m=dte, accel_m_s2=omega**2 * (self.acc_r @ qpp))
 
     def decay_rate_per_rad(self, omega):
@@ -888,37 +980,73 @@ def _disc_mass(structure, node, M_all) -> float:
     return float(M_all[6 * node + 1, 6 * node + 1])
 
 
-def _jump_angles(model: Geared3DModel, theta, qs) -> np.ndarray:
-    """Angles in [0, period) where the right-hand side jumps or kinks independently of
-    speed: cell engagement/exit, quasi-static active-set changes (te, perturbation) and
-    changes of the cell realising NLTE; found on the scan grid and refined by bisection."""
+def _jump_brackets(model: Geared3DModel, theta, kinks: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Brackets ``(lo, hi)`` (adjacent floats) of the angles where the right-hand side
+    jumps or kinks independently of speed: cell engagement/exit, quasi-static active-set
+    changes (te, perturbation) and changes of the cell realising NLTE; found on the
+    uniform scan grid ``theta`` (one period, any origin) and refined by bisection. With
+    ``kinks`` also the angles where a cell enters or leaves a modified zone (kinks of the
+    removed material, hence of TE_S: table knots, not integrator jumps)."""
     mesh, mods = model.mesh, model.mods
     period = model.period_rad
 
     @jax.jit
     @jax.vmap
-    def code(t):
+    def code_(t):
         cells, _, _ = contact_gaps(mesh, mods, t)
         r = mesh.removed_material(mods, cells, t)
         arg = jnp.argmin(jnp.where(cells.inside, r, jnp.inf))
         parts = [cells.inside.astype(jnp.int32), arg[None].astype(jnp.int32)]
+        if kinks:  # relief zones of the pinion tip and of the gear tip (Fig. 4)
+            xi_a, xi_e = mesh.pair.contact_limits_m
+            ext = mods.relief_extent * mesh.pair.path_of_contact_m
+            parts.append((cells.inside & (cells.xi_m > xi_e - ext[0])).astype(jnp.int32))
+            parts.append((cells.inside & (cells.xi_m < xi_a + ext[1])).astype(jnp.int32))
         if model.formulation != "reference":
             q = model.quasi_static(t)
             parts.append((q.cell_load_N > 0).astype(jnp.int32))
         return jnp.concatenate(parts)
 
-    c = np.asarray(code(jnp.asarray(theta)))
+    def code(t):  # fixed chunks of 32 angles: a single compilation
+        t = np.asarray(t, dtype=float)
+        n = t.shape[0]
+        size = -(-n // 32) * 32
+        tp = np.concatenate([t, np.full(size - n, t[0] if n else 0.0)])
+        out = [np.asarray(code_(jnp.asarray(tp[i:i + 32]))) for i in range(0, size, 32)]
+        return np.concatenate(out)[:n]
+
+    theta = np.asarray(theta, dtype=float)
+    c = np.asarray(code(theta))
     changed = np.any(c != np.roll(c, -1, axis=0), axis=1)
-    lo = theta[changed]
-    h = period / len(theta)
-    hi = lo + h
-    left = c[changed]
-    if lo.size:
-        for _ in range(48):
+    # pending intervals [a, b] whose end codes differ; several changes may share one grid
+    # interval (cells of one tooth engaging one after the other), so after each bisection
+    # the rest [hi, b] is examined again
+    a = theta[changed]
+    b = a + period / len(theta)
+    code_b = np.roll(c, -1, axis=0)[changed]
+    found_lo, found_hi = [], []
+    for _ in range(64):  # at most 64 changes inside one grid interval
+        if a.size == 0:
+            break
+        lo, hi, left = a.copy(), b.copy(), np.asarray(code(a))
+        for _ in range(60):
             mid = 0.5 * (lo + hi)
-            same = np.all(np.asarray(code(jnp.asarray(np.mod(mid, period)))) == left, axis=1)
+            same = np.all(np.asarray(code(mid)) == left, axis=1)
             lo = np.where(same, mid, lo)
             hi = np.where(same, hi, mid)
+        found_lo.append(lo)
+        found_hi.append(hi)
+        more = np.any(np.asarray(code(hi)) != code_b, axis=1)
+        a, b, code_b = hi[more], b[more], code_b[more]
+    if not found_lo:
+        return np.zeros(0), np.zeros(0)
+    lo, hi = np.concatenate(found_lo), np.concatenate(found_hi)
+    order = np.argsort(lo)
+    return lo[order], hi[order]
+
+
+def _bracket_midpoints(lo, hi, period) -> np.ndarray:
+    """Sorted distinct jump angles in [0, period) from their brackets."""
     ang = np.sort(np.mod(0.5 * (lo + hi), period))
     if ang.size:
         keep = np.concatenate([[True], np.diff(ang) > 1e-9 * period])
