@@ -25,8 +25,8 @@ residual (quadratic convergence while the set of loaded cells along the orbit st
 same; ``max_newton`` iterations, stopped when the step is below ``newton_tol`` on the
 dimensionless state). Where teeth separate the periodic orbit found may be unstable or
 not the one a transient reaches: :func:`steady_sweep` then *continues* from it with
-:func:`gearjax.simulate.simulate` (its automatic transient), so the sweep stays exact
-where it matters.
+:func:`gearjax.simulate.simulate` (its automatic transient, from the quasi-static start
+as ``sweep``), so the sweep stays exact where it matters.
 
 Metrics: the periodic start is handed to :func:`gearjax.simulate.simulate` (through a thin
 wrapper whose ``initial_state`` is ``y*``) with no transient and ``n_measured_periods``
@@ -336,9 +336,10 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
 
     Reference formulation: at every speed where the periodic orbit shows contact loss,
     is unstable (``spectral_radius >= 1``) or was not found (Newton not converged), the
-    metrics are replaced by a :func:`gearjax.simulate.simulate` run *started on the
-    periodic orbit* with its automatic transient (``continuation_kwargs`` go to it), so
-    that those speeds are exactly what ``sweep`` computes. te/perturbation are never
+    metrics are replaced by a :func:`gearjax.simulate.simulate` run from the quasi-static
+    start with its automatic transient (``continuation_kwargs`` go to it), so that those
+    speeds are exactly what ``sweep`` computes (after contact loss several attractors can
+    coexist; a continuation started on the unstable orbit reached another one). te/perturbation are never
     continued: their steady response is unique; inside a parametric instability zone
     they read ``converged=False`` with ``spectral_radius >= 1``.
 
@@ -381,12 +382,10 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
         need = ((out["contact_loss"] > 0) | ~(rho < 1.0) | ~(out["converged"] > 0))
         idx = np.flatnonzero(need)
         if idx.size:
-            start = np.where(np.isfinite(y0s[idx]).all(axis=1)[:, None], y0s[idx], np.nan)
-            # a failed shooting falls back to the quasi-static start of simulate
-            ok_start = np.isfinite(start).all(axis=1)
-            if not ok_start.all():
-                y_qs = np.asarray(_initial_states(model, jnp.asarray(speeds[idx])))
-                start = np.where(ok_start[:, None], start, y_qs)
+            # from the quasi-static start, as simulate/sweep: after contact loss several
+            # attractors can coexist (measured: the orbit's own continuation reached
+            # another branch, DF off by 1.9), and the sweep must give sweep()'s answer
+            start = np.asarray(_initial_states(model, jnp.asarray(speeds[idx])))
             ckw = tuple(sorted((continuation_kwargs or {}).items()))
             t0 = time.perf_counter()
             res = jax.device_get(_continue_batch(model, jnp.asarray(speeds[idx]),
