@@ -24,7 +24,7 @@ step is a Newton iteration ``y <- y + (I - Phi(y))^-1 (y_P(y) - y)`` on the peri
 residual (quadratic convergence while the set of loaded cells along the orbit stays the
 same; ``max_newton`` iterations, stopped when the step is below ``newton_tol`` on the
 dimensionless state). Where teeth separate the periodic orbit found may be unstable or
-not the one a transient reaches: :func:`steady_sweep` then *continues* from it with
+not the one a transient reaches: :func:`steady_sweep` then recomputes those speeds with
 :func:`gearjax.simulate.simulate` (its automatic transient, from the quasi-static start
 as ``sweep``), so the sweep stays exact where it matters.
 
