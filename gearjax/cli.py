@@ -5,6 +5,9 @@ Commands
 ``gearjax info``        geometry and mesh figures of a rig at its nominal torque.
 ``gearjax quasistatic`` TE_S and NLTE over a mesh period (a pinion revolution with pitch
                         errors), load sharing, CSV/JSON/plot output.
+``gearjax sweep``       response curves of Figs. 8-13 (:mod:`gearjax.cli_dynamics`).
+``gearjax stability``   Floquet spectral radius over speeds (:mod:`gearjax.cli_dynamics`).
+``gearjax optimise``, ``gearjax harris-map``  tip-relief design (:mod:`gearjax.cli_design`).
 
 The CLI only parses arguments and formats results; all physics lives in the library.
 """
@@ -60,23 +63,6 @@ def _parser() -> argparse.ArgumentParser:
                     help="positions per mesh period (default 256)")
     qs.add_argument("--csv", metavar="FILE", help="write theta_rad, te_s_m, nlte_m, mesh_force_N")
     qs.add_argument("--plot", metavar="FILE", help="write a PNG of TE_S, NLTE and load sharing")
-    sw = sub.add_parser("sweep", help="steady-state dynamic response over pinion speeds")
-    _add_rig(sw)
-    _add_scenario(sw)
-    sw.add_argument("--model", default="torsional", choices=["torsional"],
-                    help="dynamic model (torsional sdof, Eqs. (16), (20), (47a))")
-    sw.add_argument("--damping", type=float, default=0.1, metavar="ZETA",
-                    help="modal damping factor (default 0.1; the paper also uses 0.03)")
-    sw.add_argument("--speeds", default="20:900:60", metavar="A:B:N",
-                    help="N pinion speeds from A to B rad/s (default 20:900:60)")
-    sw.add_argument("--formulations", default="reference,te,perturbation",
-                    help="comma-separated subset of reference,te,perturbation")
-    sw.add_argument("--no-nlte-terms", action="store_true",
-                    help="drop the NLTE'' forcing terms (Section 6.3.2)")
-    sw.add_argument("--out", default="gearjax-out/sweep", metavar="DIR",
-                    help="output folder for results.csv and summary.json")
-    sw.add_argument("--chunk", type=int, default=None,
-                    help="speeds per compiled call (progress and CSV rows per chunk)")
     for name in _EXTENSIONS:
         importlib.import_module(name).register(sub, _add_rig, _add_scenario)
     return ap
@@ -84,7 +70,7 @@ def _parser() -> argparse.ArgumentParser:
 
 # Modules adding sub-commands: each defines ``register(subparsers, add_rig, add_scenario)``
 # that adds its parsers with ``set_defaults(func=...)``; ``func(args) -> int``.
-_EXTENSIONS: tuple[str, ...] = ("gearjax.cli_design",)
+_EXTENSIONS: tuple[str, ...] = ("gearjax.cli_dynamics", "gearjax.cli_design")
 
 
 def _add_scenario(p: argparse.ArgumentParser):
@@ -97,17 +83,6 @@ def _add_scenario(p: argparse.ArgumentParser):
     p.add_argument("--relief-shape", default="linear", choices=["linear", "parabolic"])
     p.add_argument("--pitch-errors", action="store_true",
                    help="add the pinion cumulative pitch errors (periods of a pinion revolution)")
-
-
-def _parse_speeds(text: str) -> np.ndarray:
-    try:
-        a, b, n = text.split(":")
-        a, b, n = float(a), float(b), int(n)
-    except ValueError:
-        raise ValueError(f"--speeds={text!r}: expected A:B:N, e.g. 20:900:60") from None
-    if not (0 < a <= b and n >= 1 and math.isfinite(b)):
-        raise ValueError(f"--speeds={text!r}: need 0 < A <= B (rad/s) and N >= 1")
-    return np.linspace(a, b, n)
 
 
 def _fail(msg: str) -> int:
@@ -231,82 +206,11 @@ def _cmd_quasistatic(args) -> int:
     return 0
 
 
-def _cmd_sweep(args) -> int:
-    import os
-    import time
-
-    from .mesh import Mesh
-    from .models.torsional import TorsionalModel
-    from .rigs import get_rig
-    from .sweep import sweep
-
-    rig = get_rig(args.rig)
-    speeds = _parse_speeds(args.speeds)
-    forms = [f.strip() for f in args.formulations.split(",") if f.strip()]
-    bad = [f for f in forms if f not in ("reference", "te", "perturbation")]
-    if bad or not forms:
-        return _fail(f"--formulations={args.formulations!r}: choose from reference,te,perturbation")
-    mods = rig.modifications(
-        args.relief, args.relief_amplitude, args.relief_extent, args.relief_shape, args.pitch_errors
-    )
-    mesh = Mesh.build(rig.pair, args.stiffness)
-    os.makedirs(args.out, exist_ok=True)
-    csv_path = os.path.join(args.out, "results.csv")
-    if os.path.exists(csv_path):
-        os.remove(csv_path)
-    summary = {
-        "rig": rig.name, "model": args.model, "stiffness_law": args.stiffness,
-        "relief": args.relief, "pitch_errors": bool(args.pitch_errors), "damping": args.damping,
-        "nlte_terms": not args.no_nlte_terms, "speeds_rad_s": [float(speeds[0]), float(speeds[-1]),
-                                                                int(speeds.size)],
-        "formulations": {},
-    }
-    for form in forms:
-        model = TorsionalModel.build(
-            mesh, mods, pinion_torque_Nm=rig.pinion_torque_Nm, damping_ratio=args.damping,
-            formulation=form, nlte_terms=False if args.no_nlte_terms else None,
-        )
-        if not args.json:
-            print(f"  {form}: {speeds.size} speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rad/s", file=sys.stderr)
-        t0 = time.perf_counter()
-        res = sweep(model, speeds, chunk_size=args.chunk, progress=not args.json, out_csv=csv_path)
-        elapsed = time.perf_counter() - t0
-        df = np.asarray(res.dynamic_factor)
-        i = int(np.nanargmax(df))
-        summary["formulations"][form] = {
-            "peak_dynamic_factor": float(df[i]),
-            "critical_speed_rad_s": float(speeds[i]),
-            "max_mesh_force_N": float(np.nanmax(res.max_mesh_force_N)),
-            "contact_loss_speeds": int(np.sum(np.asarray(res.contact_loss))),
-            "unconverged_speeds": int(np.sum(~np.asarray(res.converged, dtype=bool))),
-            "wall_time_s": elapsed,
-        }
-    summary["results_csv"] = csv_path
-    from .plotting import plot_response_curves
-
-    fig_path = os.path.join(args.out, "response_curves.png")
-    plot_response_curves(csv_path, fig_path, title=f"{rig.name}, {args.model}, relief {args.relief}, "
-                                                   f"damping {args.damping}")
-    summary["response_curves_png"] = fig_path
-    with open(os.path.join(args.out, "summary.json"), "w") as fh:
-        json.dump(summary, fh, indent=2)
-    if args.json:
-        print(json.dumps(summary, indent=2))
-        return 0
-    print(f"  {rig.description}; relief {args.relief}, damping {args.damping}")
-    print(f"  {'formulation':14s} {'peak K_v':>9s} {'at [rad/s]':>11s} {'contact loss':>13s} "
-          f"{'unconverged':>12s} {'time [s]':>9s}")
-    for form, r in summary["formulations"].items():
-        print(f"  {form:14s} {r['peak_dynamic_factor']:9.3f} {r['critical_speed_rad_s']:11.1f} "
-              f"{r['contact_loss_speeds']:13d} {r['unconverged_speeds']:12d} {r['wall_time_s']:9.1f}")
-    print(f"  wrote {csv_path}, {fig_path} and {os.path.join(args.out, 'summary.json')}")
-    return 0
-
-
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     from .geometry import GeometryError
     from .modifications import ModificationError
+    from .models.torsional import ModelError
     from .rigs import RigError
 
     try:
@@ -314,11 +218,9 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_info(args)
         if args.command == "quasistatic":
             return _cmd_quasistatic(args)
-        if args.command == "sweep":
-            return _cmd_sweep(args)
         if hasattr(args, "func"):
             return args.func(args)
-    except (GeometryError, ModificationError, RigError, ValueError) as exc:
+    except (GeometryError, ModificationError, RigError, ModelError, ValueError) as exc:
         return _fail(str(exc))
     return _fail(f"unknown command {args.command!r}")
 

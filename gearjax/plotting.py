@@ -85,3 +85,30 @@ def plot_response_curves(csv_path: str, path: str, title: str = ""):
         fig.suptitle(title)
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def plot_mesh_force_signals(signals: dict, path: str, title: str = ""):
+    """Instantaneous total mesh force over one mesh period at a few speeds, one panel per
+    speed and one curve per formulation (Fig. 11). ``signals[formulation]`` is a list of
+    dicts with ``speed_rad_s``, ``t_over_Tm`` and ``mesh_force_N``."""
+    plt = _pyplot()
+    forms = list(signals)
+    speeds = [s["speed_rad_s"] for s in signals[forms[0]]]
+    fig, axes = plt.subplots(1, len(speeds), figsize=(3.6 * len(speeds) + 0.6, 3.2), squeeze=False,
+                             constrained_layout=True)
+    styles = {"reference": dict(ls="--", color="k"), "te": dict(ls="-", color="C0"),
+              "perturbation": dict(ls="-.", color="C2")}
+    for j, w in enumerate(speeds):
+        ax = axes[0, j]
+        for form in forms:
+            s = signals[form][j]
+            ax.plot(s["t_over_Tm"], s["mesh_force_N"], lw=1.2, label=form, **styles.get(form, {}))
+        ax.set_title(f"{w:.0f} rad/s")
+        ax.set_xlabel("$t / T_m$")
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("total mesh force [N]")
+    axes[0, 0].legend(loc="best", fontsize=8)
+    if title:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -17,7 +17,8 @@ import numpy as np
 from .geometry import GearPair, baud_velex_pair
 from .modifications import ToothModifications, fig5_pitch_errors, table1_relief
 
-__all__ = ["Rig", "RIGS", "get_rig", "RigError", "system_3d", "three_d_figures"]
+__all__ = ["Rig", "RIGS", "get_rig", "RigError", "system_3d", "three_d_figures",
+           "iso6336_resonance_speed"]
 
 
 class RigError(ValueError):
@@ -151,9 +152,22 @@ def torsional_stiffness_figures(rig: Rig, law: str = "iso6336") -> dict:
     from .mesh import Mesh
     from .quasistatic import static_mesh_force
 
+    from .models.torsional import solid_cylinder_inertias
+
     mesh = Mesh.build(rig.pair, law)
     k_m, alpha, _ = mesh.stiffness_variation(mesh.theta_grid(512))
+    pair = rig.pair
+    cos_bb = math.cos(pair.base_helix_angle_rad)
+    j1, j2 = solid_cylinder_inertias(pair)
+    rb1, rb2 = pair.base_radii_m
+    m_eq = j1 * j2 / (j1 * rb2**2 + j2 * rb1**2)  # Eq. (16)
+    omega_n = math.sqrt(float(k_m) * cos_bb**2 / m_eq)
     return {
+        "torsional_inertias_kg_m2": [j1, j2],
+        "equivalent_mass_kg": m_eq,
+        "torsional_natural_frequency_rad_s": omega_n,
+        "torsional_critical_speed_rad_s": omega_n / pair.z1,
+        "iso6336_resonance_speed_rad_s": iso6336_resonance_speed(pair, float(k_m)),
         "stiffness_law": law,
         "mean_mesh_stiffness_N_per_m": float(k_m),
         "stiffness_variation_alpha": float(alpha),
@@ -164,6 +178,24 @@ def torsional_stiffness_figures(rig: Rig, law: str = "iso6336") -> dict:
         "tooth_pair_slots": mesh.n_slots,
         "base_helix_cos": math.cos(rig.pair.base_helix_angle_rad),
     }
+
+
+def iso6336_resonance_speed(pair: GearPair, mean_stiffness_N_per_m: float,
+                            density_kg_m3: float = 7800.0) -> float:
+    """Pinion resonance speed of ISO 6336-1 (method B, solid gear bodies), in rad/s.
+
+    ``n_E1 = 30000 / (pi z1) sqrt(c_gamma_alpha / m_red)`` (1/min) with the reduced mass per
+    unit face width ``m_red = m1* m2* / (m1* + m2*)``, ``m_i* = pi rho d_mi^4 / (8 d_bi^2)``
+    (``d_m`` the mean of tip and root diameters) and ``c_gamma_alpha = k_m / b``; in rad/s
+    ``Omega_E1 = sqrt(c_gamma_alpha / m_red) / z1``.
+    """
+    m_star = []
+    for ra, rf, rb in zip(pair.tip_radii_m, pair.root_radii_m, pair.base_radii_m):
+        dm, db = ra + rf, 2.0 * rb
+        m_star.append(math.pi * density_kg_m3 * dm**4 / (8.0 * db**2))
+    m_red = m_star[0] * m_star[1] / (m_star[0] + m_star[1])
+    c_ga = mean_stiffness_N_per_m / pair.face_width_m
+    return math.sqrt(c_ga / m_red) / pair.z1
 
 
 def system_3d(rig: Rig, law: str = "iso6336", encoder_position: int = 1):

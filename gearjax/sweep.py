@@ -260,8 +260,9 @@ def sweep(
             n_done += len(first)
             conv = np.asarray(out[_FIELDS.index("converged")], dtype=bool)
             real = np.asarray(list(first.values())) - c * chunk
+            bar = "#" * round(20 * n_done / speeds.size)
             print(
-                f"[gearjax.sweep] {formulation} chunk {c + 1}/{n_chunks}: {len(first)} speeds "
+                f"[gearjax.sweep] {formulation:12s} [{bar:<20s}] chunk {c + 1}/{n_chunks}: {len(first)} speeds "
                 f"{speeds[sel].min():.4g}-{speeds[sel].max():.4g} rad/s in {dt:.2f} s "
                 f"({'incl. compile, ' if c == 0 else ''}{n_done}/{speeds.size} done, "
                 f"{int(np.sum(~conv[real]))} not converged, "

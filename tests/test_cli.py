@@ -84,8 +84,8 @@ def test_info_3d_reports_appendix_a_relations(capsys, encoders):
 
 def test_sweep_writes_csv_json_and_figure(capsys, tmp_path):
     out_dir = tmp_path / "sw"
-    summary = _json(capsys, ["sweep", "--speeds", "30:600:3", "--formulations", "reference,te",
-                             "--out", str(out_dir), "--json"])
+    summary = _json(capsys, ["sweep", "--model", "torsional", "--speeds", "30:600:3",
+                             "--formulations", "reference,te", "--out", str(out_dir), "--json"])
     data = np.genfromtxt(out_dir / "results.csv", delimiter=",", names=True, dtype=None,
                          encoding="utf-8")
     assert data.dtype.names == ("speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor",

@@ -905,6 +905,19 @@ class Geared3DModel(eqx.Module):
         r = self.omega_r / omega
         return jnp.concatenate([qp / self.scale_a, up / (r * self.scale_a)])
 
+    @property
+    def state_size(self) -> int:
+        """Length of the scaled state ``y`` (2 r)."""
+        return 2 * self.n_reduced
+
+    def homogeneous_vector_field(self, theta, y, omega):
+        """The linear part of :meth:`vector_field` (te/perturbation: the right-hand side is
+        affine in ``y``), for the Floquet analysis of :mod:`gearjax.stability`."""
+        if self.formulation == "reference":
+            raise ModelError("formulation", "reference", "the contact law is not linear; the "
+                             "linearisation about the quasi-static contact is the te formulation")
+        return self.vector_field(theta, y, omega) - self.vector_field(theta, jnp.zeros_like(y), omega)
+
     def initial_state(self, omega, theta0=0.0):
         """Scaled state at ``theta0`` on the quasi-static solution (X_D = X_D' = 0)."""
         theta0 = jnp.asarray(theta0, dtype=float)

@@ -1,0 +1,392 @@
+"""``gearjax sweep`` and ``gearjax stability``: dynamic response curves (Figs. 8-13) and
+Floquet stability maps, for the sdof torsional model and the 3D model.
+
+Registered by :mod:`gearjax.cli` (``_EXTENSIONS``). The commands parse options, build the
+models with :func:`build_dynamic_model` and format results; the physics lives in
+:mod:`gearjax.models`, :mod:`gearjax.simulate`, :mod:`gearjax.sweep` and
+:mod:`gearjax.stability`.
+
+Section 6.3 cases (Velex & Ajmi), one command each (``--speeds`` to taste)::
+
+    gearjax sweep                                           # 6.3.1, zeta 0.1 (the default case)
+    gearjax sweep --damping 0.03                            # 6.3.1, zeta 0.03 (Fig. 8)
+    gearjax sweep --relief long --signals 100,400,800       # 6.3.2 (Figs. 10, 11)
+    gearjax sweep --relief long --no-nlte-terms --formulations te      # 6.3.2, NLTE'' = 0
+    gearjax sweep --pitch-errors                            # 6.3.3 (Fig. 12)
+    gearjax sweep --rig baud-velex-helical --pitch-errors --damping 0.03   # 6.3.4 (Fig. 13)
+    gearjax sweep --encoders 2                              # 6.3.5 (also 1 and 3)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+__all__ = ["register", "build_dynamic_model", "case_name", "summarise_sweep"]
+
+FORMULATIONS = ("reference", "te", "perturbation")
+_SAMPLES_PER_MESH_PERIOD = 128
+
+
+def register(sub, add_rig, add_scenario):
+    """Add ``sweep`` and ``stability`` to the ``gearjax`` sub-command parser."""
+    sw = sub.add_parser(
+        "sweep", help="steady-state dynamic response over pinion speeds (Figs. 8-13)",
+        description="Steady-state response curves of Section 6 (default: the paper's spur case, "
+                    "3D model, short relief, damping 0.1, all three formulations, 20-900 rad/s).",
+    )
+    add_rig(sw)
+    add_scenario(sw)
+    _add_dynamics(sw)
+    sw.add_argument("--formulations", default="reference,te,perturbation",
+                    help="comma-separated subset of reference,te,perturbation (default all)")
+    sw.add_argument("--speeds", default="20:900:45", metavar="A:B:N",
+                    help="N pinion speeds from A to B rad/s (default 20:900:45)")
+    sw.add_argument("--signals", default=None, metavar="SPEEDS",
+                    help="comma-separated pinion speeds (rad/s) whose mesh force over the last "
+                         "mesh period is also written and plotted (Fig. 11), e.g. 100,400,800")
+    sw.add_argument("--out", default=None, metavar="DIR",
+                    help="output folder (default ./gearjax-out/<case>/)")
+    sw.add_argument("--chunk", type=int, default=None,
+                    help="speeds per compiled call (progress and CSV rows per chunk; default "
+                         "about a tenth of the speeds)")
+    sw.set_defaults(func=cmd_sweep)
+
+    st = sub.add_parser(
+        "stability", help="Floquet spectral radius of the linear formulations over speeds",
+        description="Parametric stability: spectral radius of the monodromy matrix of the "
+                    "linear time-periodic te (or perturbation) equations; > 1 inside an "
+                    "instability zone.",
+    )
+    add_rig(st)
+    add_scenario(st)
+    _add_dynamics(st)
+    st.add_argument("--formulation", default="te", choices=["te", "perturbation"],
+                    help="linear formulation to analyse (default te; the reference linearised "
+                         "about the quasi-static contact is the te equation)")
+    st.add_argument("--speeds", default="100:1500:15", metavar="A:B:N",
+                    help="N pinion speeds from A to B rad/s (default 100:1500:15)")
+    st.set_defaults(func=cmd_stability)
+
+
+def _add_dynamics(p: argparse.ArgumentParser):
+    p.add_argument("--model", default="3d", choices=["torsional", "3d"],
+                   help="3d (default: shafts, bearings, pinion-gear element, Eqs. (14), (42), "
+                        "(48a)) or torsional (sdof, Eqs. (16), (20), (47a))")
+    p.add_argument("--damping", type=float, default=0.1, metavar="ZETA",
+                   help="modal damping factor (default 0.1; the paper also uses 0.03)")
+    p.add_argument("--encoders", type=int, default=1, choices=[1, 2, 3],
+                   help="3d: encoder positions of Fig. 7 defining TE and DTE (default 1)")
+    p.add_argument("--no-nlte-terms", action="store_true",
+                   help="drop NLTE from the equations: no NLTE', NLTE'' inertial terms and "
+                        "TE_S instead of TE_S - NLTE in the forcing of Eqs. (42), (48a) "
+                        "(Section 6.3.2, Fig. 10 'with NLTE = 0')")
+    p.add_argument("--max-frequency", type=float, default=6000.0, metavar="HZ",
+                   help="3d: keep the modes below HZ plus static correction (default 6000; "
+                        "0 keeps all 258 dofs' modes)")
+
+
+def _parse_speeds(text: str) -> np.ndarray:
+    try:
+        a, b, n = text.split(":")
+        a, b, n = float(a), float(b), int(n)
+    except ValueError:
+        raise ValueError(f"--speeds={text!r}: expected A:B:N, e.g. 20:900:60") from None
+    if not (0 < a <= b and n >= 1 and math.isfinite(b)):
+        raise ValueError(f"--speeds={text!r}: need 0 < A <= B (rad/s) and N >= 1")
+    return np.linspace(a, b, n)
+
+
+def _parse_signal_speeds(text: str | None) -> list[float]:
+    if not text:
+        return []
+    try:
+        vals = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"--signals={text!r}: expected comma-separated speeds in rad/s, "
+                         "e.g. 100,400,800") from None
+    if not vals or not all(math.isfinite(v) and v > 0 for v in vals):
+        raise ValueError(f"--signals={text!r}: speeds must be finite and > 0 (rad/s)")
+    return vals
+
+
+def _check_damping(z: float):
+    if not (math.isfinite(z) and 0.0 <= z < 1.0):
+        raise ValueError(f"--damping={z!r}: the modal damping factor must lie in [0, 1)")
+
+
+def build_dynamic_model(rig, mods, *, model: str, formulation: str, law: str = "iso6336",
+                        damping: float = 0.1, encoders: int = 1, nlte_terms: bool | None = None,
+                        max_frequency_hz: float | None = 6000.0):
+    """The dynamic model of a CLI scenario: :class:`~gearjax.models.torsional.TorsionalModel`
+    (default inertias, see its docstring) or :class:`~gearjax.models.geared3d.Geared3DModel`
+    of the rig (``max_frequency_hz`` None or 0: all modes)."""
+    if model == "torsional":
+        from .mesh import Mesh
+        from .models.torsional import TorsionalModel
+
+        return TorsionalModel.build(
+            Mesh.build(rig.pair, law), mods, pinion_torque_Nm=rig.pinion_torque_Nm,
+            damping_ratio=damping, formulation=formulation, nlte_terms=nlte_terms,
+        )
+    from .models.geared3d import Geared3DModel
+
+    return Geared3DModel.from_rig(
+        rig, mods, law=law, encoder_position=encoders, formulation=formulation,
+        damping_ratio=damping, nlte_terms=nlte_terms,
+        max_frequency_hz=max_frequency_hz if max_frequency_hz else None,
+    )
+
+
+def case_name(args) -> str:
+    """Folder name of a sweep case, e.g. ``baud-velex-spur-3d-short-zeta0.1-enc1``."""
+    rig = os.path.splitext(os.path.basename(args.rig))[0]
+    relief = args.relief
+    if args.relief_amplitude is not None or args.relief_extent is not None:
+        relief = f"relief{args.relief_amplitude or 'T1'}x{args.relief_extent or 'T1'}"
+    parts = [rig, args.model, relief]
+    if args.pitch_errors:
+        parts.append("pitch")
+    parts.append(f"zeta{args.damping:g}")
+    if args.no_nlte_terms:
+        parts.append("no-nlte")
+    if args.model == "3d":
+        parts.append(f"enc{args.encoders}")
+    return "-".join(parts)
+
+
+def _forms(text: str) -> list[str]:
+    forms = [f.strip() for f in text.split(",") if f.strip()]
+    bad = [f for f in forms if f not in FORMULATIONS]
+    if bad or not forms:
+        raise ValueError(f"--formulations={text!r}: choose from reference,te,perturbation")
+    return list(dict.fromkeys(forms))
+
+
+def predicted_critical_speeds(model) -> dict:
+    """Main tooth critical pinion speed predicted by the modes: the mode with the largest
+    share of strain energy in the mesh (3D: ``k_m (phi^T V)^2 / omega^2`` over its total
+    ``1``, mass-normalised modes; sdof: ``omega_n``), ``Omega1 = omega / z1`` (rad/s)."""
+    z1 = model.mesh.pair.z1
+    if hasattr(model, "natural_frequency_rad_s"):
+        w = float(model.natural_frequency_rad_s())
+        return {"mode_frequency_hz": w / (2 * math.pi), "mesh_energy_share": 1.0,
+                "critical_speed_rad_s": w / z1}
+    n = model.n_modes
+    w = np.asarray(model.omega_r)[:n]
+    share = float(model.k_m) * np.asarray(model.v_r)[:n] ** 2 / np.where(w > 0, w, np.inf) ** 2
+    j = int(np.argmax(share))
+    return {"mode_frequency_hz": float(w[j] / (2 * math.pi)), "mesh_energy_share": float(share[j]),
+            "critical_speed_rad_s": float(w[j] / z1)}
+
+
+def summarise_sweep(res, speeds) -> dict:
+    """Per-formulation summary of a :class:`gearjax.sweep.SweepResult`."""
+    df = np.asarray(res.dynamic_factor, dtype=float)
+    ok = np.isfinite(df)
+    i = int(np.nanargmax(df)) if ok.any() else 0
+    return {
+        "peak_dynamic_factor": float(df[i]) if ok.any() else float("nan"),
+        "critical_speed_rad_s": float(speeds[i]),
+        "max_mesh_force_N": float(np.nanmax(res.max_mesh_force_N)) if ok.any() else float("nan"),
+        "contact_loss_speeds": [float(w) for w in speeds[np.asarray(res.contact_loss, bool)]],
+        "unconverged_speeds": [float(w) for w in speeds[~np.asarray(res.converged, bool)]],
+        "failed_speeds": [float(w) for w in speeds[~np.asarray(res.solver_ok, bool)]],
+    }
+
+
+def cmd_sweep(args) -> int:
+    from .rigs import get_rig
+    from .sweep import sweep
+
+    rig = get_rig(args.rig)
+    speeds = _parse_speeds(args.speeds)
+    forms = _forms(args.formulations)
+    sig_speeds = _parse_signal_speeds(args.signals)
+    _check_damping(args.damping)
+    if args.model == "torsional" and args.encoders != 1:
+        raise ValueError("--encoders: the torsional model has no encoder positions (3d only)")
+    mods = rig.modifications(
+        args.relief, args.relief_amplitude, args.relief_extent, args.relief_shape, args.pitch_errors
+    )
+    out = args.out or os.path.join("gearjax-out", case_name(args))
+    os.makedirs(out, exist_ok=True)
+    csv_path = os.path.join(out, "results.csv")
+    if os.path.exists(csv_path):
+        os.remove(csv_path)
+    chunk = args.chunk or max(1, math.ceil(speeds.size / 10))
+    nlte = False if args.no_nlte_terms else None
+    summary = {
+        "case": case_name(args), "rig": rig.name, "model": args.model,
+        "stiffness_law": args.stiffness, "relief": args.relief,
+        "relief_amplitude_m": [float(v) for v in np.asarray(mods.relief_amplitude_m)],
+        "relief_extent": [float(v) for v in np.asarray(mods.relief_extent)],
+        "pitch_errors": bool(args.pitch_errors), "damping": args.damping,
+        "nlte_terms": not args.no_nlte_terms, "encoders": args.encoders,
+        "max_frequency_hz": args.max_frequency if args.model == "3d" else None,
+        "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
+        "formulations": {},
+    }
+    results, signals = {}, {}
+    t_all = time.perf_counter()
+    for form in forms:
+        t0 = time.perf_counter()
+        model = build_dynamic_model(rig, mods, model=args.model, formulation=form,
+                                    law=args.stiffness, damping=args.damping,
+                                    encoders=args.encoders, nlte_terms=nlte,
+                                    max_frequency_hz=args.max_frequency)
+        t_build = time.perf_counter() - t0
+        if "predicted" not in summary:
+            summary["predicted"] = predicted_critical_speeds(model)
+            if args.model == "3d":
+                summary["n_modes"] = int(model.n_modes)
+                summary["w_x0_m"] = float(model.w_x0)
+        if not args.json:
+            print(f"  {form}: {speeds.size} speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rad/s "
+                  f"({args.model} model built in {t_build:.1f} s)", file=sys.stderr, flush=True)
+        t0 = time.perf_counter()
+        res = sweep(model, speeds, chunk_size=chunk, progress=not args.json, out_csv=csv_path)
+        elapsed = time.perf_counter() - t0
+        results[form] = res
+        s = summarise_sweep(res, speeds)
+        s.update(build_time_s=t_build, wall_time_s=elapsed)
+        summary["formulations"][form] = s
+        if sig_speeds:
+            signals[form] = _signals(model, sig_speeds)
+    if "reference" in results:
+        ref = np.asarray(results["reference"].max_mesh_force_N)
+        summary["agreement_with_reference"] = {
+            f: {
+                "max_rel_diff_max_mesh_force": float(np.nanmax(np.abs(np.asarray(r.max_mesh_force_N) - ref) / ref)),
+                "median_rel_diff_max_mesh_force": float(np.nanmedian(np.abs(np.asarray(r.max_mesh_force_N) - ref) / ref)),
+            }
+            for f, r in results.items() if f != "reference"
+        }
+    summary["results_csv"] = csv_path
+    from .plotting import plot_response_curves
+
+    fig_path = os.path.join(out, "response_curves.png")
+    title = (f"{rig.name}, {args.model}, relief {args.relief}"
+             f"{', pitch errors' if args.pitch_errors else ''}, damping {args.damping}"
+             f"{', NLTE terms off' if args.no_nlte_terms else ''}")
+    plot_response_curves(csv_path, fig_path, title=title)
+    summary["response_curves_png"] = fig_path
+    if signals:
+        summary.update(_write_signals(signals, out, title))
+    summary["total_time_s"] = time.perf_counter() - t_all
+    with open(os.path.join(out, "summary.json"), "w") as fh:
+        json.dump(summary, fh, indent=2)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    _print_summary(rig, summary, out)
+    return 0
+
+
+def _signals(model, speeds):
+    """Signals over the last mesh period at each speed (mesh force, DTE, acceleration)."""
+    from .simulate import simulate
+
+    out = []
+    for w in speeds:
+        r = simulate(model, float(w), save_signals=True, n_measured_periods=2,
+                     samples_per_mesh_period=_SAMPLES_PER_MESH_PERIOD)
+        sig = r.signals
+        th = np.asarray(sig.theta_rad)
+        tm = model.mesh_period_rad
+        keep = slice(th.size - _SAMPLES_PER_MESH_PERIOD, th.size)  # the last mesh period
+        acc = None if sig.accel_m_s2 is None else np.asarray(sig.accel_m_s2)[keep]
+        out.append({"speed_rad_s": float(w), "t_over_Tm": (th[keep] - th[keep][0]) / tm,
+                    "mesh_force_N": np.asarray(sig.mesh_force_N)[keep],
+                    "dte_m": np.asarray(sig.dte_m)[keep], "accel_m_s2": acc,
+                    "converged": bool(r.converged)})
+    return out
+
+
+def _write_signals(signals, out, title) -> dict:
+    import csv
+
+    path = os.path.join(out, "signals.csv")
+    with open(path, "w", newline="") as fh:
+        wr = csv.writer(fh)
+        wr.writerow(["formulation", "speed_rad_s", "t_over_mesh_period", "mesh_force_N", "dte_m",
+                     "accel_m_s2"])
+        for form, sigs in signals.items():
+            for s in sigs:
+                acc = s["accel_m_s2"] if s["accel_m_s2"] is not None else [None] * len(s["t_over_Tm"])
+                for t, f, d, a in zip(s["t_over_Tm"], s["mesh_force_N"], s["dte_m"], acc):
+                    wr.writerow([form, f"{s['speed_rad_s']:.6g}", f"{t:.6f}", f"{f:.8e}", f"{d:.8e}",
+                                 "" if a is None else f"{a:.8e}"])
+    from .plotting import plot_mesh_force_signals
+
+    fig = os.path.join(out, "mesh_force_signals.png")
+    plot_mesh_force_signals(signals, fig, title=title)
+    return {"signals_csv": path, "mesh_force_signals_png": fig}
+
+
+def _print_summary(rig, summary, out):
+    pred = summary["predicted"]
+    print(f"\n  {rig.description}")
+    print(f"  {summary['model']} model, relief {summary['relief']}, damping {summary['damping']}, "
+          f"speeds {summary['speeds_rad_s'][0]:.0f}-{summary['speeds_rad_s'][1]:.0f} rad/s "
+          f"({summary['speeds_rad_s'][2]})")
+    print(f"  predicted main tooth critical speed {pred['critical_speed_rad_s']:.0f} rad/s "
+          f"(mode {pred['mode_frequency_hz']:.0f} Hz, {100 * pred['mesh_energy_share']:.0f} % of its "
+          f"strain energy in the mesh)")
+    print(f"  {'formulation':13s} {'peak K_v':>9s} {'at [rad/s]':>11s} {'contact loss':>13s} "
+          f"{'unconverged':>12s} {'vs reference':>13s} {'time [s]':>9s}")
+    agree = summary.get("agreement_with_reference", {})
+    for form, r in summary["formulations"].items():
+        a = agree.get(form)
+        vs = f"{100 * a['max_rel_diff_max_mesh_force']:.1f} % max" if a else "-"
+        print(f"  {form:13s} {r['peak_dynamic_factor']:9.3f} {r['critical_speed_rad_s']:11.1f} "
+              f"{len(r['contact_loss_speeds']):13d} {len(r['unconverged_speeds']):12d} {vs:>13s} "
+              f"{r['build_time_s'] + r['wall_time_s']:9.1f}")
+    for form, r in summary["formulations"].items():
+        if r["unconverged_speeds"]:
+            print(f"  note: {form} not converged to steady state at "
+                  f"{', '.join(f'{w:.0f}' for w in r['unconverged_speeds'][:8])} rad/s "
+                  "(flagged converged=0 in results.csv)")
+    files = [summary["results_csv"], summary["response_curves_png"], os.path.join(out, "summary.json")]
+    files += [summary[k] for k in ("signals_csv", "mesh_force_signals_png") if k in summary]
+    print(f"  wrote {', '.join(files)}  ({summary['total_time_s']:.0f} s in all)")
+
+
+def cmd_stability(args) -> int:
+    from .rigs import get_rig
+    from .stability import spectral_radius
+
+    rig = get_rig(args.rig)
+    speeds = _parse_speeds(args.speeds)
+    _check_damping(args.damping)
+    mods = rig.modifications(
+        args.relief, args.relief_amplitude, args.relief_extent, args.relief_shape, args.pitch_errors
+    )
+    model = build_dynamic_model(rig, mods, model=args.model, formulation=args.formulation,
+                                law=args.stiffness, damping=args.damping, encoders=args.encoders,
+                                nlte_terms=False if args.no_nlte_terms else None,
+                                max_frequency_hz=args.max_frequency)
+    t0 = time.perf_counter()
+    rho = spectral_radius(model, speeds)
+    out = {
+        "rig": rig.name, "model": args.model, "formulation": args.formulation,
+        "relief": args.relief, "damping": args.damping, "stiffness_law": args.stiffness,
+        "wall_time_s": time.perf_counter() - t0,
+        "results": [{"speed_rad_s": float(w), "spectral_radius": float(r)} for w, r in zip(speeds, rho)],
+        "unstable_speeds_rad_s": [float(w) for w, r in zip(speeds, rho) if r > 1.0],
+    }
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"  {rig.description}; {args.model} {args.formulation}, relief {args.relief}, "
+          f"damping {args.damping}")
+    print(f"  {'speed [rad/s]':>14s} {'spectral radius':>16s}")
+    for w, r in zip(speeds, rho):
+        print(f"  {w:14.1f} {r:16.6f}{'   UNSTABLE (parametric)' if r > 1 else ''}")
+    return 0

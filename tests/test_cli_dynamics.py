@@ -1,0 +1,127 @@
+"""`gearjax sweep` (torsional and 3D, signals) and `gearjax stability`, `gearjax info`'s
+torsional figures: schema, closed forms and clear errors."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from gearjax.cli import main
+from gearjax.geometry import baud_velex_pair
+from gearjax.mesh import Mesh
+from gearjax.models.torsional import TorsionalModel
+from gearjax.rigs import get_rig
+
+CSV_COLUMNS = ("speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor", "dte_ptp_m",
+               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged")
+
+
+def _json(capsys, argv):
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def _csv(path):
+    return np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")
+
+
+def test_info_torsional_figures_closed_form(capsys):
+    out = _json(capsys, ["info", "--model", "torsional", "--json"])
+    pair = baud_velex_pair(False)
+    # solid steel cylinders at the pitch radii with the face widths (the sdof defaults)
+    rho = 7800.0
+    (r1, r2), (b1, b2) = pair.pitch_radii_m, (pair.face_width1_m, pair.face_width2_m)
+    j1, j2 = rho * math.pi * b1 * r1**4 / 2, rho * math.pi * b2 * r2**4 / 2
+    rb1, rb2 = pair.base_radii_m
+    m_eq = 1.0 / (rb1**2 / j1 + rb2**2 / j2)  # Eq. (16): 1/m_eq = Rb1^2/J1 + Rb2^2/J2
+    assert out["equivalent_mass_kg"] == pytest.approx(m_eq, rel=1e-12)
+    w = math.sqrt(out["mean_mesh_stiffness_N_per_m"] / m_eq)  # spur: cos(beta_b) = 1
+    assert out["torsional_natural_frequency_rad_s"] == pytest.approx(w, rel=1e-12)
+    assert out["torsional_critical_speed_rad_s"] == pytest.approx(w / 26, rel=1e-12)
+    # ISO 6336-1 uses mean diameters and the common face width: same order, not equal
+    assert 0.8 < out["iso6336_resonance_speed_rad_s"] / (w / 26) < 1.3
+
+
+def test_torsional_sweep_with_signals(capsys, tmp_path):
+    out_dir = tmp_path / "sw"
+    summary = _json(capsys, ["sweep", "--model", "torsional", "--speeds", "40:700:3",
+                             "--formulations", "te,reference", "--signals", "300",
+                             "--out", str(out_dir), "--json"])
+    data = _csv(out_dir / "results.csv")
+    assert data.dtype.names == CSV_COLUMNS
+    assert len(data) == 6
+    import csv
+
+    rows = list(csv.DictReader(open(out_dir / "results.csv")))
+    assert all(r["accel_ptp_m_s2"] == "" for r in rows)  # no acceleration in the sdof model
+    assert summary["agreement_with_reference"]["te"]["max_rel_diff_max_mesh_force"] >= 0
+    sig = _csv(out_dir / "signals.csv")
+    assert set(sig["formulation"]) == {"te", "reference"} and set(sig["speed_rad_s"]) == {300.0}
+    # one mesh period of samples per formulation, t/T_m in [0, 1)
+    assert np.sum(sig["formulation"] == "te") == 128
+    assert 0 <= sig["t_over_mesh_period"].min() and sig["t_over_mesh_period"].max() < 1
+    # the plotted maximum is the sweep's maximum at that speed (same simulation settings
+    # differ only in the number of measured periods: equal at steady state)
+    r = TorsionalModel.build(Mesh.build(baud_velex_pair(False), "iso6336"), get_rig(
+        "baud-velex-spur").modifications("short"), damping_ratio=0.1, formulation="te")
+    from gearjax.simulate import simulate
+
+    one = simulate(r, 300.0)
+    f_te = sig["mesh_force_N"][sig["formulation"] == "te"]
+    assert f_te.max() == pytest.approx(float(one.max_mesh_force_N), rel=1e-4)
+    assert (out_dir / "mesh_force_signals.png").stat().st_size > 10_000
+
+
+def test_default_case_name_and_out_dir(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["sweep", "--model", "torsional", "--speeds", "300:300:1", "--formulations",
+                 "perturbation", "--damping", "0.03"]) == 0
+    text = capsys.readouterr().out
+    case = tmp_path / "gearjax-out" / "baud-velex-spur-torsional-short-zeta0.03"
+    assert (case / "results.csv").exists() and (case / "summary.json").exists()
+    assert "predicted main tooth critical speed" in text and "peak K_v" in text
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["sweep", "--formulations", "reference,tee"], ["--formulations", "tee"]),
+    (["sweep", "--signals", "100,abc"], ["--signals", "100,abc"]),
+    (["sweep", "--signals", "-5"], ["--signals", "> 0"]),
+    (["sweep", "--damping", "1.5"], ["--damping", "1.5", "[0, 1)"]),
+    (["sweep", "--model", "torsional", "--encoders", "2"], ["--encoders", "3d only"]),
+    (["stability", "--speeds", "0:10:3"], ["--speeds", "0 < A"]),
+])
+def test_dynamics_bad_input(capsys, argv, words):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    for w in words:
+        assert w in err
+
+
+def test_stability_perturbation_closed_form(capsys):
+    """Eq. (47a) has constant coefficients: every Floquet multiplier has modulus
+    exp(-zeta omega_n T) over the excitation period T = (2 pi / z1) / Omega."""
+    out = _json(capsys, ["stability", "--model", "torsional", "--formulation", "perturbation",
+                         "--damping", "0.05", "--speeds", "200:800:3", "--json"])
+    m = TorsionalModel.build(Mesh.build(baud_velex_pair(False), "iso6336"),
+                             get_rig("baud-velex-spur").modifications("short"),
+                             damping_ratio=0.05, formulation="perturbation")
+    w_n = float(m.natural_frequency_rad_s())
+    for row in out["results"]:
+        t = (2 * math.pi / 26) / row["speed_rad_s"]
+        assert row["spectral_radius"] == pytest.approx(math.exp(-0.05 * w_n * t), rel=1e-6)
+    assert out["unstable_speeds_rad_s"] == []
+
+
+def test_stability_finds_the_principal_zone(capsys):
+    """te with a square-ish stiffness and little damping: unstable where the mesh frequency
+    is near twice the natural frequency (Omega1 ~ 2 omega_n / z1), stable far below."""
+    m = TorsionalModel.build(Mesh.build(baud_velex_pair(False), "uniform"),
+                             get_rig("baud-velex-spur").modifications("none"),
+                             damping_ratio=0.005, formulation="te")
+    principal = 2 * float(m.natural_frequency_rad_s()) / 26
+    out = _json(capsys, ["stability", "--model", "torsional", "--stiffness", "uniform",
+                         "--relief", "none", "--damping", "0.005", "--speeds",
+                         f"{0.3 * principal}:{principal}:2", "--json"])
+    rho = [r["spectral_radius"] for r in out["results"]]
+    assert rho[0] < 1.0 < rho[1]
