@@ -28,5 +28,17 @@ from .rigfile import load_rig as load_rig
 from .rigs import Rig as Rig
 from .rigs import RigError as RigError
 from .rigs import get_rig as get_rig
+from .models.torsional import ModelError as ModelError
+from .models.torsional import TorsionalModel as TorsionalModel
+from .models.geared3d import Geared3DModel as Geared3DModel
+from .simulate import SimulationError as SimulationError
+from .simulate import SimulationResult as SimulationResult
+from .simulate import simulate as simulate
+from .sweep import SweepResult as SweepResult
+from .sweep import sweep as sweep
+from .stability import floquet_multipliers as floquet_multipliers
+from .stability import spectral_radius as spectral_radius
+from .steady import steady_state as steady_state
+from .steady import steady_sweep as steady_sweep
 
 __version__ = "0.1.0"
