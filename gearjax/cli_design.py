@@ -40,9 +40,15 @@ def _common(p, add_rig):
     p.add_argument("--objective", default="peak-force", choices=list(_OBJECTIVES),
                    help="peak-force (N), dynamic-factor, dte-ptp (m) over --speeds, or te-ptp / "
                         "te-rms (quasi-static TE_S fluctuation at the rig torque)")
-    p.add_argument("--speeds", default="330:480:8", metavar="A:B:N",
-                   help="pinion speeds (rad/s) of the dynamic objectives (default 330:480:8, "
-                        "around the main critical speed with the rig line inertias)")
+    p.add_argument("--speeds", default="660:900:8", metavar="A:B:N",
+                   help="pinion speeds (rad/s) of the dynamic objectives (default 660:900:8, "
+                        "around the main critical speed of the spur pair, 776 rad/s)")
+    p.add_argument("--inertias", default="bodies", metavar="J1,J2",
+                   help="sdof inertias (kg m^2): 'bodies' (default: the gear bodies, solid "
+                        "cylinders at the pitch radii) or two values, e.g. 4.48e-3,4.76")
+    p.add_argument("--nlte-reaction", default="drive", choices=["drive", "pinion"],
+                   help="where the NLTE'' reaction torque acts: drive (default, as in the "
+                        "3D rig) or pinion (Eq. (15))")
     p.add_argument("--formulation", default="perturbation", choices=["perturbation", "te", "reference"],
                    help="sdof formulation (default perturbation, Eq. (47a); te can be "
                         "parametrically unstable near the critical speed)")
@@ -88,9 +94,18 @@ def _setup(args, separate=False):
     rig = get_rig(args.rig)
     mesh = Mesh.build(rig.pair, args.stiffness)
     space = ReliefSpace(shape=args.shape, shared=not separate)
+    inertias = args.inertias
+    if inertias != "bodies":
+        try:
+            inertias = tuple(float(v) for v in inertias.split(","))
+        except ValueError:
+            raise _Bad(f"--inertias={args.inertias!r}: expected 'bodies' or J1,J2") from None
+        if len(inertias) != 2 or not all(math.isfinite(v) and v > 0 for v in inertias):
+            raise _Bad(f"--inertias={args.inertias!r}: need two finite values > 0 (kg m^2)")
     kw = {}
     if args.objective in ("peak-force", "dynamic-factor", "dte-ptp"):
-        kw = dict(formulation=args.formulation, damping_ratio=args.damping)
+        kw = dict(formulation=args.formulation, damping_ratio=args.damping,
+                  inertias_kg_m2=inertias, nlte_reaction=args.nlte_reaction)
     obj = make_objective(args.objective, mesh, space, speeds_rad_s=speeds,
                          torques_Nm=rig.pinion_torque_Nm, **kw)
     return rig, obj, amps, exts

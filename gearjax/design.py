@@ -45,17 +45,49 @@ The optimiser works on unconstrained variables ``u``: ``x = lo + (hi - lo) sigmo
 per variable, bounds ``[0, 40 um]`` for amplitudes and ``[0.02, 0.98]`` for extents by
 default (:class:`ReliefSpace`), so every iterate respects them.
 
-Inertias
+Inertias and the NLTE'' reaction (dynamic objectives)
+----------------------------------------------------
+The sdof design model uses the gear *bodies* (:data:`DESIGN_INERTIAS`: the torsional
+model's default solid cylinders at the pitch radii, J1 = 4.48e-3, J2 = 4.76 kg m^2 for the
+spur Baud-Velex pair, i.e. the annular bodies of the 3D rig, 4.0e-3 and 4.76, plus the
+shaft core under the face width, 5e-4 and 1.3e-3) and puts the NLTE'' reaction torque on
+the drive (``nlte_reaction="drive"``, kappa = 1, see :mod:`gearjax.models.torsional`).
+Reason: the shafts are torsionally far softer than the mesh (pinion shaft to the motor
+coupling G pi d^4 / 32 / L ~ 9e4 N m/rad; mesh k_m Rb1^2 = 7.4e8 x 0.0489^2 = 1.8e6
+N m/rad), so at the mesh modes (3.4 kHz) the shafts, hubs and motor are decoupled from
+the bodies (hub on the pinion shaft: ~500 Hz). Measured, short relief, zeta 0.03: the 3D
+rig's mesh receptance |k_m C_vv - 1| peaks at 823.5 rad/s (modes 3373 / 3466 Hz with 29 /
+21 % of the mesh strain energy); the sdof critical speed omega_n / z1 is 776 rad/s with
+the bodies (820 with the bare annuli) against 406 rad/s with the shaft-line inertias
+(1.8e-2, 4.80) used before (pinion body + shaft + motor-side hub). With the long relief
+(NLTE'' != 0) the 3D rig gives dynamic factors 1.33/1.24/1.99/1.52 (perturbation) and
+1.32/1.21/2.37/1.45 (reference) at 600/700/800/900 rad/s; the sdof with the bodies and
+``"drive"`` 1.41/1.81/4.15/1.63 and 1.42/2.24/2.15/1.52, with the paper's Eq. (15)
+(``"pinion"``, kappa = 30) 22/55/259/44 and 14/24/11/0 (teeth flying apart), with the
+shaft-line inertias (kappa = 8.3) 6.2/5.3/4.9/4.7 and 5.4/3.7/3.6/3.6. Both are passable
+(``inertias_kg_m2``, ``nlte_reaction``).
+
+Formulation (dynamic objectives)
+--------------------------------
+Default perturbation (Eq. (47a): constant mean stiffness, linear, always stable, smooth
+in the design). The te formulation (Eq. (20)) with the loaded stiffness of the long
+relief is parametrically unstable around the main critical speed: Floquet spectral
+radius (:func:`gearjax.stability.spectral_radius`) up to 1.074, > 1 over 770-810 rad/s
+(0.97-1.02 of its omega_n / z1 = 795 rad/s), dynamic factor 457 at 800 rad/s; the sdof
+multipliers depend on Omega / omega_n and zeta only, so this holds for any inertias. The
+reference formulation (Eq. (16)) is the physical check, but contact loss makes it
+non-smooth in the design; the optimum is checked against it by forward sweeps
+(``notebooks/tip_relief_design.ipynb``).
+
+3D model
 --------
-The torsional model's default inertias (solid cylinders of the gear bodies) are not the
-rig's shaft lines. For design studies :data:`RIG_LINE_INERTIAS_KG_M2` = (1.8e-2, 4.80)
-kg m^2 are the shaft-line inertias of the 3D Baud-Velex rig (:mod:`gearjax.structure.rigs`)
-that move with the mesh: pinion body 4.0e-3 + pinion shaft 5.1e-3 (45/60/50 mm over
-0.15/0.20/0.55 m) + motor-side coupling hub 9.2e-3 kg m^2 (the 0.15 kg m^2 motor rotor sits
-behind a 5e4 N m/rad coupling whose natural frequency, 580 rad/s, is far below the mesh
-frequencies, so it does not follow the mesh); gear body 4.76 + gear shaft and hubs
-~0.04 kg m^2. With them m_eq = 6.6 kg and the main critical pinion speed is about
-400 rad/s (short relief), against 777 rad/s with the default inertias.
+Design gradients are sdof only. The 3D te/perturbation formulations
+(:mod:`gearjax.models.geared3d`) tabulate the excitations on knots fixed at build, so
+their derivatives with respect to the relief miss the motion of the jump angles (the
+error the torsional model's angle map removes: 30-44 % there). The 3D reference
+formulation has no table (cell gaps evaluated at every right-hand side), so its design
+derivatives are those of the computed solution; no test checks them against central
+differences yet.
 """
 
 from __future__ import annotations
@@ -78,7 +110,8 @@ from .quasistatic import quasi_static, static_mesh_force
 __all__ = [
     "OBJECTIVES",
     "DEFAULT_SHARPNESS",
-    "RIG_LINE_INERTIAS_KG_M2",
+    "DESIGN_INERTIAS",
+    "design_inertias",
     "DesignError",
     "ReliefSpace",
     "smooth_max",
@@ -100,7 +133,7 @@ __all__ = [
 OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
 DYNAMIC_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp")
 DEFAULT_SHARPNESS = 200.0
-RIG_LINE_INERTIAS_KG_M2 = (1.8e-2, 4.80)
+DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (module docstring)
 
 
 class DesignError(ValueError):
@@ -110,6 +143,22 @@ class DesignError(ValueError):
         self.field = field
         self.value = value
         super().__init__(f"{field}={value!r}: {reason}")
+
+
+def design_inertias(mesh: Mesh, inertias_kg_m2=DESIGN_INERTIAS) -> tuple:
+    """(J1, J2) (kg m^2): ``"bodies"`` -> solid cylinders at the pitch radii with the face
+    widths (:func:`gearjax.models.torsional.solid_cylinder_inertias`), else the two values
+    given."""
+    from .models.torsional import solid_cylinder_inertias
+
+    if isinstance(inertias_kg_m2, str):
+        if inertias_kg_m2 != "bodies":
+            raise DesignError("inertias_kg_m2", inertias_kg_m2, "'bodies' or (J1, J2) in kg m^2")
+        return tuple(float(v) for v in solid_cylinder_inertias(mesh.pair))
+    j = np.asarray(inertias_kg_m2, dtype=float)
+    if j.shape != (2,) or not np.all(np.isfinite(j)) or np.any(j <= 0):
+        raise DesignError("inertias_kg_m2", inertias_kg_m2, "need two finite values > 0 (kg m^2)")
+    return (float(j[0]), float(j[1]))
 
 
 def smooth_max(v, sharpness: float = DEFAULT_SHARPNESS, scale=1.0):
@@ -315,14 +364,10 @@ class DynamicObjective:
     speeds_rad_s : pinion speeds Omega1 (rad/s) over which the maximum is taken.
     kind : ``"peak-force"`` (N), ``"dynamic-factor"`` or ``"dte-ptp"`` (m).
     formulation : ``"perturbation"`` (Eq. (47a), default), ``"te"`` (Eq. (20)) or
-        ``"reference"`` (Eq. (16)). Default perturbation because the linear te model with
-        the loaded stiffness of long reliefs is parametrically unstable near the main
-        critical speed with the rig line inertias (measured: dynamic factors of 10^3-10^4
-        over 0.82-1.18 of it, i.e. unbounded growth), which makes a max-over-speeds
-        objective meaningless there; the reference (contact-loss) model is the physical
-        check.
+        ``"reference"`` (Eq. (16)); see the module docstring, "Formulation".
     pinion_torque_Nm, inertias_kg_m2, damping_ratio : model data (defaults: 254.8 N m,
-        :data:`RIG_LINE_INERTIAS_KG_M2`, 0.03).
+        :data:`DESIGN_INERTIAS` (the gear bodies), 0.03).
+    nlte_reaction : ``"drive"`` (default) or ``"pinion"`` (module docstring, "Inertias").
     sharpness : beta of the smooth maximum over speeds (module docstring).
     n_table : table knots per mesh period of the model.
     sim_kwargs : options of :func:`gearjax.simulate.simulate` (static).
@@ -332,7 +377,8 @@ class DynamicObjective:
 
     def __init__(self, mesh: Mesh, space: ReliefSpace, speeds_rad_s, kind: str = "peak-force", *,
                  formulation: str = "perturbation", pinion_torque_Nm: float = 254.8,
-                 inertias_kg_m2=RIG_LINE_INERTIAS_KG_M2, damping_ratio: float = 0.03,
+                 inertias_kg_m2=DESIGN_INERTIAS, damping_ratio: float = 0.03,
+                 nlte_reaction: str = "drive",
                  sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
                  sim_kwargs: dict | None = None, adjoint=None):
         if kind not in DYNAMIC_OBJECTIVES:
@@ -344,8 +390,9 @@ class DynamicObjective:
         self.speeds = speeds
         self.formulation = formulation
         self.model_kwargs = dict(pinion_torque_Nm=float(pinion_torque_Nm),
-                                 inertias_kg_m2=tuple(inertias_kg_m2),
+                                 inertias_kg_m2=design_inertias(mesh, inertias_kg_m2),
                                  damping_ratio=float(damping_ratio), formulation=formulation,
+                                 nlte_reaction=nlte_reaction,
                                  n_table=int(n_table))
         self.sharpness = float(sharpness)
         self.sim_kwargs = dict(sim_kwargs or {})

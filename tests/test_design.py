@@ -13,12 +13,12 @@ import pytest
 
 from gearjax.cli import main
 from gearjax.design import (
-    RIG_LINE_INERTIAS_KG_M2,
     DesignError,
     DynamicObjective,
     QuasiStaticObjective,
     ReliefSpace,
     coarse_starts,
+    design_inertias,
     multi_start,
     optimise,
 )
@@ -44,9 +44,10 @@ def mesh_uniform():
 
 
 def _build(mesh, amp, ext, formulation="te"):
+    """The model DynamicObjective uses by default (gear bodies, NLTE'' reaction on the drive)."""
     return TorsionalModel.build(mesh, ToothModifications.tip_relief(amp, ext),
                                 pinion_torque_Nm=RIG.pinion_torque_Nm, formulation=formulation,
-                                inertias_kg_m2=RIG_LINE_INERTIAS_KG_M2)
+                                inertias_kg_m2=design_inertias(mesh), nlte_reaction="drive")
 
 
 def _assert_gradient(ad, fd, space):
@@ -163,7 +164,7 @@ def test_dynamic_objective_gradients(mesh_iso, shared):
     """Peak force, dynamic factor and DTE ptp (smooth maxima over speeds, te formulation)
     against central differences of the same objective."""
     space = ReliefSpace(shared=shared)
-    obj = DynamicObjective(mesh_iso, space, [340.0, 400.0, 460.0], "peak-force", formulation="te")
+    obj = DynamicObjective(mesh_iso, space, [680.0, 740.0, 880.0], "peak-force", formulation="te")
     x = np.array([13.3e-6, 0.35]) if shared else np.array([13.3e-6, 12e-6, 0.35, 0.4])
     sm, ex, jac = obj.all_metrics(x)
     assert np.all(sm >= ex) and np.all(np.isfinite(jac))
@@ -183,13 +184,14 @@ def test_dynamic_objective_gradients(mesh_iso, shared):
 
 @pytest.mark.slow
 def test_dynamic_optimum_beats_table1(mesh_iso):
-    """Optimised relief lowers the peak dynamic factor over 330-480 rad/s below both
-    Table 1 reliefs, checked by plain forward sweeps of rebuilt models."""
-    speeds = np.linspace(330.0, 480.0, 8)
+    """Optimised relief lowers the peak dynamic factor over 660-900 rad/s (around the main
+    critical speed, 776 rad/s) below both Table 1 reliefs, checked by plain forward sweeps
+    of rebuilt models on a denser grid."""
+    speeds = np.linspace(660.0, 900.0, 8)
     space = ReliefSpace()
     obj = DynamicObjective(mesh_iso, space, speeds, "dynamic-factor", formulation="perturbation")
     best, _ = multi_start(obj, [[13.3e-6, 0.35], [20e-6, 0.5]], max_iter=15, learning_rate=0.15)
-    dense = np.linspace(330.0, 480.0, 31)
+    dense = np.linspace(660.0, 900.0, 31)
     peak = {}
     for name, x in {"short": (13.3e-6, 0.2), "long": (13.3e-6, 0.5), "opt": tuple(best.x)}.items():
         res = sweep(_build(mesh_iso, *x, formulation="perturbation"), dense, progress=False)
