@@ -4,7 +4,8 @@
 
 Objective: smoothed peak dynamic mesh force over N speeds (default formulation of
 :class:`gearjax.design.DynamicObjective`),
-spur Baud-Velex pair, rig line inertias, shared linear relief (2 design variables) or
+spur Baud-Velex pair, gear-body inertias (the default since the measurements below were
+taken with the former rig-line inertias), shared linear relief (2 design variables) or
 separate reliefs (4). Each timing is the median of ``--repeat`` runs after the first
 (compiling) call; ratios are to the forward value in the same process.
 
