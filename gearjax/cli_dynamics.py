@@ -221,6 +221,22 @@ def summarise_sweep(res, speeds) -> dict:
     }
 
 
+def periodic_start_options(model) -> dict:
+    """simulate() options for a model whose initial state is already the periodic steady
+    state (:attr:`Geared3DModel.periodic_start`: Eq. (48a) solved harmonic by harmonic):
+    no transient, start exactly there."""
+    if not getattr(model, "periodic_start", False):
+        return {}
+    import inspect
+
+    from .simulate import simulate
+
+    opts = {"n_transient_periods": 0}
+    if "start" in inspect.signature(simulate).parameters:
+        opts["start"] = "initial"
+    return opts
+
+
 def cmd_sweep(args) -> int:
     from .rigs import get_rig
     from .sweep import sweep
@@ -271,7 +287,8 @@ def cmd_sweep(args) -> int:
             print(f"  {form}: {speeds.size} speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rad/s "
                   f"({args.model} model built in {t_build:.1f} s)", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
-        res = sweep(model, speeds, chunk_size=chunk, progress=not args.json, out_csv=csv_path)
+        res = sweep(model, speeds, chunk_size=chunk, progress=not args.json, out_csv=csv_path,
+                    **periodic_start_options(model))
         elapsed = time.perf_counter() - t0
         results[form] = res
         s = summarise_sweep(res, speeds)
