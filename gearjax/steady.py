@@ -67,7 +67,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .simulate import PeriodicJumpController, SimulationError, SimulationResult, simulate
+from .simulate import (PeriodicJumpController, SimulationError, SimulationResult, simulate,
+                       transient_start)
 from .sweep import _FIELDS, SweepResult
 
 __all__ = [
@@ -278,7 +279,7 @@ def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
     ps = periodic_state(model, omega, solver=solver, rtol=rtol, atol=atol,
                         max_newton=max_newton, newton_tol=newton_tol)
     y0 = jnp.where(ps.ok, ps.y0, model.initial_state(jnp.asarray(omega, dtype=float)))
-    res = simulate(_StartAt(model, y0), omega, n_transient_periods=0,
+    res = simulate(_StartAt(model, y0), omega, n_transient_periods=0, start="initial",
                    n_measured_periods=n_measured_periods, solver=measure_solver,
                    rtol=measure_rtol, atol=measure_atol, convergence_tol=convergence_tol,
                    **simulate_kwargs)
@@ -322,7 +323,7 @@ def _steady_batch(model, speeds, kwargs):
 @eqx.filter_jit
 def _continue_batch(model, speeds, y0s, kwargs):
     def one(w, y0):
-        r = simulate(_StartAt(model, y0), w, **dict(kwargs))
+        r = simulate(_StartAt(model, y0), w, **dict({"start": "initial", **dict(kwargs)}))
         return tuple(getattr(r, f) for f in _FIELDS)
     return jax.vmap(one)(speeds, y0s)
 
@@ -410,4 +411,4 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
 @eqx.filter_jit
 def _initial_states(model, speeds):
     m = model.prepare() if hasattr(model, "prepare") else model
-    return jax.vmap(m.initial_state)(speeds)
+    return jax.vmap(lambda w: transient_start(m, w))(speeds)

@@ -156,6 +156,7 @@ def sweep(
     progress: bool = True,
     out_csv: str | os.PathLike | None = None,
     devices=None,
+    method: str = "transient",
     **simulate_kwargs,
 ) -> SweepResult:
     """Steady-state response over pinion speeds (one compiled, vmapped call per chunk).
@@ -171,6 +172,17 @@ def sweep(
     out_csv : append one row per speed (columns :data:`CSV_COLUMNS`) as chunks complete.
     devices : list of JAX devices to shard the speed axis over; ``None`` uses one device
         (the default device), ``"all"`` every device of the default backend.
+    method : ``"transient"`` (default): :func:`gearjax.simulate.simulate` at every speed
+        (diffrax from the start of :func:`gearjax.simulate.transient_start`, automatic
+        transient). ``"steady"``: :func:`gearjax.steady.steady_sweep` (periodic orbit by
+        shooting; the reference formulation is continued by ``simulate`` with
+        ``**simulate_kwargs`` at speeds with contact loss or no stable orbit); returns a
+        :class:`gearjax.steady.SteadySweepResult` (a ``SweepResult`` with
+        ``spectral_radius`` and ``continued``); ``devices`` must be None, the CSV is
+        written when the sweep ends, and of ``**simulate_kwargs`` the transient options
+        (``n_transient_periods``, ``transient_decay``, ``min/max_transient_mesh_periods``,
+        ``start``) go to the continuation only. See ``benchmarks/results/README.md`` for
+        which is faster where.
     **simulate_kwargs : options of :func:`gearjax.simulate.simulate` (static).
 
     Returns
@@ -190,6 +202,10 @@ def sweep(
         raise SimulationError(
             "speeds_rad_s", speeds[bad][:5].tolist(), "pinion speeds must be finite and > 0 (rad/s)"
         )
+    if method == "steady":
+        return _steady(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs)
+    if method != "transient":
+        raise SimulationError("method", method, 'must be "transient" or "steady"')
     if devices == "all":
         devices = jax.devices()
     n_dev = 1 if devices is None else len(devices)
@@ -285,6 +301,33 @@ def sweep(
             "are NaN and converged=False",
             file=sys.stderr, flush=True,
         )
+    return res
+
+
+_TRANSIENT_ONLY = ("n_transient_periods", "transient_decay", "min_transient_mesh_periods",
+                   "max_transient_mesh_periods", "start")
+
+
+def _steady(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs):
+    from .steady import steady_sweep
+
+    if devices is not None:
+        raise SimulationError("devices", devices, 'method="steady" runs on one device; use '
+                              'method="transient" to shard')
+    steady_kw = {k: v for k, v in simulate_kwargs.items() if k not in _TRANSIENT_ONLY}
+    for k in ("solver", "rtol", "atol"):  # the shooting has its own defaults; these measure
+        if k in steady_kw:
+            steady_kw["measure_" + k] = steady_kw.pop(k)
+    res = steady_sweep(model, speeds, chunk_size=chunk_size, progress=progress,
+                       continuation_kwargs=dict(simulate_kwargs), **steady_kw)
+    if out_csv is not None:
+        new = not os.path.exists(out_csv) or os.path.getsize(out_csv) == 0
+        order = np.argsort(speeds, kind="stable")
+        with open(out_csv, "a", newline="") as fh:
+            wr = csv.DictWriter(fh, fieldnames=CSV_COLUMNS)
+            if new:
+                wr.writeheader()
+            wr.writerows([res.rows()[i] for i in order])
     return res
 
 
