@@ -926,8 +926,8 @@ class Geared3DModel(eqx.Module):
         return (self.formulation == "perturbation" and not self.nlte_terms and self.ecc is None
                 and self.table_knots is not None)
 
-    def harmonic_state(self, omega, n_harmonics: int | None = None):
-        """Periodic steady state of Eq. (48a) at theta = 0, exact in the frequency domain.
+    def harmonic_state(self, omega, theta0=0.0, n_harmonics: int | None = None):
+        """Periodic steady state of Eq. (48a) at ``theta0``, exact in the frequency domain.
 
         Without NLTE and eccentricity terms Eq. (48a) is linear with *constant* coefficients
         and a periodic forcing ``k_m cos(b_b) d(theta) V``, ``d = TE_S - w_x0`` (tabulated), so
@@ -958,8 +958,8 @@ class Geared3DModel(eqx.Module):
         c = jnp.fft.rfft(d)[: n_h + 1] / n
         h = jnp.arange(n_h + 1)
         nu = 2.0 * jnp.pi / period
-        # coefficients of d(theta) = sum c_h exp(i h nu (theta - origin)), evaluated at 0
-        c = c * jnp.exp(-1j * h * nu * m.table_origin)
+        # coefficients of d(theta) = sum c_h exp(i h nu (theta - origin)), at theta0
+        c = c * jnp.exp(1j * h * nu * (jnp.asarray(theta0, dtype=float) - m.table_origin))
         w_h = h * nu * omega
         r = m.n_reduced
         eye = jnp.eye(r)
@@ -975,10 +975,10 @@ class Geared3DModel(eqx.Module):
 
     def initial_state(self, omega, theta0=0.0):
         """Scaled state at ``theta0``: the periodic steady state when
-        :attr:`periodic_start` (at ``theta0 = 0``), else the quasi-static solution
+        :attr:`periodic_start` (:meth:`harmonic_state`), else the quasi-static solution
         (X_D = X_D' = 0)."""
-        if self.periodic_start and isinstance(theta0, float) and theta0 == 0.0:
-            return self.harmonic_state(omega)
+        if self.periodic_start:
+            return self.harmonic_state(omega, theta0)
         theta0 = jnp.asarray(theta0, dtype=float)
         qs, qs_p = jax.jvp(self._static_q, (theta0,), (jnp.ones_like(theta0),))
         e, _, _, _ = self._inertial(theta0)
