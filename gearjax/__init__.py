@@ -33,12 +33,13 @@ from .models.torsional import TorsionalModel as TorsionalModel
 from .models.geared3d import Geared3DModel as Geared3DModel
 from .simulate import SimulationError as SimulationError
 from .simulate import SimulationResult as SimulationResult
-from .simulate import simulate as simulate
 from .sweep import SweepResult as SweepResult
-from .sweep import sweep as sweep
 from .stability import floquet_multipliers as floquet_multipliers
 from .stability import spectral_radius as spectral_radius
 from .steady import steady_state as steady_state
 from .steady import steady_sweep as steady_sweep
+
+# the functions simulate() and sweep() stay in their modules (gearjax.simulate.simulate,
+# gearjax.sweep.sweep): re-exporting them here would shadow the submodules of the same name
 
 __version__ = "0.1.0"
