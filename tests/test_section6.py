@@ -52,7 +52,7 @@ def test_claim_5_encoder_positions_do_not_change_forces():
     res, w_x0 = {}, {}
     for enc in (1, 2, 3):
         m = build_dynamic_model(rig, mods, model="3d", formulation="te", damping=0.1, encoders=enc)
-        res[enc] = sweep(m, np.array([300.0, 840.0]), progress=False)
+        res[enc] = sweep(m, np.array([840.0]), progress=False)  # near the critical speed
         w_x0[enc] = float(m.w_x0)
     # position 3 (coupling hubs) sees a different static twist; 2 (free ends) the same as 1
     assert abs(w_x0[3] - w_x0[1]) > 1e-7
