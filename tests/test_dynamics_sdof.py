@@ -33,8 +33,8 @@ from gearjax import (
     table1_relief,
 )
 from gearjax.models.torsional import ModelError, TorsionalModel, solid_cylinder_inertias
-from gearjax.models.torsional import ModelOutputs
 from gearjax.simulate import SimulationError, simulate
+from oscillators import HarmonicOscillator
 
 SAMPLES = 128  # simulate's default samples per mesh period
 
@@ -55,49 +55,6 @@ def spur():
 
 
 # ---------------------------------------------------------------------- harmonic oscillator
-class HarmonicOscillator(eqx.Module):
-    """m x_tt + c x_t + k x = k a cos(n theta), theta = Omega t: a 'mesh' whose TE_S is a
-    pure harmonic and whose stiffness is constant. State (x, x') with ' = d/dtheta."""
-
-    mass: float
-    stiffness: float
-    damping_ratio: float
-    amplitude: float
-    order: int = eqx.field(static=True)
-    formulation: str = eqx.field(static=True, default="perturbation")
-    jump_thetas: tuple = eqx.field(static=True, default=())
-
-    @property
-    def period_rad(self):
-        return 2 * math.pi / self.order
-
-    mesh_period_rad = period_rad
-
-    @property
-    def static_force_N(self):
-        return 100.0 * self.stiffness * self.amplitude  # never a "contact loss"
-
-    @property
-    def omega_n(self):
-        return math.sqrt(self.stiffness / self.mass)
-
-    def initial_state(self, omega):
-        return jnp.stack([jnp.asarray(self.amplitude), jnp.zeros(())])
-
-    def vector_field(self, theta, y, omega):
-        c = 2 * self.damping_ratio * math.sqrt(self.stiffness * self.mass)
-        f = self.stiffness * (self.amplitude * jnp.cos(self.order * theta) - y[0])
-        return jnp.stack([y[1], (f - omega * c * y[1]) / (omega**2 * self.mass)])
-
-    def outputs(self, theta, y, omega):
-        x_s = self.amplitude * jnp.cos(self.order * theta)
-        return ModelOutputs(mesh_force_N=self.static_force_N + self.stiffness * (y[0] - x_s),
-                            dte_m=y[0])
-
-    def decay_rate_per_rad(self, omega):
-        return self.damping_ratio * self.omega_n / omega
-
-
 def test_harmonic_excitation_matches_closed_form_frf():
     """Steady amplitude and phase against H = k / (k - m nu^2 + i c nu), nu = n Omega."""
     osc = HarmonicOscillator(mass=2.0, stiffness=8e8, damping_ratio=0.05, amplitude=1.0, order=26)

@@ -15,67 +15,28 @@ from __future__ import annotations
 import math
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from gearjax import Mesh, baud_velex_pair, table1_relief
-from gearjax.models.torsional import ModelOutputs, TorsionalModel
+from gearjax.models.torsional import TorsionalModel
 from gearjax.simulate import SimulationError, simulate
-from gearjax.stability import monodromy, spectral_radius
+from gearjax.stability import spectral_radius
 from gearjax.steady import (
-    periodic_state,
     spectral_radius_of,
     steady_state,
     steady_sweep,
 )
 from gearjax.sweep import SweepResult
+from oscillators import HarmonicOscillator
 
 SAMPLES = 128
 
 
-class Oscillator(eqx.Module):
-    """m x_tt + c x_t + k x = k a cos(n theta), theta = Omega t (constant stiffness,
-    harmonic 'TE'); state (x, x') with ' = d/dtheta (written here, not from gearjax)."""
-
-    mass: float
-    stiffness: float
-    damping_ratio: float
-    amplitude: float
-    order: int = eqx.field(static=True)
-    formulation: str = eqx.field(static=True, default="te")
-    jump_thetas: tuple = eqx.field(static=True, default=())
-
-    @property
-    def period_rad(self):
-        return 2 * math.pi / self.order
-
-    mesh_period_rad = period_rad
-
-    @property
-    def static_force_N(self):
-        return 100.0 * self.stiffness * self.amplitude
-
-    @property
-    def omega_n(self):
-        return math.sqrt(self.stiffness / self.mass)
-
-    def initial_state(self, omega):
-        return jnp.stack([jnp.asarray(self.amplitude), jnp.zeros(())])
-
-    def vector_field(self, theta, y, omega):
-        c = 2 * self.damping_ratio * math.sqrt(self.stiffness * self.mass)
-        f = self.stiffness * (self.amplitude * jnp.cos(self.order * theta) - y[0])
-        return jnp.stack([y[1], (f - omega * c * y[1]) / (omega**2 * self.mass)])
-
-    def outputs(self, theta, y, omega):
-        x_s = self.amplitude * jnp.cos(self.order * theta)
-        return ModelOutputs(mesh_force_N=self.static_force_N + self.stiffness * (y[0] - x_s),
-                            dte_m=y[0])
-
-    def decay_rate_per_rad(self, omega):
-        return self.damping_ratio * self.omega_n / omega
+def Oscillator(**kw):
+    """The constant-stiffness harmonic 'TE' oscillator of tests/oscillators.py, te-labelled."""
+    return HarmonicOscillator(formulation="te", **kw)
 
 
 def _frf(osc, omega):
