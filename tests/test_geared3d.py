@@ -371,7 +371,8 @@ def test_perturbation_harmonic_start_is_periodic(torsional_setup):
 
     mesh, _, inert, s, fixed = torsional_setup
     m = Geared3DModel.build(s, mesh, table1_relief("short"), fixed_dofs=fixed, n_table=128,
-                            damping_ratio=0.05, formulation="perturbation", mesh_vectors="mean")
+                            damping_ratio=0.05, formulation="perturbation", mesh_vectors="mean",
+                            harmonic_start=True)
     assert m.periodic_start and not m.nlte_terms
     m = eqx.filter_jit(lambda mm: mm.prepare())(m)
     for omega in (300.0, 800.0):
