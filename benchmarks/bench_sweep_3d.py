@@ -49,6 +49,7 @@ from gearjax.sweep import sweep
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
+from baselines import solve_ivp_piecewise  # noqa: E402
 from bench_work_precision import machine  # noqa: E402
 
 sweep_mod = sys.modules["gearjax.sweep"]
@@ -58,8 +59,6 @@ steady_mod = sys.modules["gearjax.steady"]
 def scipy_run(model, w, n_transient, n_measured=3, samples=128):
     """(DF, DTE ptp, seconds) with solve_ivp, split at the jump angles."""
     import diffrax
-    from scipy.integrate import solve_ivp
-
     mp = eqx.filter_jit(lambda m: m.prepare())(model)
     solver, rtol, atol = default_solver(model.formulation, jump_density(model))
     name = "DOP853" if isinstance(solver, diffrax.Dopri8) else "RK45"
@@ -72,20 +71,9 @@ def scipy_run(model, w, n_transient, n_measured=3, samples=128):
     f(0.0, y)  # compile the RHS outside the timing
     t_tr = n_transient * period
     t_end = t_tr + n_measured * period
-    ks = np.arange(int(np.ceil(t_end / period)) + 1)
-    cuts = (ks[:, None] * period + jumps[None, :]).ravel()
-    cuts = np.unique(np.concatenate([[0.0, t_end], cuts[(cuts > 0) & (cuts < t_end)]]))
     n_s = samples * n_mesh
     grid = t_tr + (np.arange(n_measured * n_s) + 0.5) * (period / n_s)
-    ys = np.empty((grid.size, y.size))
-    t0 = time.perf_counter()
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        sel = (grid >= a) & (grid < b)
-        sol = solve_ivp(f, (a, b), y, method=name, rtol=rtol, atol=atol,
-                        t_eval=np.concatenate([grid[sel], [b]]))
-        ys[sel] = sol.y[:, :-1].T
-        y = sol.y[:, -1]
-    dt = time.perf_counter() - t0
+    ys, dt = solve_ivp_piecewise(f, y, period, jumps, t_tr, t_end, grid, name, rtol, atol)
     out = jax.vmap(lambda t, yy: mp.outputs(t, yy, w))(jnp.asarray(grid), jnp.asarray(ys))
     dte = np.asarray(out.dte_m)
     return float(jnp.max(out.mesh_force_N) / mp.static_force_N), float(dte.max() - dte.min()), dt, name

@@ -83,7 +83,7 @@ def _median_time(fn, repeats=3):
 # ---------------------------------------------------------------------- SciPy baseline
 def scipy_metrics(model, omega, n_transient, rhs="jax", n_measured=3, samples=128):
     """Same steady-state metrics with solve_ivp; returns (max F_D / F_S, seconds)."""
-    from scipy.integrate import solve_ivp
+    from baselines import solve_ivp_piecewise  # benchmarks/ is on sys.path as the script dir
 
     mp = eqx.filter_jit(lambda m: m.prepare())(model)
     name, rtol, atol = _scipy_method(model)
@@ -95,22 +95,11 @@ def scipy_metrics(model, omega, n_transient, rhs="jax", n_measured=3, samples=12
         f = lambda t, y: np.asarray(vf(t, y))  # noqa: E731
     else:
         f = _numpy_rhs(mp, w)
-    y = np.asarray(mp.initial_state(w))
     t_tr = n_transient * period
     t_end = t_tr + n_measured * period
-    ks = np.arange(int(np.ceil(t_end / period)) + 1)
-    cuts = (ks[:, None] * period + jumps[None, :]).ravel()
-    cuts = np.unique(np.concatenate([[0.0, t_end], cuts[(cuts > 0) & (cuts < t_end)]]))
     grid = t_tr + (np.arange(n_measured * samples) + 0.5) * (period / samples)
-    ys = np.empty((grid.size, y.size))
-    t0 = time.perf_counter()
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        sel = (grid >= a) & (grid < b)
-        sol = solve_ivp(f, (a, b), y, method=name, rtol=rtol, atol=atol,
-                        t_eval=np.concatenate([grid[sel], [b]]))
-        ys[sel] = sol.y[:, :-1].T
-        y = sol.y[:, -1]
-    dt = time.perf_counter() - t0
+    ys, dt = solve_ivp_piecewise(f, np.asarray(mp.initial_state(w)), period, jumps, t_tr, t_end,
+                                 grid, name, rtol, atol)
     out = jax.vmap(lambda t, yy: mp.outputs(t, yy, w))(jnp.asarray(grid), jnp.asarray(ys))
     return float(jnp.max(out.mesh_force_N) / mp.static_force_N), dt
 

@@ -56,6 +56,7 @@ from gearjax.sweep import sweep
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")
 sys.path.insert(0, HERE)
+from baselines import solve_ivp_piecewise  # noqa: E402
 from bench_sweep_sdof import _numpy_rhs  # noqa: E402
 
 ZETA = 0.03
@@ -174,8 +175,6 @@ def run_fixed(model, speeds, steps_per_mesh, n_measured=3, samples=128):
 def run_scipy(model, speeds, method, rtol, n_measured=3, samples=128):
     """solve_ivp looping over speeds, integration split at the jump angles, the same
     automatic transient as simulate; te/perturbation: NumPy RHS on the model's table."""
-    from scipy.integrate import solve_ivp
-
     fm, dp = [], []
     total = 0.0
     for w in speeds:
@@ -187,24 +186,13 @@ def run_scipy(model, speeds, method, rtol, n_measured=3, samples=128):
             f = lambda t, y: np.asarray(vf(t, y))  # noqa: E731
         else:
             f = _numpy_rhs(mp, float(w))
-        jumps = np.asarray(mp.jump_thetas)
         t_tr = n_tr * period
         t_end = t_tr + n_measured * period
-        ks = np.arange(int(np.ceil(t_end / period)) + 1)
-        cuts = (ks[:, None] * period + jumps[None, :]).ravel()
-        cuts = np.unique(np.concatenate([[0.0, t_end], cuts[(cuts > 0) & (cuts < t_end)]]))
         n_s = samples * n_mesh
         grid = t_tr + (np.arange(n_measured * n_s) + 0.5) * (period / n_s)
-        y = np.asarray(mp.initial_state(w))
-        ys = np.empty((grid.size, y.size))
-        t0 = time.perf_counter()
-        for a, b in zip(cuts[:-1], cuts[1:]):
-            sel = (grid >= a) & (grid < b)
-            sol = solve_ivp(f, (a, b), y, method=method, rtol=rtol, atol=rtol / 100,
-                            t_eval=np.concatenate([grid[sel], [b]]))
-            ys[sel] = sol.y[:, :-1].T
-            y = sol.y[:, -1]
-        total += time.perf_counter() - t0
+        ys, dt = solve_ivp_piecewise(f, np.asarray(mp.initial_state(w)), period, mp.jump_thetas,
+                                     t_tr, t_end, grid, method, rtol, rtol / 100)
+        total += dt
         a, b = metrics_from_samples(model, mp, w, grid, ys)
         fm.append(a)
         dp.append(b)
