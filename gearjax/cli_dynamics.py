@@ -227,14 +227,7 @@ def periodic_start_options(model) -> dict:
     no transient, start exactly there."""
     if not getattr(model, "periodic_start", False):
         return {}
-    import inspect
-
-    from .simulate import simulate
-
-    opts = {"n_transient_periods": 0}
-    if "start" in inspect.signature(simulate).parameters:
-        opts["start"] = "initial"
-    return opts
+    return {"n_transient_periods": 0, "start": "initial"}
 
 
 def cmd_sweep(args) -> int:

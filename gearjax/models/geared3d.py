@@ -930,8 +930,13 @@ class Geared3DModel(eqx.Module):
         integrating. Opt-in because a chunked 45-speed CLI sweep starting there hung
         (non-deterministically, after 2-3 chunks that each ran in 0.3 s) and the cause is
         not found yet; single speeds and single batches run fine (tests)."""
-        return (self.harmonic_start and self.formulation == "perturbation" and not self.nlte_terms
-                and self.ecc is None and self.table_knots is not None)
+        return self.harmonic_start and self._constant_coefficients
+
+    @property
+    def _constant_coefficients(self) -> bool:
+        """Eq. (48a) without NLTE and eccentricity terms, excitation tabulated."""
+        return (self.formulation == "perturbation" and not self.nlte_terms and self.ecc is None
+                and self.table_knots is not None)
 
     def harmonic_state(self, omega, theta0=0.0, n_harmonics: int | None = None):
         """Periodic steady state of Eq. (48a) at ``theta0``, exact in the frequency domain.
@@ -949,8 +954,7 @@ class Geared3DModel(eqx.Module):
         the modes: the sum converges fast. Returns the scaled state (see the module
         docstring). Cost: one complex (r, r) solve per harmonic.
         """
-        if not (self.formulation == "perturbation" and not self.nlte_terms and self.ecc is None
-                and self.table_knots is not None):
+        if not self._constant_coefficients:
             raise ModelError("formulation", self.formulation,
                              "harmonic_state needs the perturbation formulation without NLTE "
                              "or eccentricity terms and with the excitation table")
