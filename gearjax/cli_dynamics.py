@@ -15,6 +15,11 @@ Section 6.3 cases (Velex & Ajmi), one command each (``--speeds`` to taste)::
     gearjax sweep --pitch-errors                            # 6.3.3 (Fig. 12)
     gearjax sweep --rig baud-velex-helical --pitch-errors --damping 0.03   # 6.3.4 (Fig. 13)
     gearjax sweep --encoders 2                              # 6.3.5 (also 1 and 3)
+
+Several hosts (or several processes on one host): start the same command on every process
+with ``--distributed`` (cluster auto-detection: SLURM, Open MPI, ...) or with
+``--coordinator HOST:PORT --num-processes N --process-id I``; the speeds are shared over
+every device of every process and process 0 writes the outputs.
 """
 
 from __future__ import annotations
@@ -56,6 +61,14 @@ def register(sub, add_rig, add_scenario):
     sw.add_argument("--chunk", type=int, default=None,
                     help="speeds per compiled call (progress and CSV rows per chunk; default "
                          "about a tenth of the speeds)")
+    dist = sw.add_argument_group("several hosts (jax.distributed)")
+    dist.add_argument("--distributed", action="store_true",
+                      help="join a multi-process run (jax.distributed.initialize with cluster "
+                           "auto-detection); run the same command on every process")
+    dist.add_argument("--coordinator", default=None, metavar="HOST:PORT",
+                      help="address of process 0's coordinator (implies --distributed)")
+    dist.add_argument("--num-processes", type=int, default=None, metavar="N")
+    dist.add_argument("--process-id", type=int, default=None, metavar="I")
     sw.set_defaults(func=cmd_sweep)
 
     st = sub.add_parser(
@@ -230,10 +243,32 @@ def periodic_start_options(model) -> dict:
     return {"n_transient_periods": 0, "start": "initial"}
 
 
+def _init_distributed(args) -> bool:
+    """Join a ``jax.distributed`` run when asked; returns whether this process leads
+    (prints and writes). Must run before any JAX computation."""
+    explicit = (args.coordinator, args.num_processes, args.process_id)
+    if not args.distributed and all(v is None for v in explicit):
+        return True
+    if args.coordinator is not None and (args.num_processes is None or args.process_id is None):
+        raise ValueError("--coordinator needs --num-processes and --process-id (or use "
+                         "--distributed alone on a cluster JAX detects)")
+    if args.num_processes is not None and args.num_processes < 1:
+        raise ValueError(f"--num-processes={args.num_processes}: must be >= 1")
+    if args.process_id is not None and args.num_processes is not None and not (
+            0 <= args.process_id < args.num_processes):
+        raise ValueError(f"--process-id={args.process_id}: must be in 0..{args.num_processes - 1}")
+    import jax
+
+    jax.distributed.initialize(coordinator_address=args.coordinator,
+                               num_processes=args.num_processes, process_id=args.process_id)
+    return jax.process_index() == 0
+
+
 def cmd_sweep(args) -> int:
     from .rigs import get_rig
     from .sweep import sweep
 
+    lead = _init_distributed(args)
     rig = get_rig(args.rig)
     speeds = _parse_speeds(args.speeds)
     forms = _forms(args.formulations)
@@ -245,10 +280,11 @@ def cmd_sweep(args) -> int:
         args.relief, args.relief_amplitude, args.relief_extent, args.relief_shape, args.pitch_errors
     )
     out = args.out or os.path.join("gearjax-out", case_name(args))
-    os.makedirs(out, exist_ok=True)
     csv_path = os.path.join(out, "results.csv")
-    if os.path.exists(csv_path):
-        os.remove(csv_path)
+    if lead:
+        os.makedirs(out, exist_ok=True)
+        if os.path.exists(csv_path):
+            os.remove(csv_path)
     chunk = args.chunk or max(1, math.ceil(speeds.size / 10))
     nlte = False if args.no_nlte_terms else None
     summary = {
@@ -276,7 +312,7 @@ def cmd_sweep(args) -> int:
             if args.model == "3d":
                 summary["n_modes"] = int(model.n_modes)
                 summary["w_x0_m"] = float(model.w_x0)
-        if not args.json:
+        if lead and not args.json:
             print(f"  {form}: {speeds.size} speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rad/s "
                   f"({args.model} model built in {t_build:.1f} s)", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
@@ -287,8 +323,10 @@ def cmd_sweep(args) -> int:
         s = summarise_sweep(res, speeds)
         s.update(build_time_s=t_build, wall_time_s=elapsed)
         summary["formulations"][form] = s
-        if sig_speeds:
+        if sig_speeds and lead:
             signals[form] = _signals(model, sig_speeds)
+    if not lead:
+        return 0  # process 0 writes the outputs
     if "reference" in results:
         ref = np.asarray(results["reference"].max_mesh_force_N)
         summary["agreement_with_reference"] = {

@@ -12,6 +12,13 @@
   ``chunk_size`` (itself a multiple of the device count) and *interleaved*: the speeds are
   sorted by estimated cost (low speeds cost more per period) and dealt round-robin, so every
   device gets a similar mix, then the results are put back in the caller's order.
+* Several hosts: after ``jax.distributed.initialize(...)`` (or ``gearjax sweep
+  --distributed``) every process calls ``sweep`` with the same arguments (SPMD); the device
+  mesh spans every device of every process (``jax.devices()``), each process feeds and
+  runs its own devices' speeds, and the results are gathered on all processes
+  (``multihost_utils.process_allgather``). Only process 0 prints progress and writes
+  ``out_csv``. Without ``devices`` a multi-process run uses all devices (each host would
+  otherwise repeat the whole sweep).
 """
 
 from __future__ import annotations
@@ -141,6 +148,16 @@ def _make_sharded(devices):
 _SHARDED_CACHE: dict = {}
 
 
+def _global_speeds(w: np.ndarray, devices):
+    """The chunk's speeds as one array sharded over ``devices`` (which may belong to several
+    processes: each process fills only its own devices' shards, from the same ``w``)."""
+    from jax.sharding import Mesh as DeviceMesh
+    from jax.sharding import NamedSharding, PartitionSpec
+
+    sharding = NamedSharding(DeviceMesh(np.asarray(devices), ("speed",)), PartitionSpec("speed"))
+    return jax.make_array_from_callback(w.shape, sharding, lambda idx: w[idx])
+
+
 def _cost_order(speeds):
     """Indices of the speeds in cost order. The cost is monotonic in speed (with the
     automatic transient it grows slowly with speed; with a fixed transient it falls like
@@ -206,9 +223,13 @@ def sweep(
         return _steady(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs)
     if method != "transient":
         raise SimulationError("method", method, 'must be "transient" or "steady"')
+    multi_process = jax.process_count() > 1
+    if devices is None and multi_process:
+        devices = "all"
     if devices == "all":
         devices = jax.devices()
     n_dev = 1 if devices is None else len(devices)
+    lead = jax.process_index() == 0  # the process that prints and writes
     if n_dev < 1:
         raise SimulationError("devices", devices, "need at least one device")
     if chunk_size is None:
@@ -242,6 +263,8 @@ def sweep(
         fn = _batched
 
     results = {f: np.full(total, np.nan) for f in _FIELDS}
+    if not lead:
+        out_csv, progress = None, False
     write_header = out_csv is not None and (
         not os.path.exists(out_csv) or os.path.getsize(out_csv) == 0
     )
@@ -251,12 +274,14 @@ def sweep(
         sel = padded_idx[c * chunk:(c + 1) * chunk]
         w = jnp.asarray(speeds[sel])
         if n_dev > 1:
-            from jax.sharding import NamedSharding, PartitionSpec, Mesh as DeviceMesh
-
-            w = jax.device_put(w, NamedSharding(DeviceMesh(np.asarray(devices), ("speed",)),
-                                                PartitionSpec("speed")))
+            w = _global_speeds(np.asarray(speeds[sel]), devices)
         t0 = time.perf_counter()
-        out = jax.device_get(fn(model, w, sim_kwargs))
+        out = fn(model, w, sim_kwargs)
+        if multi_process and n_dev > 1:
+            from jax.experimental import multihost_utils
+
+            out = multihost_utils.process_allgather(out, tiled=True)
+        out = jax.device_get(out)
         dt = time.perf_counter() - t0
         for f, v in zip(_FIELDS, out):
             results[f][c * chunk:(c + 1) * chunk] = np.asarray(v, dtype=float)
@@ -294,7 +319,7 @@ def sweep(
             seen[i] = True
     res = _gather(results, formulation, where)
     failed = ~res.solver_ok.astype(bool)
-    if np.any(failed):
+    if np.any(failed) and lead:
         print(
             f"[gearjax.sweep] WARNING: integration failed (step limit or non-finite state) at "
             f"{int(failed.sum())} speed(s): {speeds[failed][:10].tolist()} rad/s; their metrics "
@@ -311,9 +336,9 @@ _TRANSIENT_ONLY = ("n_transient_periods", "transient_decay", "min_transient_mesh
 def _steady(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs):
     from .steady import steady_sweep
 
-    if devices is not None:
-        raise SimulationError("devices", devices, 'method="steady" runs on one device; use '
-                              'method="transient" to shard')
+    if devices is not None or jax.process_count() > 1:
+        raise SimulationError("devices", devices, 'method="steady" runs on one device of one '
+                              'process; use method="transient" to shard over devices or hosts')
     steady_kw = {k: v for k, v in simulate_kwargs.items() if k not in _TRANSIENT_ONLY}
     for k in ("solver", "rtol", "atol"):  # the shooting has its own defaults; these measure
         if k in steady_kw:

@@ -90,6 +90,9 @@ def test_default_case_name_and_out_dir(capsys, tmp_path, monkeypatch):
     (["sweep", "--damping", "1.5"], ["--damping", "1.5", "[0, 1)"]),
     (["sweep", "--model", "torsional", "--encoders", "2"], ["--encoders", "3d only"]),
     (["stability", "--speeds", "0:10:3"], ["--speeds", "0 < A"]),
+    (["sweep", "--coordinator", "127.0.0.1:1234"], ["--coordinator", "--num-processes"]),
+    (["sweep", "--coordinator", "h:1", "--num-processes", "2", "--process-id", "2"],
+     ["--process-id=2", "0..1"]),
 ])
 def test_dynamics_bad_input(capsys, argv, words):
     assert main(argv) == 2
