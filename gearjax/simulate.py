@@ -71,7 +71,10 @@ forces relative to F_S, DTE relative to the DTE peak-to-peak; for modal models d
 ``|1 - mu|``, ``mu`` the free-decay multiplier per period of the slowest mode the outputs
 see, :func:`slowest_output_mode`: a geometric extrapolation to the distance from the steady
 state, so that a slow drift is not read as converged) and ``converged``
-(``convergence <= convergence_tol`` and the solver succeeded). ``converged`` therefore
+(``convergence <= convergence_tol`` and the solver succeeded). A model whose
+``decay_rate_per_rad`` is 0 (undamped) never reads as converged: its free response keeps
+the amplitude of the start (an undamped oscillator at 0.7 of the mesh frequency changed its
+per-period extrema by only 9e-5 and was read as converged). ``converged`` therefore
 means "periodic with the excitation period to within the tolerance": a sub-harmonic
 response (after contact loss, or in a parametric instability zone of the reference), a
 quasi-periodic or chaotic one, a response still growing (parametric instability of the
@@ -445,10 +448,10 @@ def simulate(
     term = diffrax.ODETerm(lambda t, y, args: model.vector_field(t, y, args))
 
     # ---------------------------------------------------------------- one solve
+    rate = model.decay_rate_per_rad(omega) if hasattr(model, "decay_rate_per_rad") else None
     if n_transient_periods is None:
         n_min = int(math.ceil(min_transient_mesh_periods / n_mesh))
         n_max = max(n_min, int(math.ceil(max_transient_mesh_periods / n_mesh)))
-        rate = model.decay_rate_per_rad(omega)
         n_auto = jnp.ceil(math.log(1.0 / transient_decay) / (rate * period))
         n_tr = jnp.clip(jnp.nan_to_num(n_auto, nan=n_max, posinf=n_max), n_min, n_max)
     else:
@@ -532,7 +535,9 @@ def simulate(
         accel_ptp_m_s2=bad(acc_ptp) if has_acc else nan,
         contact_loss=ok & (f_min <= 0.0),
         convergence=jnp.where(ok, conv, jnp.inf),
-        converged=ok & (conv <= convergence_tol),
+        # undamped (decay rate 0): the free response of the start never dies, so no
+        # transient reaches the steady state -- never "converged" (see the docstring)
+        converged=ok & (conv <= convergence_tol) & (True if rate is None else rate > 0),
         solver_ok=ok,
         n_steps=steps,
         transient_periods=n_tr,
