@@ -81,13 +81,12 @@ non-smooth in the design; the optimum is checked against it by forward sweeps
 
 3D model
 --------
-Design gradients are sdof only. The 3D te/perturbation formulations
-(:mod:`gearjax.models.geared3d`) tabulate the excitations on knots fixed at build, so
-their derivatives with respect to the relief miss the motion of the jump angles (the
-error the torsional model's angle map removes: 30-44 % there). The 3D reference
-formulation has no table (cell gaps evaluated at every right-hand side), so its design
-derivatives are those of the computed solution; no test checks them against central
-differences yet.
+The objectives above use the sdof model. The 3D model's design derivatives are exact in
+the te formulation and in the perturbation formulation (k_m held at its build value): its events (jumps of ``k(theta)``, of NLTE', relief
+starts) follow the design through the same angle map (:mod:`gearjax.models.geared3d`,
+"Derivatives with respect to the design"); ``tests/test_design.py`` checks jacfwd of the
+peak mesh force and DTE peak-to-peak against central differences at the periodic steady
+state. :class:`DynamicObjective` and ``gearjax optimise`` do not drive the 3D model yet.
 """
 
 from __future__ import annotations

@@ -63,6 +63,35 @@ table): a 16-speed te sweep of the reduced spur rig took 237 s inline and 65 s w
 table (the latter with other jobs loading the 2 cores about 3x; the default solver choice,
 :func:`gearjax.simulate.jump_density`, matters as much).
 
+Derivatives with respect to the design (moving events)
+------------------------------------------------------
+The angles where ``k(theta)`` jumps (a relieved cell starts or stops carrying load,
+``V_i^T X_S = de_i`` in Eq. (25)), where NLTE' jumps (the cell realising NLTE changes,
+Eq. (9)) and where TE_S kinks (a cell crosses a relief start) move with the tip relief;
+a table with knots fixed at build gives derivatives that miss the boundary terms of the
+moving jumps. As in the torsional model (:mod:`gearjax.models.torsional`, "Derivatives
+with respect to the design"), the tabulated te formulation and the tabulated
+perturbation formulation with NLTE terms record at build the kind and cells of every event of the table brackets
+(:attr:`event_thetas`, :attr:`event_kinds`, :attr:`event_cells`), :meth:`jump_angles_rad`
+moves them by Newton iterations on the switching functions (implicit differentiation),
+and the model integrates in the simulation angle ``s`` with ``theta = phi(s)``
+(:class:`gearjax.models.torsional.AngleMap`, identity at the build design): the table
+holds ``q(phi(s))``, :meth:`vector_field` is ``phi'(s) dy/dtheta``, NLTE derivatives are
+taken with respect to theta by the chain rule, outputs are evaluated at ``phi(s)``.
+Forward results at the build design are unchanged. The perturbation formulation without
+NLTE terms (constant coefficients, forcing ``TE_S - w_x0`` with kinks only) needs no map;
+the reference formulation has no table and no map (its contact law is continuous in the
+gaps, but its NLTE' jumps stay at the build angles: not checked against differences).
+``k_m`` (the splitting constant of ``K_bar`` and the modal basis) stays the build value:
+exact for te (Eq. (42) only splits ``k(theta)``); for the perturbation formulation the
+derivative holds ``k_m`` fixed. Measured (spur, short relief, modes < 3 kHz, 300 rad/s,
+periodic steady state): jacfwd of the peak mesh force / DTE peak-to-peak against central
+differences of the same model 8e-5 / 2e-7 (amplitude), 2e-7 / 3e-7 (extent); event
+angles moved by Newton equal the rebuilt bisection to 1e-13 rad. Against models rebuilt
+at P_c +- h the peak-force derivative agrees to 1 % with 2048 samples per mesh period
+(16 % with 128): the peak sits at a jump of ``k(theta)``, where a sample grid fixed in
+theta (rebuilt) and one moving with ``phi`` (same model) see different maxima.
+
 Inertial excitations E, F, G (text after Eq. (14))
 --------------------------------------------------
 * ``E``: ``J2 Rb1 / Rb2^2`` on the torsional dof of the input torque (Eq. (5); ``J2`` the
@@ -134,10 +163,14 @@ from ..modifications import ToothModifications
 from ..quasistatic import contact_gaps, static_mesh_force
 from .element import PinionGearElement
 from .torsional import (
+    _EV_FIXED,
+    AngleMap,
     ModelError,
     ModelOutputs,
     PeriodicHermiteTable,
+    _event_kinds,
     _quiet_origin,
+    moved_event_angles,
     unilateral_solve_pairwise,
 )
 
@@ -386,6 +419,10 @@ class Geared3DModel(eqx.Module):
     table_max_extra: int = eqx.field(static=True, default=1)
     excitation: str = eqx.field(static=True, default="table")
     harmonic_start: bool = eqx.field(static=True, default=False)
+    event_thetas: tuple = eqx.field(static=True, default=())
+    event_kinds: tuple = eqx.field(static=True, default=())
+    event_cells: tuple = eqx.field(static=True, default=())
+    angle_map: AngleMap | None = None
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -626,7 +663,8 @@ class Geared3DModel(eqx.Module):
             # brackets again, bisected *in table coordinates* [origin, origin + P): folding
             # adjacent floats near 0 into the table would merge them
             origin = _quiet_origin(jumps, period)
-            lo_u, hi_u = _jump_brackets(model, origin + theta_tab, kinks=True)
+            lo_u, hi_u, c_lo, c_hi = _jump_brackets(model, origin + theta_tab, kinks=True,
+                                                    codes=True)
             knots, cell_first, max_extra = PeriodicHermiteTable.layout(
                 origin, period, n_tab, np.concatenate([lo_u, hi_u]))
             side = np.zeros(knots.shape)
@@ -636,6 +674,9 @@ class Geared3DModel(eqx.Module):
                 model, table_knots=jnp.asarray(knots), table_cell_first=jnp.asarray(cell_first, dtype=jnp.int32),
                 table_side=jnp.asarray(side), table_origin=float(origin), table_cells=n_tab,
                 table_max_extra=int(max_extra))
+            if formulation == "te" or nlte_terms:
+                model = dataclasses.replace(model, **_moving_events(lo_u, hi_u, c_lo, c_hi,
+                                                                    mesh.n_cells, period))
         return model
 
     @classmethod
@@ -727,23 +768,77 @@ class Geared3DModel(eqx.Module):
         """Fill the excitation table of the te/perturbation formulations (``excitation=
         "table"``): exact quasi-static solves at the knots, slopes by forward-mode AD, the
         knots bracketing every jump of ``k(theta)`` and kink of ``TE_S``/NLTE evaluated on
-        their own side. Call inside ``jit`` (simulate does) so that the table stays a
-        differentiable function of the model data; idempotent. Other models: ``self``."""
+        their own side. With moving events (te, or NLTE terms) the table holds
+        ``q(phi(s))`` in the simulation angle ``s`` (:attr:`angle_map`, module docstring
+        "Derivatives with respect to the design"). Call inside ``jit`` (simulate does) so
+        that the table stays a differentiable function of the model data; idempotent.
+        Other models: ``self``."""
         if self.table is not None or self.table_knots is None:
             return self
         delta = 1e-9 * self.period_rad
+        amap = self._angle_map() if self.event_thetas else None
 
-        def one(t):
-            return jax.jvp(self._excitation_exact, (t,), (jnp.ones_like(t),))
+        if amap is None:
+            def one(t, side):
+                v, d = jax.jvp(self._excitation_exact, (t + side * delta,), (jnp.ones_like(t),))
+                return v - side * delta * d, d  # back to the knot
+        else:
+            def one(t, side):
+                def f(s):
+                    return self._excitation_exact(amap(s)[0] + side * delta)
 
-        at = self.table_knots + self.table_side * delta
-        vals, slopes = jax.vmap(one)(at)
-        vals = vals - (self.table_side * delta)[:, None] * slopes
+                v, d = jax.jvp(f, (t,), (jnp.ones_like(t),))
+                return v - side * delta * d / amap(t)[1], d
+
+        vals, slopes = jax.vmap(one)(self.table_knots, self.table_side)
         table = PeriodicHermiteTable(
             knots=self.table_knots, values=vals, slopes=slopes, cell_first=self.table_cell_first,
             origin=self.table_origin, period=self.period_rad, n_cells=self.table_cells,
             max_extra=self.table_max_extra)
-        return eqx.tree_at(lambda m: m.table, self, table, is_leaf=lambda x: x is None)
+        m = eqx.tree_at(lambda m: m.table, self, table, is_leaf=lambda x: x is None)
+        if amap is not None:
+            m = eqx.tree_at(lambda m: m.angle_map, m, amap, is_leaf=lambda x: x is None)
+        return m
+
+    # ------------------------------------------------------------------ moving events
+    def _switch_function(self, kind, a, b, theta):
+        """g(theta) whose root is the angle of an event of ``kind`` (same kinds as
+        :meth:`gearjax.models.torsional.TorsionalModel._switch_function`): loaded set
+        (cell a): ``V_a^T x_S - de_a`` (approach = gap in the 3D quasi-static solution,
+        Eq. (25)); NLTE cell (a -> b): ``r_a - r_b``; pinion / gear relief start (cell a):
+        ``xi_a - (xi_e - L_c1 g_alpha)`` / ``xi_a - (xi_start + L_c2 g_alpha)``."""
+        cells, de, _ = contact_gaps(self.mesh, self.mods, theta)
+        x = self.quasi_static(theta).x_local
+        r = self.mesh.removed_material(self.mods, cells, theta)
+        pair = self.mesh.pair
+        xi_s, xi_e = pair.contact_limits_m
+        ext = self.mods.relief_extent * pair.path_of_contact_m
+        g = jnp.stack([
+            jnp.zeros_like(theta),
+            self._vectors(cells)[a] @ x - de[a],
+            r[a] - r[b],
+            cells.xi_m[a] - (xi_e - ext[0]),
+            cells.xi_m[a] - (xi_s + ext[1]),
+        ])
+        return g[kind]
+
+    def jump_angles_rad(self, newton_steps: int = 4):
+        """The event angles ``theta_j`` (rad) of the current design, one per entry of
+        :attr:`event_thetas`: Newton iterations on :meth:`_switch_function` from the
+        build-time angle (geometric events stay fixed); differentiable in the modifications
+        (at the root ``d theta_j = -(dg/d design) / (dg/d theta)``)."""
+        return moved_event_angles(self._switch_function, self.event_thetas, self.event_kinds,
+                                  self.event_cells, newton_steps)
+
+    def _angle_map(self) -> AngleMap:
+        return AngleMap.through(self.event_thetas, self.jump_angles_rad(), self.period_rad)
+
+    def angle(self, s):
+        """(theta, dtheta/ds): the pinion angle (rad) at the simulation angle ``s`` (rad);
+        ``(s, None)`` without moving events. Identity at the build-time design."""
+        if self.angle_map is None:
+            return s, None
+        return self.angle_map(s)
 
     # ------------------------------------------------------------------ quasi-static
     def quasi_static(self, theta) -> QuasiStatic3D:
@@ -837,17 +932,24 @@ class Geared3DModel(eqx.Module):
         e, ep = jax.jvp(e_fun, (theta,), (jnp.ones_like(theta),))
         return e, ep, tl @ f_loc, g
 
-    def _nlte_derivs(self, theta, order: int = 1):
+    def _nlte_derivs(self, s, order: int = 1):
+        """NLTE and its derivatives with respect to theta (1 or 2) at the simulation angle
+        ``s`` (chain rule through the angle map: d/dtheta = (d/ds) / phi')."""
         if self.table is not None:
             f = lambda t: self.table(t)[0][2]  # noqa: E731  (exact at the kinks: knots)
         else:
             f = lambda t: contact_gaps(self.mesh, self.mods, t)[2]  # noqa: E731
-        one = jnp.ones_like(theta)
+
+        def d1(t):
+            n0, n1 = jax.jvp(f, (t,), (jnp.ones_like(t),))
+            dth = self.angle(t)[1]
+            return n0, (n1 if dth is None else n1 / dth)
+
         if order == 1:
-            return jax.jvp(f, (theta,), (one,))
-        d1 = lambda t: jax.jvp(f, (t,), (jnp.ones_like(t),))  # noqa: E731
-        (n0, n1), (_, n2) = jax.jvp(d1, (theta,), (one,))
-        return n0, n1, n2
+            return d1(s)
+        (n0, n1), (_, n2) = jax.jvp(d1, (s,), (jnp.ones_like(s),))
+        dth = self.angle(s)[1]
+        return n0, n1, (n2 if dth is None else n2 / dth)
 
     # ------------------------------------------------------------------ dynamics
     def _unscale(self, y, omega):
@@ -857,12 +959,13 @@ class Geared3DModel(eqx.Module):
         u = y[nr:] * r * self.scale_a
         return z, u, r
 
-    def _elastic(self, theta, q):
-        """(restoring minus static force in modal coordinates, mesh force F_D (N))."""
+    def _elastic(self, s, q):
+        """(restoring minus static force in modal coordinates, mesh force F_D (N)) at the
+        simulation angle ``s``."""
         z = q - self.q0
         f_s = self.static_force_N
-        if self.formulation == "reference":
-            cells, de, _ = contact_gaps(self.mesh, self.mods, theta)
+        if self.formulation == "reference":  # no angle map: s = theta
+            cells, de, _ = contact_gaps(self.mesh, self.mods, s)
             vecs = self._vectors(cells)
             x_loc = self.t_local @ q
             loads = cells.stiffness_N_per_m * jnp.maximum(vecs @ x_loc - de, 0.0)
@@ -870,7 +973,7 @@ class Geared3DModel(eqx.Module):
             # K q - F0 = K_bar z - k_m V (V^T q) + k_m v_x0 V ... with K_bar q0 = F0
             force = self.kbar_r @ z - self.k_m * self.v_r * (self.v_r @ q) + self.t_local.T @ f_loc
             return force, jnp.sum(loads)
-        d, k = self._excitation(theta)
+        d, k = self._excitation(s)
         v_q = self.v_r @ q
         v_xs = self.v_x0 + self.cos_bb * d
         f_d = f_s + k * (v_q - v_xs)  # Eq. (41)
@@ -881,18 +984,19 @@ class Geared3DModel(eqx.Module):
             force = self.kbar_r @ z - self.k_m * self.cos_bb * d * self.v_r
         return force, f_d
 
-    def _accel(self, theta, y, omega):
-        """(q, q', u') for the state y: the equations of motion in modal coordinates."""
+    def _accel(self, s, y, omega):
+        """(q, q', u') for the state y at the simulation angle ``s`` (derivatives with
+        respect to theta): the equations of motion in modal coordinates."""
         z, u, r = self._unscale(y, omega)
         q = self.q0 + z
-        e, ep, f, g = self._inertial(theta)
+        e, ep, f, g = self._inertial(self.angle(s)[0])
         nl1 = None
         if e is not None:
-            _, nl1 = self._nlte_derivs(theta)
+            _, nl1 = self._nlte_derivs(s)
             qp = u - nl1 * e
         else:
             qp = u
-        force, _ = self._elastic(theta, q)
+        force, _ = self._elastic(s, q)
         up = -(force + omega * (self.c_r @ qp)) / omega**2
         if e is not None:
             up = up + nl1 * ep
@@ -902,12 +1006,15 @@ class Geared3DModel(eqx.Module):
             up = up - g
         return q, qp, up
 
-    def vector_field(self, theta, y, omega):
-        """d y / d theta for the scaled state ``y = ((q - q_0)/a, u/(r a))`` (module
-        docstring); ``omega`` is the pinion speed Omega1 (rad/s)."""
-        _, qp, up = self._accel(theta, y, omega)
+    def vector_field(self, s, y, omega):
+        """d y / d s for the scaled state ``y = ((q - q_0)/a, u/(r a))`` (module
+        docstring): ``phi'(s)`` times d y / d theta at ``theta = phi(s)`` (``s = theta``
+        at the build-time design); ``omega`` is the pinion speed Omega1 (rad/s)."""
+        _, qp, up = self._accel(s, y, omega)
         r = self.omega_r / omega
-        return jnp.concatenate([qp / self.scale_a, up / (r * self.scale_a)])
+        dyth = jnp.concatenate([qp / self.scale_a, up / (r * self.scale_a)])
+        dth = self.angle(s)[1]
+        return dyth if dth is None else dyth * dth
 
     @property
     def state_size(self) -> int:
@@ -991,9 +1098,12 @@ class Geared3DModel(eqx.Module):
         (X_D = X_D' = 0)."""
         if self.periodic_start:
             return self.harmonic_state(omega, theta0)
-        theta0 = jnp.asarray(theta0, dtype=float)
+        theta0 = jnp.asarray(theta0, dtype=float)  # simulation angle s0
         qs, qs_p = jax.jvp(self._static_q, (theta0,), (jnp.ones_like(theta0),))
-        e, _, _, _ = self._inertial(theta0)
+        th0, dth = self.angle(theta0)
+        if dth is not None:
+            qs_p = qs_p / dth
+        e, _, _, _ = self._inertial(th0)
         u = qs_p
         if e is not None:
             u = u + self._nlte_derivs(theta0)[1] * e
@@ -1003,9 +1113,9 @@ class Geared3DModel(eqx.Module):
     def outputs(self, theta, y, omega) -> ModelOutputs:
         """Mesh force F_D (N), DTE = W^T X + NLTE (m) and the pinion-centre acceleration
         along s (m/s^2) at one angle."""
-        q, qp, up = self._accel(theta, y, omega)
+        q, qp, up = self._accel(theta, y, omega)  # theta: the simulation angle s
         _, f_d = self._elastic(theta, q)
-        e, ep, _, _ = self._inertial(theta)
+        e, ep, _, _ = self._inertial(self.angle(theta)[0])
         qpp = up
         if e is not None:
             _, nl1, nl2 = self._nlte_derivs(theta, order=2)
@@ -1064,13 +1174,16 @@ def _disc_mass(structure, node, M_all) -> float:
     return float(M_all[6 * node + 1, 6 * node + 1])
 
 
-def _jump_brackets(model: Geared3DModel, theta, kinks: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def _jump_brackets(model: Geared3DModel, theta, kinks: bool = False, codes: bool = False):
     """Brackets ``(lo, hi)`` (adjacent floats) of the angles where the right-hand side
     jumps or kinks independently of speed: cell engagement/exit, quasi-static active-set
     changes (te, perturbation) and changes of the cell realising NLTE; found on the
     uniform scan grid ``theta`` (one period, any origin) and refined by bisection. With
     ``kinks`` also the angles where a cell enters or leaves a modified zone (kinks of the
-    removed material, hence of TE_S: table knots, not integrator jumps)."""
+    removed material, hence of TE_S: table knots, not integrator jumps). With ``codes``
+    also the discrete states at ``lo`` and ``hi`` in the layout of
+    :func:`gearjax.models.torsional._code` (NLTE cell, loaded, inside, zone bits) for
+    :func:`gearjax.models.torsional._event_kinds`."""
     mesh, mods = model.mesh, model.mods
     period = model.period_rad
 
@@ -1123,10 +1236,44 @@ def _jump_brackets(model: Geared3DModel, theta, kinks: bool = False) -> tuple[np
         more = np.any(np.asarray(code(hi)) != code_b, axis=1)
         a, b, code_b = hi[more], b[more], code_b[more]
     if not found_lo:
-        return np.zeros(0), np.zeros(0)
+        empty = np.zeros(0)
+        return (empty, empty, None, None) if codes else (empty, empty)
     lo, hi = np.concatenate(found_lo), np.concatenate(found_hi)
     order = np.argsort(lo)
-    return lo[order], hi[order]
+    lo, hi = lo[order], hi[order]
+    if not codes:
+        return lo, hi
+    n = mesh.n_cells
+
+    def tors_layout(c):  # [inside(n), arg, zone1(n), zone2(n), loaded(n)] -> torsional _code
+        inside, arg = c[:, :n], c[:, n:n + 1]
+        zone = (np.where(inside > 0, c[:, n + 1:2 * n + 1] + 2 * c[:, 2 * n + 1:3 * n + 1], -1)
+                if kinks else np.where(inside > 0, 0, -1))
+        loaded = c[:, -n:] if model.formulation != "reference" else np.zeros_like(inside)
+        return np.concatenate([arg, loaded, inside, zone], axis=1)
+
+    return lo, hi, tors_layout(np.asarray(code(lo))), tors_layout(np.asarray(code(hi)))
+
+
+def _moving_events(lo, hi, c_lo, c_hi, n_cells, period) -> dict:
+    """The events of the table brackets (sorted, distinct angles in [0, period)) with the
+    kind and cells of each (:func:`gearjax.models.torsional._event_kinds`): the nodes of
+    the angle map (see :meth:`Geared3DModel.jump_angles_rad`)."""
+    ang = np.mod(0.5 * (lo + hi), period)
+    order = np.argsort(ang, kind="stable")
+    events, kinds, cells = [], [], []
+    for i in order:
+        kind, a, b = _event_kinds(c_lo[i], c_hi[i], n_cells)
+        if events and ang[i] - events[-1] <= 1e-9 * period:
+            if kind == _EV_FIXED:  # coinciding events: a geometric one pins the angle
+                kinds[-1], cells[-1] = kind, (a, b)
+            continue
+        events.append(float(ang[i]))
+        kinds.append(int(kind))
+        cells.append((int(a), int(b)))
+    if len(events) > 1 and events[0] + period - events[-1] <= 1e-9 * period:
+        events, kinds, cells = events[:-1], kinds[:-1], cells[:-1]
+    return dict(event_thetas=tuple(events), event_kinds=tuple(kinds), event_cells=tuple(cells))
 
 
 def _bracket_midpoints(lo, hi, period) -> np.ndarray:

@@ -355,6 +355,15 @@ class AngleMap(eqx.Module):
     deltas: jax.Array
     period: float = eqx.field(static=True)
 
+    @classmethod
+    def through(cls, s_j, theta_j, period: float) -> "AngleMap":
+        """The map sending the sorted build angles ``s_j`` (in [0, period)) to
+        ``theta_j``."""
+        s_j = np.asarray(s_j, dtype=float)
+        d = theta_j - jnp.asarray(s_j)
+        nodes = jnp.asarray(np.concatenate([[s_j[-1] - period], s_j, [s_j[0] + period]]))
+        return cls(nodes=nodes, deltas=jnp.concatenate([d[-1:], d, d[:1]]), period=period)
+
     def __call__(self, s):
         """(theta, dtheta/ds) at the simulation angle ``s``."""
         k = jnp.floor(s / self.period)
@@ -367,6 +376,26 @@ class AngleMap(eqx.Module):
         h = d0 + (d1 - d0) * (u * u * (3.0 - 2.0 * u))
         dh = (d1 - d0) * 6.0 * u * (1.0 - u) / w
         return s + h, 1.0 + dh
+
+
+def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = 4):
+    """Event angles of the current design: ``newton_steps`` Newton iterations on
+    ``switch(kind, a, b, theta)`` from each build angle ``s_j`` (events of kind
+    ``_EV_FIXED`` stay). Differentiable: at the root the unrolled iterations return
+    ``d theta_j = -(dg/d design) / (dg/d theta)`` (implicit function theorem)."""
+    s_j = jnp.asarray(s_j, dtype=float)
+    kinds = jnp.asarray(kinds, dtype=jnp.int32)
+    ab = jnp.asarray(cells, dtype=jnp.int32).reshape(-1, 2)
+
+    def one(s, kind, a, b):
+        th = s
+        fixed = kind == _EV_FIXED
+        for _ in range(newton_steps):
+            g, dg = jax.jvp(lambda t: switch(kind, a, b, t), (th,), (jnp.ones((), dtype=float),))
+            th = th - jnp.where(fixed, 0.0, g / jnp.where(fixed, 1.0, dg))
+        return th
+
+    return jax.vmap(one)(s_j, kinds, ab[:, 0], ab[:, 1])
 
 
 class _Derived(eqx.Module):
@@ -696,28 +725,11 @@ class TorsionalModel(eqx.Module):
         build-time angle (geometric ones stay fixed). Differentiable in the modifications:
         at the root, ``d theta_j = -(dg/d design) / (dg/d theta)`` (implicit function
         theorem) is what the unrolled iterations return."""
-        s_j = jnp.asarray(self.jump_thetas, dtype=float)
-        kinds = jnp.asarray(self.jump_kinds, dtype=jnp.int32)
-        ab = jnp.asarray(self.jump_cells, dtype=jnp.int32).reshape(-1, 2)
-
-        def one(s, kind, a, b):
-            th = s
-            for _ in range(newton_steps):
-                g, dg = jax.jvp(lambda t: self._switch_function(kind, a, b, t), (th,),
-                                (jnp.ones((), dtype=float),))
-                fixed = kind == _EV_FIXED
-                th = th - jnp.where(fixed, 0.0, g / jnp.where(fixed, 1.0, dg))
-            return th
-
-        return jax.vmap(one)(s_j, kinds, ab[:, 0], ab[:, 1])
+        return moved_event_angles(self._switch_function, self.jump_thetas, self.jump_kinds,
+                                  self.jump_cells, newton_steps)
 
     def _angle_map(self) -> AngleMap:
-        s_j = np.asarray(self.jump_thetas, dtype=float)
-        d = self.jump_angles_rad() - jnp.asarray(s_j)
-        p = self.period_rad
-        nodes = jnp.asarray(np.concatenate([[s_j[-1] - p], s_j, [s_j[0] + p]]))
-        deltas = jnp.concatenate([d[-1:], d, d[:1]])
-        return AngleMap(nodes=nodes, deltas=deltas, period=p)
+        return AngleMap.through(self.jump_thetas, self.jump_angles_rad(), self.period_rad)
 
     def angle(self, s):
         """(theta, dtheta/ds): the pinion angle (rad) at the simulation angle ``s`` (rad).
