@@ -171,6 +171,7 @@ from .torsional import (
     _event_kinds,
     _quiet_origin,
     moved_event_angles,
+    switch_value,
     unilateral_solve_pairwise,
 )
 
@@ -809,18 +810,8 @@ class Geared3DModel(eqx.Module):
         ``xi_a - (xi_e - L_c1 g_alpha)`` / ``xi_a - (xi_start + L_c2 g_alpha)``."""
         cells, de, _ = contact_gaps(self.mesh, self.mods, theta)
         x = self.quasi_static(theta).x_local
-        r = self.mesh.removed_material(self.mods, cells, theta)
-        pair = self.mesh.pair
-        xi_s, xi_e = pair.contact_limits_m
-        ext = self.mods.relief_extent * pair.path_of_contact_m
-        g = jnp.stack([
-            jnp.zeros_like(theta),
-            self._vectors(cells)[a] @ x - de[a],
-            r[a] - r[b],
-            cells.xi_m[a] - (xi_e - ext[0]),
-            cells.xi_m[a] - (xi_s + ext[1]),
-        ])
-        return g[kind]
+        return switch_value(self.mesh, self.mods, cells, theta,
+                            self._vectors(cells)[a] @ x - de[a], kind, a, b)
 
     def jump_angles_rad(self, newton_steps: int = 4):
         """The event angles ``theta_j`` (rad) of the current design, one per entry of

@@ -378,6 +378,24 @@ class AngleMap(eqx.Module):
         return s + h, 1.0 + dh
 
 
+def switch_value(mesh, mods, cells, theta, approach_minus_gap, kind, a, b):
+    """The switching function of an event of ``kind`` (see
+    :meth:`TorsionalModel._switch_function`) given the loaded-set one,
+    ``approach_minus_gap`` of cell a (which the sdof and 3D quasi-static solutions give
+    differently)."""
+    r = mesh.removed_material(mods, cells, theta)
+    xi_s, xi_e = mesh.pair.contact_limits_m
+    ext = mods.relief_extent * mesh.pair.path_of_contact_m
+    g = jnp.stack([
+        jnp.zeros_like(approach_minus_gap),
+        approach_minus_gap,
+        r[a] - r[b],
+        cells.xi_m[a] - (xi_e - ext[0]),
+        cells.xi_m[a] - (xi_s + ext[1]),
+    ])
+    return g[kind]
+
+
 def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = 4):
     """Event angles of the current design: ``newton_steps`` Newton iterations on
     ``switch(kind, a, b, theta)`` from each build angle ``s_j`` (events of kind
@@ -707,17 +725,7 @@ class TorsionalModel(eqx.Module):
         ``xi_a - (xi_e - L_c1 g_alpha)`` / ``xi_a - (xi_start + L_c2 g_alpha)``."""
         cells, delta_e, _ = contact_gaps(self.mesh, self.mods, theta)
         y, _ = solve_unilateral(cells.stiffness_N_per_m, delta_e, self.static_force_N)
-        r = self.mesh.removed_material(self.mods, cells, theta)
-        xi_s, xi_e = self.pair.contact_limits_m
-        ext = self.mods.relief_extent * self.pair.path_of_contact_m
-        g = jnp.stack([
-            jnp.zeros_like(y),
-            y - delta_e[a],
-            r[a] - r[b],
-            cells.xi_m[a] - (xi_e - ext[0]),
-            cells.xi_m[a] - (xi_s + ext[1]),
-        ])
-        return g[kind]
+        return switch_value(self.mesh, self.mods, cells, theta, y - delta_e[a], kind, a, b)
 
     def jump_angles_rad(self, newton_steps: int = 4):
         """The switching angles ``theta_j`` (rad) of the current design, one per entry of
