@@ -204,8 +204,40 @@ class ToothModifications(eqx.Module):
             )
         return n * pair.mesh_period_rad
 
-    def check_against(self, pair) -> None:
-        """Check array sizes against the pair's tooth numbers (clear error if wrong)."""
+    def flat_relief_band_m(self, pair) -> float:
+        """Length (m, on the transverse path of contact) of the band where the composite
+        linear relief is constant (0 when there is none).
+
+        Two linear tip reliefs overlap when ``L_c1 + L_c2 > 1``; there the composite relief
+        ``P_c1 u1 + P_c2 u2`` changes along the path with slope ``P_c1/(L_c1 g) -
+        P_c2/(L_c2 g)``. With equal slopes ``P_c1/L_c1 = P_c2/L_c2`` (e.g. the same relief on
+        both gears) it is the constant ``min r`` over the whole overlap ``(L_c1 + L_c2 - 1)
+        g``: a rigid shift of the flanks there (NLTE constant), not a relief. Needs concrete
+        values (returns 0 for traced ones)."""
+        amp, ext = _concrete(self.relief_amplitude_m), _concrete(self.relief_extent)
+        if amp is None or ext is None or self.relief_shape != "linear" or np.any(amp <= 0):
+            return 0.0
+        s1, s2 = amp / ext
+        if abs(s1 - s2) > 1e-9 * max(s1, s2):
+            return 0.0
+        return max(0.0, float(ext.sum()) - 1.0) * pair.path_of_contact_m
+
+    def check_against(self, pair, *, dynamics: bool = True) -> None:
+        """Check array sizes against the pair's tooth numbers (clear error if wrong).
+
+        ``dynamics`` (default; the dynamic models' builds and rig files) also refuses
+        linear reliefs of equal slope whose flat band (:meth:`flat_relief_band_m`) is
+        longer than the transverse base pitch (spur: two teeth in it at once) or, for
+        helical gears, not empty (two cells of the inclined contact lines in it at once).
+        Their contacts then have *identical* gaps over whole intervals of theta: the
+        contact-change (jump) angles the dynamic models locate by Newton on the gap
+        difference are undefined (zero derivative) and came out NaN -- measured on the
+        spur Table 1 pair: 1 mm or 13.3 um over the whole path on both gears, and 13.3 um
+        with extents 0.8/0.8, gave a NaN natural frequency and an integration that ran to
+        the 2e6-step limit (sdof 40 s, 3D 97 s per speed, solver_ok False); 0.78/0.78
+        (band 0.56 g = 0.96 p_b < p_b) is fine. The quasi-static solve
+        (:func:`gearjax.quasi_static`, ``dynamics=False``) is exact for these reliefs.
+        """
         if self.pitch_errors_m is not None:
             for k, (f, z) in enumerate(zip(self.pitch_errors_m, (pair.z1, pair.z2)), start=1):
                 if f.shape != (z,):
@@ -213,6 +245,24 @@ class ToothModifications(eqx.Module):
                         f"pitch_errors_m[{k - 1}] has shape {f.shape}: gear {k} has {z} teeth, "
                         f"expected ({z},)"
                     )
+        band = self.flat_relief_band_m(pair) if dynamics else 0.0
+        limit = pair.base_pitch_m if pair.base_helix_angle_rad == 0.0 else 0.0
+        if band > limit:
+            amp = np.asarray(self.relief_amplitude_m).tolist()
+            ext = np.asarray(self.relief_extent).tolist()
+            r_flat = float(np.asarray(self.relief_amplitude_m)[0]) * (
+                1.0 - (1.0 - float(np.asarray(self.relief_extent)[1])) / float(np.asarray(self.relief_extent)[0]))
+            raise ModificationError(
+                f"relief_extent={ext} (relief_amplitude_m={amp}): linear reliefs of equal slope "
+                f"P_c/L_c overlap on {band * 1e3:.3g} mm of the path of contact, longer than "
+                + ("the base pitch " + f"{limit * 1e3:.3g} mm" if limit > 0 else "zero (helical)")
+                + f"; the composite relief is the constant {r_flat:.3g} m there (a rigid shift, "
+                "not a relief), so teeth in contact on it have identical gaps and the dynamic "
+                "models cannot locate their contact-change angles (NaN). The quasi-static TE "
+                "is exact (quasi_static accepts it). Use extents with L_c1 + L_c2 - 1 below "
+                f"{(limit / pair.path_of_contact_m) if limit > 0 else 0.0:.3g}, unequal slopes "
+                "P_c1/L_c1 != P_c2/L_c2, or the parabolic shape"
+            )
 
 
 def table1_relief(kind: str = "short", shape: ReliefShape = "linear") -> ToothModifications:
