@@ -44,7 +44,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
-__all__ = ["ross_rotors", "ross_natural_frequencies_hz", "ross_shear_coefficient"]
+__all__ = ["ross_rotors", "ross_geared_rotor", "ross_natural_frequencies_hz", "ross_shear_coefficient"]
 
 
 def _ross():
@@ -67,13 +67,17 @@ def ross_shear_coefficient(outer_diameter_m: float, inner_diameter_m: float = 0.
 
 
 def ross_rotors(path: str | Path, *, shear_method: str = "cowper",
-                seismic_mass: float = 1e9) -> dict[str, object]:
+                seismic_mass: float = 1e9, gears: dict | None = None) -> dict[str, object]:
     """One ``ross.Rotor`` per shaft line of a rig file, keyed by line name.
 
     Each rotor also carries ``gearjax_nodes`` (the file's node number of every ROSS node,
     None for a seismic node). Load the file with :func:`gearjax.load_rig` first to validate
-    it; this function assumes a valid file.
+    it; this function assumes a valid file. ``gears`` maps a file node to the keyword
+    arguments of ``ross.GearElement`` (``n_teeth``, ``base_diameter``, ``pr_angle``): the
+    disc at that node becomes a gear element of the same mass and inertias (what
+    ``ross.MultiRotor`` couples).
     """
+    gears = gears or {}
     rs = _ross()
     data = tomllib.loads(Path(path).read_text())
     mats = {"steel": dict(E_Pa=2.1e11, nu=0.3, rho_kg_per_m3=7800.0)}
@@ -156,7 +160,10 @@ def ross_rotors(path: str | Path, *, shear_method: str = "cowper",
                 b = ds["width_m"]
                 m = rho * math.pi * (4 * R2 - 4 * r2) * b / 4
                 it, ip = m * (3 * (R2 + r2) + b * b) / 12, m * (R2 + r2) / 2
-            disks.append(rs.DiskElement(n=index[ds["node"]], m=m, Id=it, Ip=ip))
+            if ds["node"] in gears:
+                disks.append(rs.GearElement(n=index[ds["node"]], m=m, Id=it, Ip=ip, **gears[ds["node"]]))
+            else:
+                disks.append(rs.DiskElement(n=index[ds["node"]], m=m, Id=it, Ip=ip))
         for i, n in enumerate(ross_nodes):
             if n is None:  # the seismic node: huge mass and inertias (its free motions are rigid)
                 disks.append(rs.DiskElement(n=i, m=seismic_mass, Id=seismic_mass, Ip=seismic_mass))
@@ -178,3 +185,50 @@ def ross_natural_frequencies_hz(rotor, *, min_hz: float = 1.0) -> np.ndarray:
     modal = rotor.run_modal(speed=0.0, num_modes=rotor.ndof, sparse=False)
     f = np.sort(np.abs(np.asarray(modal.wn, dtype=float))) / (2 * math.pi)
     return f[f > min_hz]
+
+
+def ross_geared_rotor(path: str | Path, mesh_stiffness_N_per_m: float, *,
+                      shear_method: str = "cowper", update_mesh_stiffness: bool = False,
+                      seismic_mass: float = 1e9):
+    """The rig's pinion and gear lines coupled by ROSS's own gear mesh (``ross.MultiRotor``,
+    spur pairs): ``(multi_rotor, dof)`` with ``dof(file_node, k)`` the ROSS index of dof
+    ``k`` (0..5: x, y, z, alpha, beta, theta) of a file node.
+
+    The pinion and gear discs become ``ross.GearElement`` with the pair's base diameters
+    and working pressure angle, so ROSS's mesh (Stringer's coupling matrix, its torsional
+    arms ``pitch_radius cos(alpha)`` = base radii) acts along a line of action as ours;
+    the mesh stiffness is ``mesh_stiffness_N_per_m`` (constant), or, with
+    ``update_mesh_stiffness``, ROSS interpolates ``multi_rotor.mesh.stiffness_range`` over
+    ``multi_rotor.mesh.theta_range`` (pinion angle, one mesh period) at every Newmark step:
+    overwrite both with the stiffness table to be compared. Helical pairs are not mapped
+    (ROSS's helix convention is not checked here).
+    """
+    from .rigfile import load_rig
+
+    rs = _ross()
+    rig = load_rig(path)
+    pair = rig.pair
+    if pair.base_helix_angle_rad != 0.0:
+        raise ValueError("ross_geared_rotor maps spur pairs only")
+    data = tomllib.loads(Path(path).read_text())
+    pn, gn = int(data["pinion_node"]), int(data["gear_node"])
+    alpha = pair.working_pressure_angle_rad
+    rb1, rb2 = pair.base_radii_m
+    gears = {pn: dict(n_teeth=pair.z1, base_diameter=2 * rb1, pr_angle=alpha),
+             gn: dict(n_teeth=pair.z2, base_diameter=2 * rb2, pr_angle=alpha)}
+    rotors = ross_rotors(path, shear_method=shear_method, seismic_mass=seismic_mass, gears=gears)
+    line = {n: name for name, r in rotors.items() for n in r.gearjax_nodes if n is not None}
+    drv, drn = rotors[line[pn]], rotors[line[gn]]
+    ip, ig = drv.gearjax_nodes.index(pn), drn.gearjax_nodes.index(gn)
+    mr = rs.MultiRotor(drv, drn, coupled_nodes=(ip, ig), gear_mesh_stiffness=float(mesh_stiffness_N_per_m),
+                       update_mesh_stiffness=update_mesh_stiffness)
+    shift = mr.driven_nodes[0]  # ROSS renumbers the driven rotor's nodes from here
+
+    def dof(node: int, k: int) -> int:
+        if node in drv.gearjax_nodes:
+            i = drv.gearjax_nodes.index(node)
+        else:
+            i = drn.gearjax_nodes.index(node) + shift
+        return 6 * i + k
+
+    return mr, dof
