@@ -5,8 +5,8 @@ never a silent NaN or a wrong number. Accuracy is checked against independent re
 
 Only the first test runs in the default quick suite (``-m "not slow"``); the others are
 marked slow (measured 2026-11-22 under load ~8 on 2 cores: contact loss 99 s, light/heavy
-discs 60 s each, float32 and the 10 000-period energy drift longer): run them with
-``-m slow``."""
+discs 60 s each, float32 longer; under load ~2: energy drift 16 s, extreme reliefs 26 s,
+1e12 N/m bearings 60 s, rigid-bearing limit 71 s): run them with ``-m slow``."""
 
 from __future__ import annotations
 
