@@ -19,10 +19,12 @@ import numpy as np
 import pytest
 
 from gearjax import Mesh, ModificationError, ToothModifications, baud_velex_pair, table1_relief
-from gearjax.models.torsional import ModelOutputs, TorsionalModel, solid_cylinder_inertias
+from gearjax.models.torsional import TorsionalModel, solid_cylinder_inertias
 from gearjax.simulate import simulate
 from gearjax.steady import steady_sweep
 from gearjax.sweep import sweep
+
+from oscillators import HarmonicOscillator
 
 
 @pytest.fixture(scope="module")
@@ -169,41 +171,6 @@ def test_extreme_tip_reliefs(spur):
             assert not np.any(st.converged)
 
 
-class FreeOscillator(eqx.Module):
-    """Undamped constant-stiffness oscillator, free vibration from x = a (energy
-    E = k a^2 / 2 exactly conserved); written here, not from gearjax."""
-
-    mass: float
-    stiffness: float
-    amplitude: float
-    order: int = eqx.field(static=True, default=26)
-    formulation: str = eqx.field(static=True, default="perturbation")
-    jump_thetas: tuple = eqx.field(static=True, default=())
-
-    @property
-    def period_rad(self):
-        return 2 * math.pi / self.order
-
-    mesh_period_rad = period_rad
-
-    @property
-    def static_force_N(self):
-        return 100.0 * self.stiffness * self.amplitude
-
-    def initial_state(self, omega):
-        return jnp.stack([jnp.asarray(self.amplitude), jnp.zeros(())])
-
-    def vector_field(self, theta, y, omega):
-        return jnp.stack([y[1], -self.stiffness * y[0] / (omega**2 * self.mass)])
-
-    def outputs(self, theta, y, omega):
-        return ModelOutputs(mesh_force_N=self.static_force_N + self.stiffness * y[0],
-                            dte_m=y[0])
-
-    def decay_rate_per_rad(self, omega):
-        return jnp.zeros(())
-
-
 def _free_energy_ratio(osc, omega, res):
     """E / E0 of the free oscillation in the saved signals: a least-squares fit of
     a cos + b sin at the exact natural frequency (not the sampled peaks, which miss the
@@ -240,7 +207,8 @@ def test_energy_drift_over_10000_mesh_periods():
     the convergence tolerance 1e-3. An undamped model is flagged: ``simulate`` never
     reads it as converged (decay rate 0) and the shooting solver gives spectral radius 1,
     converged False."""
-    osc = FreeOscillator(mass=2.0, stiffness=8e8, amplitude=1e-5)
+    osc = HarmonicOscillator(mass=2.0, stiffness=8e8, damping_ratio=0.0, amplitude=1e-5,
+                             order=26, forced=False)  # free, undamped: energy conserved
     w = jnp.asarray(0.7 * math.sqrt(osc.stiffness / osc.mass) / osc.order)
 
     def drift(n_periods, rtol=None):
