@@ -664,8 +664,9 @@ class Geared3DModel(eqx.Module):
             # brackets again, bisected *in table coordinates* [origin, origin + P): folding
             # adjacent floats near 0 into the table would merge them
             origin = _quiet_origin(jumps, period)
-            lo_u, hi_u, c_lo, c_hi = _jump_brackets(model, origin + theta_tab, kinks=True,
-                                                    codes=True)
+            moving = formulation == "te" or nlte_terms  # events that move with the design
+            lo_u, hi_u, *codes = _jump_brackets(model, origin + theta_tab, kinks=True,
+                                                codes=moving)
             knots, cell_first, max_extra = PeriodicHermiteTable.layout(
                 origin, period, n_tab, np.concatenate([lo_u, hi_u]))
             side = np.zeros(knots.shape)
@@ -675,8 +676,8 @@ class Geared3DModel(eqx.Module):
                 model, table_knots=jnp.asarray(knots), table_cell_first=jnp.asarray(cell_first, dtype=jnp.int32),
                 table_side=jnp.asarray(side), table_origin=float(origin), table_cells=n_tab,
                 table_max_extra=int(max_extra))
-            if formulation == "te" or nlte_terms:
-                model = dataclasses.replace(model, **_moving_events(lo_u, hi_u, c_lo, c_hi,
+            if moving:
+                model = dataclasses.replace(model, **_moving_events(lo_u, hi_u, *codes,
                                                                     mesh.n_cells, period))
         return model
 
