@@ -283,6 +283,56 @@ def test_default_inertias_and_natural_frequency(spur):
     assert 700 < w_n / pair.z1 < 850
 
 
+# ---------------------------------------------------------------------- helical pair
+@pytest.fixture(scope="module")
+def helical_short():
+    mesh = Mesh.build(baud_velex_pair(True))
+    return mesh, TorsionalModel.build(mesh, table1_relief("short"), formulation="te")
+
+
+def test_helical_mean_stiffness_and_low_speed_limit(helical_short):
+    """Helical pair, Table 1 short relief, TE-based: k_m is the mean of (sum k_i)^S of the
+    independent quasi-static solve (a misread switching event once folded the angle map
+    and gave k_m < 0, a NaN omega_n), the angle map is the identity at the build design,
+    and at low speed the dynamic factor tends to 1 (quasi-static limit)."""
+    mesh, model = helical_short
+    n = 4096
+    theta = np.arange(n) * (model.period_rad / n)
+    qs = quasi_static(mesh, table1_relief("short"), theta, float(model.static_force_N))
+    k_mean = float(np.mean(np.asarray(qs.loaded_stiffness_N_per_m)))
+    assert float(model.mean_stiffness_N_per_m()) == pytest.approx(k_mean, rel=2e-3)
+    np.testing.assert_allclose(np.asarray(model.jump_angles_rad()), model.jump_thetas,
+                               rtol=0, atol=1e-10 * model.mesh_period_rad)
+    res = sim2(model, jnp.asarray([5.0, 20.0]))
+    dev = np.abs(np.asarray(res.dynamic_factor) - 1)
+    assert np.all(np.asarray(res.converged))
+    assert dev[0] < 3e-3 and dev[0] < 0.4 * dev[1], dev
+
+
+def test_misread_switching_event_is_kept_fixed_with_a_warning(monkeypatch):
+    """The build-time self-check: an event classified as moving whose switching function
+    does not vanish at its build angle (here every engagement is misread as a relief-zone
+    crossing) is kept fixed with a RuntimeWarning, and k_m stays the quasi-static mean."""
+    import gearjax.models.torsional as tors
+
+    spur = Mesh.build(baud_velex_pair(False))
+    good = TorsionalModel.build(spur, table1_relief("short"), formulation="te")
+    real = tors._event_kinds
+
+    def misread(c_lo, c_hi, n):
+        kind, a, b = real(c_lo, c_hi, n)
+        if kind == tors._EV_FIXED:
+            return tors._EV_ZONE1, 0, 0
+        return kind, a, b
+
+    monkeypatch.setattr(tors, "_event_kinds", misread)
+    with pytest.warns(RuntimeWarning, match="kept at their build angles"):
+        bad = TorsionalModel.build(spur, table1_relief("short"), formulation="te")
+    assert bad.jump_kinds == good.jump_kinds
+    assert float(bad.mean_stiffness_N_per_m()) == pytest.approx(
+        float(good.mean_stiffness_N_per_m()), rel=1e-12)
+
+
 # ---------------------------------------------------------------------- errors and flags
 def test_clear_errors(spur):
     mods = table1_relief("short")

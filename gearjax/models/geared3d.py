@@ -170,6 +170,7 @@ from .torsional import (
     PeriodicHermiteTable,
     _event_kinds,
     _quiet_origin,
+    check_event_roots,
     moved_event_angles,
     switch_value,
     unilateral_solve_pairwise,
@@ -679,6 +680,11 @@ class Geared3DModel(eqx.Module):
             if moving:
                 model = dataclasses.replace(model, **_moving_events(lo_u, hi_u, *codes,
                                                                     mesh.n_cells, period))
+                kinds, cells = check_event_roots(model._switch_function, model.event_thetas,
+                                                 model.event_kinds, model.event_cells,
+                                                 mesh.pair.mesh_period_rad)
+                model = dataclasses.replace(model, event_kinds=tuple(int(k) for k in kinds),
+                                            event_cells=tuple((int(a), int(b)) for a, b in cells))
         return model
 
     @classmethod

@@ -170,6 +170,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from typing import Literal
 
 import equinox as eqx
@@ -416,6 +417,43 @@ def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = 4):
     return jax.vmap(one)(s_j, kinds, ab[:, 0], ab[:, 1])
 
 
+def check_event_roots(switch, s_j, kinds, cells, mesh_period: float, rtol: float = 1e-8):
+    """Build-time self-check of the event classification: at the build design every
+    moving event's switching function must vanish at its build angle, i.e. one Newton
+    step from ``s_j`` must stay within ``rtol`` mesh periods. An event that fails (a
+    misread bracket would make the angle map fold onto itself, giving a wrong mean
+    stiffness) is kept fixed, with a warning: the forward model is then exact and only the
+    derivative of that event's angle with respect to the design is lost.
+    Returns the (kinds, cells) to store."""
+    kinds, cells = list(kinds), list(cells)
+    idx = [j for j, k in enumerate(kinds) if k != _EV_FIXED]
+    if not idx:
+        return kinds, cells
+    moved = np.asarray(jax.jit(lambda s, k, c: moved_event_angles(switch, s, k, c, 1))(
+        np.asarray(s_j, dtype=float)[idx], np.asarray([kinds[j] for j in idx]),
+        np.asarray([cells[j] for j in idx])))
+    step = np.abs(moved - np.asarray(s_j, dtype=float)[idx])
+    bad = [j for j, d in zip(idx, step) if not (d <= rtol * mesh_period)]
+    if bad:
+        warnings.warn(
+            f"{len(bad)} of {len(idx)} design-dependent switching angles could not be "
+            f"located by their switching function at the build design (e.g. angle "
+            f"{s_j[bad[0]]:.6g} rad, kind {kinds[bad[0]]}, cells {cells[bad[0]]}); they are "
+            "kept at their build angles (forward results exact, their design derivative "
+            "is not followed)", RuntimeWarning, stacklevel=3)
+        for j in bad:
+            kinds[j], cells[j] = _EV_FIXED, (0, 0)
+    return kinds, cells
+
+
+def _sdof_switch(mesh, mods, force, kind, a, b, theta):
+    """:meth:`TorsionalModel._switch_function` from its inputs (also used at build, before
+    the model exists)."""
+    cells, delta_e, _ = contact_gaps(mesh, mods, theta)
+    y, _ = solve_unilateral(cells.stiffness_N_per_m, delta_e, force)
+    return switch_value(mesh, mods, cells, theta, y - delta_e[a], kind, a, b)
+
+
 class _Derived(eqx.Module):
     """Quantities derived from the model data inside ``jit`` (see :meth:`prepare`)."""
 
@@ -627,10 +665,14 @@ class TorsionalModel(eqx.Module):
             for j, t in enumerate(jumps):
                 dist = np.abs(hi_mod - t)
                 dist = np.minimum(dist, period - dist)
-                i = int(np.argmin(dist))
-                if dist[i] <= 1e-9 * period:
-                    kind, a, b = _event_kinds(c_lo[i], c_hi[i], n_cells)
-                    kinds[j], cells_ab[j] = kind, (a, b)
+                near = [_event_kinds(c_lo[i], c_hi[i], n_cells)
+                        for i in np.nonzero(dist <= 1e-9 * period)[0]]
+                if near and all(ev[0] != _EV_FIXED for ev in near):
+                    # coinciding brackets: a geometric (fixed) one pins the angle
+                    kinds[j], cells_ab[j] = near[0][0], near[0][1:]
+        kinds, cells_ab = check_event_roots(
+            lambda kind, a, b, t: _sdof_switch(mesh, mods, force, kind, a, b, t),
+            jumps, kinds, cells_ab, mesh.pair.mesh_period_rad)
         moving = any(k != _EV_FIXED for k in kinds)
         codes = None
         if moving:
@@ -723,9 +765,7 @@ class TorsionalModel(eqx.Module):
         loaded set (cell a): ``y - delta_e_a`` (approach = gap, Eq. (17)); NLTE cell
         (a -> b): ``r_a - r_b``; relief start of the pinion / gear (cell a):
         ``xi_a - (xi_e - L_c1 g_alpha)`` / ``xi_a - (xi_start + L_c2 g_alpha)``."""
-        cells, delta_e, _ = contact_gaps(self.mesh, self.mods, theta)
-        y, _ = solve_unilateral(cells.stiffness_N_per_m, delta_e, self.static_force_N)
-        return switch_value(self.mesh, self.mods, cells, theta, y - delta_e[a], kind, a, b)
+        return _sdof_switch(self.mesh, self.mods, self.static_force_N, kind, a, b, theta)
 
     def jump_angles_rad(self, newton_steps: int = 4):
         """The switching angles ``theta_j`` (rad) of the current design, one per entry of
@@ -1026,6 +1066,12 @@ def _event_kinds(c_lo, c_hi, n):
     d = c_lo != c_hi
     ins, zone, load = d[1 + n:1 + 2 * n], d[1 + 2 * n:], d[1:1 + n]
     if ins.any():
+        return _EV_FIXED, 0, 0
+    z_lo, z_hi = c_lo[1 + 2 * n:], c_hi[1 + 2 * n:]
+    if (zone & ((z_lo < 0) | (z_hi < 0))).any():
+        # an engagement seen through the zone code (-1 = outside): XLA may evaluate the
+        # ``inside`` flag of the same cell one float apart in the two fields (helical
+        # cells), so the bracket holding the zone change need not hold the inside change
         return _EV_FIXED, 0, 0
     if zone.any():
         c = int(np.argmax(zone))
