@@ -70,17 +70,20 @@ The angles where ``k(theta)`` jumps (a relieved cell starts or stops carrying lo
 Eq. (9)) and where TE_S kinks (a cell crosses a relief start) move with the tip relief;
 a table with knots fixed at build gives derivatives that miss the boundary terms of the
 moving jumps. As in the torsional model (:mod:`gearjax.models.torsional`, "Derivatives
-with respect to the design"), the tabulated te formulation and the tabulated
-perturbation formulation with NLTE terms record at build the kind and cells of every event of the table brackets
+with respect to the design"), the tabulated te and perturbation formulations record at
+build the kind and cells of every event of the table brackets
 (:attr:`event_thetas`, :attr:`event_kinds`, :attr:`event_cells`), :meth:`jump_angles_rad`
 moves them by Newton iterations on the switching functions (implicit differentiation),
 and the model integrates in the simulation angle ``s`` with ``theta = phi(s)``
 (:class:`gearjax.models.torsional.AngleMap`, identity at the build design): the table
 holds ``q(phi(s))``, :meth:`vector_field` is ``phi'(s) dy/dtheta``, NLTE derivatives are
 taken with respect to theta by the chain rule, outputs are evaluated at ``phi(s)``.
-Forward results at the build design are unchanged. The perturbation formulation without
-NLTE terms (constant coefficients, forcing ``TE_S - w_x0`` with kinks only) needs no map;
-the reference formulation has no table and no map (its contact law is continuous in the
+Forward results at the build design are unchanged. The perturbation formulation needs
+the map even without NLTE terms: its forcing ``TE_S - w_x0`` kinks where the loaded set
+changes and at the relief starts, and a table with fixed knots differentiates the
+interpolant, not the kinks' motion (measured, short relief, 300/500 rad/s: d(peak force)
+/ dL_c -4.5e3 N against +8.46e3 N by central differences; with the map 3e-6). The
+reference formulation has no table and no map (its contact law is continuous in the
 gaps, but its NLTE' jumps stay at the build angles: not checked against differences).
 ``k_m`` (the splitting constant of ``K_bar`` and the modal basis) stays the build value:
 exact for te (Eq. (42) only splits ``k(theta)``); for the perturbation formulation the
@@ -91,6 +94,10 @@ angles moved by Newton equal the rebuilt bisection to 1e-13 rad. Against models 
 at P_c +- h the peak-force derivative agrees to 1 % with 2048 samples per mesh period
 (16 % with 128): the peak sits at a jump of ``k(theta)``, where a sample grid fixed in
 theta (rebuilt) and one moving with ``phi`` (same model) see different maxima.
+The map is valid while the design keeps the discrete structure of the build (the
+quasi-static state on each side of every knot); :meth:`prepare` checks it and sets
+:attr:`structure_ok` (a traced bool: :class:`gearjax.design.DynamicObjective` rebuilds the
+model when it is False).
 
 Inertial excitations E, F, G (text after Eq. (14))
 --------------------------------------------------
@@ -425,6 +432,8 @@ class Geared3DModel(eqx.Module):
     event_kinds: tuple = eqx.field(static=True, default=())
     event_cells: tuple = eqx.field(static=True, default=())
     angle_map: AngleMap | None = None
+    table_codes: jax.Array | None = None
+    structure_ok: jax.Array | None = None
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -665,9 +674,8 @@ class Geared3DModel(eqx.Module):
             # brackets again, bisected *in table coordinates* [origin, origin + P): folding
             # adjacent floats near 0 into the table would merge them
             origin = _quiet_origin(jumps, period)
-            moving = formulation == "te" or nlte_terms  # events that move with the design
             lo_u, hi_u, *codes = _jump_brackets(model, origin + theta_tab, kinks=True,
-                                                codes=moving)
+                                                codes=True)
             knots, cell_first, max_extra = PeriodicHermiteTable.layout(
                 origin, period, n_tab, np.concatenate([lo_u, hi_u]))
             side = np.zeros(knots.shape)
@@ -677,14 +685,18 @@ class Geared3DModel(eqx.Module):
                 model, table_knots=jnp.asarray(knots), table_cell_first=jnp.asarray(cell_first, dtype=jnp.int32),
                 table_side=jnp.asarray(side), table_origin=float(origin), table_cells=n_tab,
                 table_max_extra=int(max_extra))
-            if moving:
-                model = dataclasses.replace(model, **_moving_events(lo_u, hi_u, *codes,
-                                                                    mesh.n_cells, period))
-                kinds, cells = check_event_roots(model._switch_function, model.event_thetas,
-                                                 model.event_kinds, model.event_cells,
-                                                 mesh.pair.mesh_period_rad)
-                model = dataclasses.replace(model, event_kinds=tuple(int(k) for k in kinds),
-                                            event_cells=tuple((int(a), int(b)) for a, b in cells))
+            # events of the table move with the design (module docstring)
+            model = dataclasses.replace(model, **_moving_events(lo_u, hi_u, *codes,
+                                                                mesh.n_cells, period))
+            kinds, cells = check_event_roots(model._switch_function, model.event_thetas,
+                                             model.event_kinds, model.event_cells,
+                                             mesh.pair.mesh_period_rad)
+            model = dataclasses.replace(model, event_kinds=tuple(int(k) for k in kinds),
+                                        event_cells=tuple((int(a), int(b)) for a, b in cells))
+            if model.event_thetas:  # discrete state on each knot's side (prepare checks it)
+                at = jnp.asarray(knots + side * (1e-9 * period))
+                model = dataclasses.replace(model, table_codes=jax.jit(jax.vmap(
+                    lambda t: _state_code(model, t, True)))(at))
         return model
 
     @classmethod
@@ -776,7 +788,7 @@ class Geared3DModel(eqx.Module):
         """Fill the excitation table of the te/perturbation formulations (``excitation=
         "table"``): exact quasi-static solves at the knots, slopes by forward-mode AD, the
         knots bracketing every jump of ``k(theta)`` and kink of ``TE_S``/NLTE evaluated on
-        their own side. With moving events (te, or NLTE terms) the table holds
+        their own side. With moving events the table holds
         ``q(phi(s))`` in the simulation angle ``s`` (:attr:`angle_map`, module docstring
         "Derivatives with respect to the design"). Call inside ``jit`` (simulate does) so
         that the table stays a differentiable function of the model data; idempotent.
@@ -806,6 +818,14 @@ class Geared3DModel(eqx.Module):
         m = eqx.tree_at(lambda m: m.table, self, table, is_leaf=lambda x: x is None)
         if amap is not None:
             m = eqx.tree_at(lambda m: m.angle_map, m, amap, is_leaf=lambda x: x is None)
+        if self.table_codes is not None:
+            # the design keeps the discrete structure the table was built with: same
+            # quasi-static state on each side of every mapped knot (else rebuild)
+            at = (jax.vmap(amap)(self.table_knots)[0] if amap is not None
+                  else self.table_knots) + self.table_side * delta
+            codes = jax.vmap(lambda t: _state_code(self, t, True))(at)
+            m = eqx.tree_at(lambda m: m.structure_ok, m, jnp.all(codes == self.table_codes),
+                            is_leaf=lambda x: x is None)
         return m
 
     # ------------------------------------------------------------------ moving events
@@ -1172,6 +1192,26 @@ def _disc_mass(structure, node, M_all) -> float:
     return float(M_all[6 * node + 1, 6 * node + 1])
 
 
+def _state_code(model: Geared3DModel, t, kinks: bool):
+    """Discrete state at one angle ``t`` (traceable in the design): cells inside the path
+    of contact, the cell realising NLTE, with ``kinks`` the cells in the pinion / gear tip
+    relief zones (Fig. 4), and (te, perturbation) the quasi-statically loaded cells."""
+    mesh, mods = model.mesh, model.mods
+    cells, _, _ = contact_gaps(mesh, mods, t)
+    r = mesh.removed_material(mods, cells, t)
+    arg = jnp.argmin(jnp.where(cells.inside, r, jnp.inf))
+    parts = [cells.inside.astype(jnp.int32), arg[None].astype(jnp.int32)]
+    if kinks:
+        xi_a, xi_e = mesh.pair.contact_limits_m
+        ext = mods.relief_extent * mesh.pair.path_of_contact_m
+        parts.append((cells.inside & (cells.xi_m > xi_e - ext[0])).astype(jnp.int32))
+        parts.append((cells.inside & (cells.xi_m < xi_a + ext[1])).astype(jnp.int32))
+    if model.formulation != "reference":
+        q = model.quasi_static(t)
+        parts.append((q.cell_load_N > 0).astype(jnp.int32))
+    return jnp.concatenate(parts)
+
+
 def _jump_brackets(model: Geared3DModel, theta, kinks: bool = False, codes: bool = False):
     """Brackets ``(lo, hi)`` (adjacent floats) of the angles where the right-hand side
     jumps or kinks independently of speed: cell engagement/exit, quasi-static active-set
@@ -1182,25 +1222,9 @@ def _jump_brackets(model: Geared3DModel, theta, kinks: bool = False, codes: bool
     also the discrete states at ``lo`` and ``hi`` in the layout of
     :func:`gearjax.models.torsional._code` (NLTE cell, loaded, inside, zone bits) for
     :func:`gearjax.models.torsional._event_kinds`."""
-    mesh, mods = model.mesh, model.mods
+    mesh = model.mesh
     period = model.period_rad
-
-    @jax.jit
-    @jax.vmap
-    def code_(t):
-        cells, _, _ = contact_gaps(mesh, mods, t)
-        r = mesh.removed_material(mods, cells, t)
-        arg = jnp.argmin(jnp.where(cells.inside, r, jnp.inf))
-        parts = [cells.inside.astype(jnp.int32), arg[None].astype(jnp.int32)]
-        if kinks:  # relief zones of the pinion tip and of the gear tip (Fig. 4)
-            xi_a, xi_e = mesh.pair.contact_limits_m
-            ext = mods.relief_extent * mesh.pair.path_of_contact_m
-            parts.append((cells.inside & (cells.xi_m > xi_e - ext[0])).astype(jnp.int32))
-            parts.append((cells.inside & (cells.xi_m < xi_a + ext[1])).astype(jnp.int32))
-        if model.formulation != "reference":
-            q = model.quasi_static(t)
-            parts.append((q.cell_load_N > 0).astype(jnp.int32))
-        return jnp.concatenate(parts)
+    code_ = jax.jit(jax.vmap(lambda t: _state_code(model, t, kinks)))
 
     def code(t):  # fixed chunks of 32 angles: a single compilation
         t = np.asarray(t, dtype=float)
