@@ -36,7 +36,10 @@ def _range(text: str, option: str, lo: float, hi: float, integer_n: bool = True)
 def _common(p, add_rig):
     add_rig(p)
     p.add_argument("--model", default="torsional", choices=["torsional", "3d"],
-                   help="dynamic model (torsional only for now)")
+                   help="dynamic model: torsional (sdof, default) or 3d (the rig's 3D model "
+                        "at its periodic steady state by shooting; ~1 min per gradient)")
+    p.add_argument("--max-frequency", type=float, default=3000.0, metavar="HZ",
+                   help="3D model: keep the modes below HZ (default 3000; 0 = all modes)")
     p.add_argument("--objective", default="peak-force", choices=list(_OBJECTIVES),
                    help="peak-force (N), dynamic-factor, dte-ptp (m) over --speeds, or te-ptp / "
                         "te-rms (quasi-static TE_S fluctuation at the rig torque)")
@@ -56,8 +59,9 @@ def _common(p, add_rig):
     p.add_argument("--damping", type=float, default=0.03, help="damping ratio zeta (default 0.03)")
     p.add_argument("--amplitudes", default="2e-6:30e-6:7", metavar="A:B:N",
                    help="map grid of amplitudes (m), default 2e-6:30e-6:7")
-    p.add_argument("--extents", default="0.1:0.8:7", metavar="A:B:N",
-                   help="map grid of extents, default 0.1:0.8:7")
+    p.add_argument("--extents", default=None, metavar="A:B:N",
+                   help="map grid of extents, default 0.1:E:7 with E the upper extent bound "
+                        "(0.786 for a linear relief on the spur rig, 0.8 otherwise)")
     p.add_argument("--out", default="design_out", help="output directory (figures, JSON)")
 
 
@@ -83,14 +87,12 @@ def _setup(args, separate=False):
     from .mesh import Mesh
     from .rigs import get_rig
 
-    if args.model != "torsional":
-        raise _Bad(f"--model={args.model!r}: tip-relief design runs on the torsional model only "
-                   "for now (the 3D model has no design gradients yet)")
     if not (0.0 <= args.damping < 1.0):
         raise _Bad(f"--damping={args.damping!r}: must lie in [0, 1)")
     speeds = _range(args.speeds, "--speeds", 1e-6, 1e6)
     amps = _range(args.amplitudes, "--amplitudes", 0.0, 40e-6)
-    exts = _range(args.extents, "--extents", 0.02, 0.98)
+    if not (math.isfinite(args.max_frequency) and args.max_frequency >= 0):
+        raise _Bad(f"--max-frequency={args.max_frequency!r}: need a cut-off >= 0 Hz (0: all modes)")
     rig = get_rig(args.rig)
     mesh = Mesh.build(rig.pair, args.stiffness)
     space = ReliefSpace(shape=args.shape, shared=not separate)
@@ -105,9 +107,18 @@ def _setup(args, separate=False):
     kw = {}
     if args.objective in ("peak-force", "dynamic-factor", "dte-ptp"):
         kw = dict(formulation=args.formulation, damping_ratio=args.damping,
-                  inertias_kg_m2=inertias, nlte_reaction=args.nlte_reaction)
+                  model=args.model)
+        if args.model == "3d":
+            kw.update(rig=rig, max_frequency_hz=args.max_frequency or None)
+        else:
+            kw.update(inertias_kg_m2=inertias, nlte_reaction=args.nlte_reaction)
+    elif args.model == "3d":
+        kw = dict(model="3d", rig=rig)
     obj = make_objective(args.objective, mesh, space, speeds_rad_s=speeds,
                          torques_Nm=rig.pinion_torque_Nm, **kw)
+    top = float(obj.space.upper[-1])
+    exts = (np.linspace(0.1, min(0.8, top), 7) if args.extents is None
+            else _range(args.extents, "--extents", float(obj.space.lower[-1]), top))
     return rig, obj, amps, exts
 
 

@@ -12,7 +12,8 @@ Objectives (:data:`OBJECTIVES`)
   mesh period, at one or several pinion torques (several: RMS over the loads for te-rms,
   smooth maximum over the loads for te-ptp).
 * ``"peak-force"``: the largest dynamic mesh force F_D (N, Eq. (22)/(24)) over a range of
-  pinion speeds, from the sdof torsional model (Eqs. (16), (20), (47a)) at steady state.
+  pinion speeds, from the sdof torsional model (Eqs. (16), (20), (47a)) or the 3D model
+  (Eqs. (14), (42), (48a); section "3D model" below) at steady state.
 * ``"dynamic-factor"``: the same divided by the static force F_S (Eq. (23)).
 * ``"dte-ptp"``: the largest peak-to-peak dynamic transmission error (m) over the speeds.
 
@@ -81,12 +82,28 @@ non-smooth in the design; the optimum is checked against it by forward sweeps
 
 3D model
 --------
-The objectives above use the sdof model. The 3D model's design derivatives are exact in
-the te formulation and in the perturbation formulation (k_m held at its build value): its events (jumps of ``k(theta)``, of NLTE', relief
-starts) follow the design through the same angle map (:mod:`gearjax.models.geared3d`,
-"Derivatives with respect to the design"); ``tests/test_design.py`` checks jacfwd of the
-peak mesh force and DTE peak-to-peak against central differences at the periodic steady
-state. :class:`DynamicObjective` and ``gearjax optimise`` do not drive the 3D model yet.
+``DynamicObjective(..., model="3d", rig=rig)`` drives the 3D model of a rig (Eqs. (14),
+(42), (48a), modes below ``max_frequency_hz``, default 3 kHz) at its periodic steady state
+by shooting (:func:`gearjax.steady.steady_state`: no transient, whose 61.8 rad/s
+shaft-line mode would leave a residue larger than the design's effect). Its events (jumps
+of ``k(theta)``, of NLTE', kinks of TE_S at the relief starts) follow the design through
+the same angle map (:mod:`gearjax.models.geared3d`, "Derivatives with respect to the
+design"), and ``prepare`` checks the discrete structure as the torsional model does
+(rebuild when it changes). Exact derivatives in the te formulation; the perturbation
+formulation holds its splitting constant ``k_m`` at the build design (the objective
+jumps by a little when a rebuild changes it). Measured (spur, short relief, 300 and 500
+rad/s, zeta 0.1, tight shooting tolerances): jacfwd against central differences of the
+same objective 1e-5 (te) and 4e-6 (perturbation) for the peak force, dynamic factor and
+DTE peak-to-peak; one value-and-gradient ~30-50 s on 2 loaded cores
+(``tests/test_design.py``).
+
+Bounds of linear reliefs
+------------------------
+The dynamic models refuse equal-slope linear reliefs whose flat overlap band exceeds a
+base pitch (spur) or is not empty (helical) (:meth:`ToothModifications.check_against`):
+dynamic objectives lower the extent bound of a linear :class:`ReliefSpace` below that
+limit (:meth:`ReliefSpace.for_dynamics`: 0.786 for the Table 1 spur pair, 0.495 for the
+helical pair), so that no optimiser step or map point reaches a refused design.
 """
 
 from __future__ import annotations
@@ -103,7 +120,7 @@ import numpy as np
 import optax
 
 from .mesh import Mesh
-from .modifications import ToothModifications
+from .modifications import ToothModifications, max_equal_slope_extent
 from .quasistatic import quasi_static, static_mesh_force
 
 __all__ = [
@@ -131,6 +148,7 @@ __all__ = [
 
 OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
 DYNAMIC_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp")
+DESIGN_MODELS = ("torsional", "3d")
 DEFAULT_SHARPNESS = 200.0
 DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (module docstring)
 
@@ -241,6 +259,24 @@ class ReliefSpace:
             amp, ext = x[0:2], x[2:4]
         return ToothModifications(amp, ext, self.shape)
 
+    def for_dynamics(self, pair, margin: float = 0.005) -> "ReliefSpace":
+        """This space with the upper extent bound lowered to ``margin`` below
+        :func:`gearjax.modifications.max_equal_slope_extent` for linear reliefs: beyond it
+        the same relief on both gears has a flat band the dynamic models refuse (0.7906
+        for the Table 1 spur pair, 0.5 for a helical pair; with separate reliefs each
+        extent below it keeps ``L_c1 + L_c2 - 1`` below the limit for equal slopes)."""
+        if self.shape != "linear":
+            return self
+        cap = max_equal_slope_extent(pair) - margin
+        lo, hi = self.extent_bounds
+        if hi <= cap:
+            return self
+        if lo >= cap:
+            raise DesignError("extent_bounds", self.extent_bounds,
+                              f"the dynamic models need linear relief extents below {cap:.4g} "
+                              "for this pair (equal-slope reliefs overlapping on a flat band)")
+        return dataclasses.replace(self, extent_bounds=(lo, cap))
+
     def from_unconstrained(self, u):
         """``x = lo + (hi - lo) sigmoid(u)`` (traceable)."""
         lo, hi = self._bounds()
@@ -299,12 +335,22 @@ class QuasiStaticObjective:
     sharpness : beta of the smooth maxima (module docstring); scale = mean static mesh
         deflection F_S / (k_m cos b_b) at the first torque, k_m the mean geometric
         mesh stiffness.
+    model : ``"torsional"`` (default: TE_S of the rigid-body mesh, Eq. (17)) or ``"3d"``
+        (TE_S = W^T X_S + NLTE of the 3D quasi-static solution of ``rig``, Eqs. (10),
+        (25): shaft and bearing deflections included, the load applied at the rig's
+        torque node and scaled linearly with the torque).
+    rig : the :class:`gearjax.rigs.Rig` of a 3D objective.
     """
 
     def __init__(self, mesh: Mesh, space: ReliefSpace, torques_Nm=254.8, kind: str = "te-rms",
-                 n_positions: int = 256, sharpness: float = DEFAULT_SHARPNESS):
+                 n_positions: int = 256, sharpness: float = DEFAULT_SHARPNESS,
+                 model: str = "torsional", rig=None):
         if kind not in ("te-ptp", "te-rms"):
             raise DesignError("objective", kind, "quasi-static objectives are 'te-ptp', 'te-rms'")
+        if model not in DESIGN_MODELS:
+            raise DesignError("model", model, f"must be one of {DESIGN_MODELS}")
+        if model == "3d" and rig is None:
+            raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.get_rig)")
         torques = np.atleast_1d(np.asarray(torques_Nm, dtype=float))
         if torques.ndim != 1 or not np.all(np.isfinite(torques)) or np.any(torques <= 0):
             raise DesignError("torques_Nm", torques.tolist(), "need finite torques > 0 (N m)")
@@ -317,6 +363,14 @@ class QuasiStaticObjective:
         self.sharpness = float(sharpness)
         cos_bb = math.cos(mesh.pair.base_helix_angle_rad)
         self.scale_m = float(self.forces_N[0] / (float(mesh.mean_stiffness()) * cos_bb))
+        self.model_type, self.model3d = model, None
+        if model == "3d":
+            from .models.geared3d import Geared3DModel
+
+            self.model3d = Geared3DModel.build(
+                rig.structure(), mesh, None, torque_node=rig.torque_node,
+                encoder_nodes=rig.encoder_nodes(1), pinion_torque_Nm=float(torques[0]),
+                formulation="reference", max_frequency_hz=1000.0)  # quasi-static: no modes used
         self._value = eqx.filter_jit(self._values)
         self._vjac = eqx.filter_jit(_value_and_jac(self._values))
         self._grid = eqx.filter_jit(jax.vmap(self._values))
@@ -326,7 +380,15 @@ class QuasiStaticObjective:
         beta, s = self.sharpness, self.scale_m
 
         def per_load(f):
-            te = quasi_static(self.mesh, mods, self.theta, f).te_s_m
+            if self.model3d is None:
+                te = quasi_static(self.mesh, mods, self.theta, f).te_s_m
+            else:  # the 3D static load is linear in the torque (F_0 at the torque node)
+                m, r = self.model3d, f / self.forces_N[0]
+                m = eqx.tree_at(lambda m: (m.mods, m.cond.f_c, m.cond.c_w, m.cond.x0_local,
+                                           m.pinion_torque_Nm),
+                                m, (mods, m.cond.f_c * r, m.cond.c_w * r, m.cond.x0_local * r,
+                                    m.pinion_torque_Nm * r))
+                te = jax.vmap(lambda t: m.quasi_static(t).te_s_m)(jnp.asarray(self.theta))
             if self.kind == "te-rms":
                 v = jnp.sqrt(jnp.mean((te - jnp.mean(te)) ** 2))
                 return v, v
@@ -354,45 +416,80 @@ class QuasiStaticObjective:
 
 # ---------------------------------------------------------------------------- dynamic
 class DynamicObjective:
-    """Dynamic objective over a speed range with the sdof torsional model.
+    """Dynamic objective over a speed range, sdof torsional or 3D model.
 
     Parameters
     ----------
     mesh : the mesh.
-    space : the :class:`ReliefSpace`.
+    space : the :class:`ReliefSpace`; linear reliefs get their extent bound lowered below
+        the pair's equal-slope limit (:meth:`ReliefSpace.for_dynamics`), see :attr:`space`.
     speeds_rad_s : pinion speeds Omega1 (rad/s) over which the maximum is taken.
     kind : ``"peak-force"`` (N), ``"dynamic-factor"`` or ``"dte-ptp"`` (m).
-    formulation : ``"perturbation"`` (Eq. (47a), default), ``"te"`` (Eq. (20)) or
-        ``"reference"`` (Eq. (16)); see the module docstring, "Formulation".
+    model : ``"torsional"`` (default; Eqs. (16), (20), (47a)) or ``"3d"`` (the 3D model of
+        ``rig``, Eqs. (14), (42), (48a), reduced to the modes below ``max_frequency_hz``).
+    rig : the :class:`gearjax.rigs.Rig` of a 3D objective (structure, torque node,
+        encoder position 1).
+    formulation : ``"perturbation"`` (Eq. (47a) / (48a), default), ``"te"`` (Eq. (20) /
+        (42)) or ``"reference"`` (Eq. (16) / (14)); see the module docstring,
+        "Formulation". The 3D perturbation formulation holds its splitting constant k_m
+        at the build design (module docstring, "3D model").
     pinion_torque_Nm, inertias_kg_m2, damping_ratio : model data (defaults: 254.8 N m,
-        :data:`DESIGN_INERTIAS` (the gear bodies), 0.03).
-    nlte_reaction : ``"drive"`` (default) or ``"pinion"`` (module docstring, "Inertias").
+        :data:`DESIGN_INERTIAS` (the gear bodies, sdof only), 0.03).
+    nlte_reaction : ``"drive"`` (default) or ``"pinion"`` (module docstring, "Inertias";
+        sdof only).
+    max_frequency_hz : modal cut-off of the 3D model (Hz), default 3000 (None: all modes).
+    method : ``"transient"`` (:func:`gearjax.simulate.simulate`, transient then measured
+        periods; default for the sdof model) or ``"steady"`` (periodic steady state by
+        shooting, :func:`gearjax.steady.steady_state`; default for the 3D model, whose
+        slow shaft-line modes would need long transients).
     sharpness : beta of the smooth maximum over speeds (module docstring).
     n_table : table knots per mesh period of the model.
-    sim_kwargs : options of :func:`gearjax.simulate.simulate` (static).
+    sim_kwargs : options of :func:`gearjax.simulate.simulate` (or of
+        :func:`gearjax.steady.steady_state`) (static).
     adjoint : diffrax adjoint for the gradient (default ``diffrax.ForwardMode()`` with
-        ``jax.jacfwd``; a ``RecursiveCheckpointAdjoint`` uses ``jax.jacrev``).
+        ``jax.jacfwd``; a ``RecursiveCheckpointAdjoint`` uses ``jax.jacrev``, transient
+        method only: the shooting is forward mode).
     """
 
     def __init__(self, mesh: Mesh, space: ReliefSpace, speeds_rad_s, kind: str = "peak-force", *,
+                 model: str = "torsional", rig=None,
                  formulation: str = "perturbation", pinion_torque_Nm: float = 254.8,
                  inertias_kg_m2=DESIGN_INERTIAS, damping_ratio: float = 0.03,
-                 nlte_reaction: str = "drive",
+                 nlte_reaction: str = "drive", max_frequency_hz: float | None = 3000.0,
+                 method: str | None = None,
                  sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
                  sim_kwargs: dict | None = None, adjoint=None):
         if kind not in DYNAMIC_OBJECTIVES:
             raise DesignError("objective", kind, f"dynamic objectives are {DYNAMIC_OBJECTIVES}")
+        if model not in DESIGN_MODELS:
+            raise DesignError("model", model, f"must be one of {DESIGN_MODELS}")
+        if model == "3d" and rig is None:
+            raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.get_rig)")
+        method = ("steady" if model == "3d" else "transient") if method is None else method
+        if method not in ("transient", "steady"):
+            raise DesignError("method", method, "must be 'transient' or 'steady'")
+        if method == "steady" and isinstance(adjoint, diffrax.RecursiveCheckpointAdjoint):
+            raise DesignError("adjoint", type(adjoint).__name__,
+                              "the steady (shooting) method differentiates in forward mode only")
         speeds = np.atleast_1d(np.asarray(speeds_rad_s, dtype=float))
         if speeds.ndim != 1 or not np.all(np.isfinite(speeds)) or np.any(speeds <= 0):
             raise DesignError("speeds_rad_s", speeds.tolist(), "need finite pinion speeds > 0 (rad/s)")
+        space = space.for_dynamics(mesh.pair)
         self.mesh, self.space, self.kind = mesh, space, kind
         self.speeds = speeds
         self.formulation = formulation
-        self.model_kwargs = dict(pinion_torque_Nm=float(pinion_torque_Nm),
-                                 inertias_kg_m2=design_inertias(mesh, inertias_kg_m2),
-                                 damping_ratio=float(damping_ratio), formulation=formulation,
-                                 nlte_reaction=nlte_reaction,
-                                 n_table=int(n_table))
+        self.model_type, self.rig, self.method = model, rig, method
+        if model == "torsional":
+            self.model_kwargs = dict(pinion_torque_Nm=float(pinion_torque_Nm),
+                                     inertias_kg_m2=design_inertias(mesh, inertias_kg_m2),
+                                     damping_ratio=float(damping_ratio), formulation=formulation,
+                                     nlte_reaction=nlte_reaction, n_table=int(n_table))
+        else:
+            self.model_kwargs = dict(pinion_torque_Nm=float(pinion_torque_Nm),
+                                     damping_ratio=float(damping_ratio), formulation=formulation,
+                                     max_frequency_hz=max_frequency_hz, n_table=int(n_table),
+                                     torque_node=rig.torque_node,
+                                     encoder_nodes=rig.encoder_nodes(1))
         self.sharpness = float(sharpness)
         self.sim_kwargs = dict(sim_kwargs or {})
         self.adjoint = diffrax.ForwardMode() if adjoint is None else adjoint
@@ -404,20 +501,29 @@ class DynamicObjective:
         self.n_builds = 0
         self.build_time_s = 0.0
         self._static = (space, tuple(float(v) for v in self._scales()), self.sharpness,
-                        tuple(sorted(self.sim_kwargs.items())))
+                        tuple(sorted(self.sim_kwargs.items())), method)
 
     # model management
     def build(self, x, frozen: bool = False):
-        """A :class:`~gearjax.models.torsional.TorsionalModel` built at design ``x``;
+        """The model (:class:`~gearjax.models.torsional.TorsionalModel` or
+        :class:`~gearjax.models.geared3d.Geared3DModel`) built at design ``x``;
         ``frozen`` drops the angle map (switching angles fixed at ``x``: forward values
         elsewhere are resolved to the table spacing, derivatives miss their motion)."""
-        from .models.torsional import TorsionalModel
-
         t0 = time.perf_counter()
-        m = TorsionalModel.build(self.mesh, self.space.mods(np.asarray(x, dtype=float)),
-                                 **self.model_kwargs)
-        if frozen:
-            m = dataclasses.replace(m, jump_kinds=(0,) * len(m.jump_kinds))
+        mods = self.space.mods(np.asarray(x, dtype=float))
+        if self.model_type == "torsional":
+            from .models.torsional import TorsionalModel
+
+            m = TorsionalModel.build(self.mesh, mods, **self.model_kwargs)
+            if frozen:
+                m = dataclasses.replace(m, jump_kinds=(0,) * len(m.jump_kinds))
+        else:
+            from .models.geared3d import Geared3DModel
+
+            m = Geared3DModel.build(self.rig.structure(), self.mesh, mods, **self.model_kwargs)
+            if frozen:
+                m = dataclasses.replace(m, event_thetas=(), event_kinds=(), event_cells=(),
+                                        table_codes=None)
         self.n_builds += 1
         self.build_time_s += time.perf_counter() - t0
         return m
@@ -482,15 +588,22 @@ def _dyn_values_impl(model, x, speeds, static, adjoint=None):
     """Smooth and exact maxima over ``speeds`` of (max F_D, max F_D / F_S, DTE ptp)."""
     from .simulate import simulate
 
-    space, scales, sharpness, sim_kw = static
+    space, scales, sharpness, sim_kw, method = static
     m = eqx.tree_at(lambda mm: mm.mods, model, space.mods(x)).prepare()
     kw = dict(sim_kw)
-    if adjoint is not None:
-        kw["adjoint"] = adjoint
-    res = jax.vmap(lambda w: simulate(m, w, **kw))(speeds)
+    if method == "steady":
+        from .steady import steady_state
+
+        res = jax.vmap(lambda w: steady_state(m, w, **kw).result)(speeds)
+    else:
+        if adjoint is not None:
+            kw["adjoint"] = adjoint
+        res = jax.vmap(lambda w: simulate(m, w, **kw))(speeds)
     per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])
     sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
-    ok = m.derived.structure_ok & jnp.all(res.solver_ok)
+    derived = getattr(m, "derived", None)
+    structure = derived.structure_ok if derived is not None else m.structure_ok
+    ok = (jnp.asarray(True) if structure is None else structure) & jnp.all(res.solver_ok)
     return sm, (jnp.max(per, axis=1), per, ok)
 
 

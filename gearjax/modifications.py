@@ -265,6 +265,16 @@ class ToothModifications(eqx.Module):
             )
 
 
+def max_equal_slope_extent(pair) -> float:
+    """Largest extent ``L_c`` of the same linear relief on both gears (equal slopes) that
+    the dynamic models accept (:meth:`ToothModifications.check_against`): the flat band
+    ``(2 L_c - 1) g_alpha`` must stay below the transverse base pitch for a spur pair,
+    ``L_c <= (1 + p_b / g_alpha) / 2`` (0.7906 for the Table 1 spur pair), and be empty
+    for a helical one, ``L_c <= 1/2``."""
+    band = pair.base_pitch_m if pair.base_helix_angle_rad == 0.0 else 0.0
+    return 0.5 * (1.0 + band / pair.path_of_contact_m)
+
+
 def table1_relief(kind: str = "short", shape: ReliefShape = "linear") -> ToothModifications:
     """Table 1 tip reliefs: 13.3 um on both gears, extent 0.2 (short) or 0.5 (long)."""
     extents = {"short": 0.2, "long": 0.5}
