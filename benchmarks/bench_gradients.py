@@ -9,7 +9,7 @@ taken with the former rig-line inertias), shared linear relief (2 design variabl
 separate reliefs (4). Each timing is the median of ``--repeat`` runs after the first
 (compiling) call; ratios are to the forward value in the same process.
 
-    python benchmarks/bench_gradients.py [--speeds 8] [--separate] [--repeat 3]
+    python benchmarks/bench_gradients.py [--speeds 8] [--separate] [--repeat 3] [--model 3d]
 
 Measured (te, 4 speeds, 2 variables, this 2-core CPU shared with other jobs): compile
 29 s / 58 s / 104 s and run 0.065 s / 0.34 s (5.2x) / 8.2 s (125x) for the forward value,
@@ -52,13 +52,19 @@ def main():
     ap.add_argument("--separate", action="store_true")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--no-reverse", action="store_true")
+    ap.add_argument("--model", default="torsional", choices=["torsional", "3d"],
+                    help="3d: the rig's 3D model (modes < 3 kHz, zeta 0.1) at its periodic "
+                         "steady state by shooting, forward mode only")
     args = ap.parse_args()
     rig = get_rig("baud-velex-spur")
     mesh = Mesh.build(rig.pair, "iso6336")
     space = ReliefSpace(shared=not args.separate)
     speeds = np.linspace(330.0, 480.0, args.speeds)
     x = np.array([13.3e-6, 0.35]) if space.shared else np.array([13.3e-6, 12e-6, 0.35, 0.4])
-    fwd = DynamicObjective(mesh, space, speeds, "peak-force")
+    kw = dict(model="3d", rig=rig, damping_ratio=0.1) if args.model == "3d" else {}
+    if args.model == "3d":
+        args.no_reverse = True  # the shooting (steady method) is forward mode only
+    fwd = DynamicObjective(mesh, space, speeds, "peak-force", **kw)
     fwd.model = fwd.build(x)
     rows = []
     c, r, ev = _time(lambda: fwd(x, grad=False).smooth, args.repeat)
@@ -72,7 +78,7 @@ def main():
         c, r, ev_r = _time(lambda: rev(x, grad=True).grad, args.repeat)
         rows.append(("jacrev + RecursiveCheckpointAdjoint", c, r, ev_r))
     base = rows[0][2]
-    print(f"# {rig.name}, {fwd.formulation}, {args.speeds} speeds 330-480 rad/s, {space.size} design variables, "
+    print(f"# {rig.name}, {args.model} {fwd.method}, {fwd.formulation}, {args.speeds} speeds 330-480 rad/s, {space.size} design variables, "
           f"build {fwd.build_time_s:.2f} s, {jax.device_count()} {jax.devices()[0].platform} device(s)")
     print(f"{'what':40s} {'compile [s]':>12s} {'run [s]':>10s} {'run / forward':>14s}")
     for name, c, r, _ in rows:
