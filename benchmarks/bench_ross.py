@@ -12,60 +12,74 @@ the frequency table below 10 kHz:
 Modes are paired by sorted order, so near 9 kHz, where the default-coefficient modes
 cross, the ``ours(default)`` column pairs some modes with neighbours.
 
-``--geared`` adds issue #7's benchmark 2 (about 3 min), the *geared* rotor in both codes: the pinion and
+``--geared`` adds issue #7's benchmark 2 (about 8 min), the *geared* rotor in both codes: the pinion and
 gear lines coupled by ROSS's own gear mesh (``ross.MultiRotor``, built by
 :func:`gearjax.ross_bridge.ross_geared_rotor`) against the 3D model (perfect spur gears,
 averaged mesh vector V, all 258 dof, zeta 0.1):
 
 * natural frequencies of the coupled system at the mean mesh stiffness k_m (ROSS
   ``run_modal`` against the modes of gearjax's (M, K + k_m V V^T));
-* one speed point: ROSS's Newmark time response (average acceleration, fixed step;
-  ``update_mesh_stiffness=True`` interpolates our k(theta) table at every step) against
-  ``gearjax.simulate`` (reference formulation, default tolerances). What ROSS integrates
-  is the deviation from the static state under the period mean k_bar of k(t), driven by
-  ``-(k(t) - k_bar) c c^T y_s`` (``c`` ROSS's coupling vector, ``y_s`` the static
-  deflection under the motor torque; splitting at k_m instead moved DF by 6e-6):
-  the same equations, started where gearjax's slow modes start (ROSS's Newmark always
-  starts from rest, and from rest the 61.8 rad/s mode needs seconds to decay). ROSS has no
-  modal damping: its ``C`` is replaced by ``M Phi diag(2 zeta omega) Phi^T M`` computed
-  from ROSS's own M and K (zeta 0.1 on every mode, as ours); gyroscopic terms are off in
-  both.
+* one speed point: ``gearjax.simulate`` (reference formulation, default tolerances)
+  against (i) the exact periodic orbit of ROSS's assembled matrices (its modes and mesh
+  participations, :func:`gearjax.ross_bridge.periodic_mesh_force`: shooting, no
+  time-marching error) and (ii) ROSS's Newmark time response (average acceleration,
+  ``update_mesh_stiffness=True`` interpolates our k(theta) table at every step). What ROSS
+  integrates is the deviation from the static state under the period mean k_bar of k(t),
+  driven by ``-(k(t) - k_bar) c c^T y_s`` (``c`` ROSS's coupling vector, ``y_s`` the static
+  deflection under the motor torque), started from rest there (ROSS's Newmark always
+  starts from rest). ROSS has no modal damping: its ``C`` is replaced by ``M Phi diag(2
+  zeta omega) Phi^T M`` computed from ROSS's own M and K (zeta 0.1 on every mode, as ours);
+  gyroscopic terms are off in both.
+* Newmark steps: k(t) jumps twice per mesh period; sampled once per step at uniform steps
+  (``--uniform``, with a uniform 8192-point table) the jump acts at the middle of its step
+  and the scheme is first order with an erratic constant (where the jump falls in the
+  step). By default the steps are aligned on the jumps: ``spp`` uniform steps per mesh
+  period plus a step of 2e-7 periods across each jump, and ROSS's table holds k at
+  exactly those angles, so that Newmark keeps its second order.
 
-Measured 2026-11-22 (2 shared cores, load 2-4; ROSS 2.3): the 102 coupled modes below
-10 kHz agree to 5.5e-9, the static mesh force to 6e-9. 900 rad/s (near the main critical
-speed, zeta 0.1):
+Measured 2026-11-23 (2 shared cores, load 4-5; ROSS 2.3): the 102 coupled modes below
+10 kHz agree to 5.5e-9, their mesh participations to 1e-8, the static mesh force to 6e-9.
+900 rad/s (near the main critical speed, zeta 0.1):
 
-=======================================  =======  =========  ==========  ==========
-run                                      steps    time [s]   DF          Fmin / F_S
-=======================================  =======  =========  ==========  ==========
-gearjax simulate (default, 400 periods)  53 946   13-15      1.684078    0.361922
-gearjax, 1024 samples/period             53 946   12.4       1.684083    0.361206
-gearjax, 1024 samples, rtol 1e-9         109 042  19.0       1.684082    0.361206
-gearjax, 1024 samples, 2000 periods      268 196  34.3       1.684069    0.361203
-ROSS Newmark 128 steps/mesh period       7 680    19.8       1.671926    0.367768
-ROSS Newmark 256                         15 360   38.0       1.679526    0.363438
-ROSS Newmark 512                         30 720   67-69      1.683167    0.361352
-ROSS Newmark 1024                        61 440   139        1.683208    0.361345
-ROSS Newmark 2048                        122 880  240        1.683213    0.361342
-=======================================  =======  =========  ==========  ==========
+==========================================  =======  =========  ==========  ==========
+run                                         steps    time [s]   DF          Fmin / F_S
+==========================================  =======  =========  ==========  ==========
+gearjax simulate (default, 400 periods)     53 946   7-15       1.684078    0.361922
+gearjax, 1024 samples, 2000 periods         268 196  34.3       1.684069    0.361203
+ROSS matrices, exact periodic orbit                  5-12       1.684068    0.360911
+  (the same, 4096 RK4 steps per period)                         1.684070    0.360911
+ROSS Newmark, aligned, 128 /period, 120 P   15 720   50         1.683241    0.360995
+ROSS Newmark, aligned, 256                  31 080   108        1.683915    0.360933
+ROSS Newmark, aligned, 512                  61 800   213        1.684045    0.360917
+==========================================  =======  =========  ==========  ==========
 
-(ROSS: 60 mesh periods from the static state, 1.9-4.8 ms per step -- it reassembles K
-every step; its last two periods move by < 5e-6, but over 180 periods its per-period
-maximum still beats by +-1e-4 (slow modes). gearjax's default 128 samples per mesh period
-miss the force minimum, which sits at a stiffness jump, by 7e-4 F_S.) The mesh stiffness
-jumps (sampled once per step) make ROSS's fixed-step scheme first order at coarse steps;
-it converges in the step to DF 1.68321, 5.2e-4 (relative) below gearjax's 1.68408, which
-is stable to 1.4e-5 under rtol, sampling and transient length. Same k(theta) in both (to
-1e-12), same coupled modes, same static state: the remaining 5e-4 is not explained yet
-(the damping matrices were built the same way but not compared entry by entry). Cost
-for a result within 1e-3 of its own step limit: ROSS 512 steps/period ~68 s against 13 s
-for gearjax's converged point (5x).
+(gearjax's default 128 samples per mesh period miss the force minimum, which sits at a
+stiffness jump, by 1e-3 F_S; the maximum is smooth.) ROSS's Newmark is second order on
+the aligned steps: the same scheme replayed in ROSS's modal coordinates (it reproduces
+ROSS's runs to 1e-8) gives 1.683215 / 1.683890 / 1.684020 / 1.684055 / 1.684065 at 128 /
+256 / 512 / 1024 / 2048 steps per period after 600 periods. From rest, the 643.5 rad/s
+mode (1.4 % of the mesh compliance, decay 64 /s) still beats by 1e-4 after 120 mesh
+periods: +2.6e-5 at 512 here, -1.3e-4 after 60 periods. So gearjax and ROSS's model agree
+to 5e-6 (gearjax's converged DF against the exact orbit of ROSS's matrices).
 
-    python benchmarks/bench_ross.py [--geared [--speed 900] [--steps 128,256,512] [--periods 60]]
+The 5.2e-4 "gap" of the first measurement (2026-11-22; uniform steps, 60 periods, ROSS
+DF 1.671926 / 1.679526 / 1.683167 at 128 / 256 / 512) was ROSS's time discretisation:
+first order at the jumps (uniform steps, 600 periods: 1.683288 / 1.683599 / 1.683741 /
+1.683810 / 1.684026 at 512 / 1024 / 2048 / 4096 / 8192), the 60-period transient (-1.3e-4
+at 512), and the uniform 8192-point table, whose linear ramps move each jump by up to half
+an interval (-2.6e-5: the exact orbit with that table is 1.684026). Its 1024 and 2048 rows
+(1.683208, 1.683213, which made the step look converged at 512) are not reproduced: ROSS
+at 1024 steps, 60 periods gives 1.683472 (re-run 2026-11-23, 275 s). Cost: a ROSS result
+within 1e-3 of the orbit 50 s (128 aligned steps, 120 periods), within 5e-5 213 s, against
+7-15 s for gearjax's converged point (DF to 5e-6).
+
+    python benchmarks/bench_ross.py [--geared [--speed 900] [--steps 128,256,512] [--periods 120] [--uniform]]
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import platform
 import time
 import warnings
@@ -130,7 +144,7 @@ def _geared_rig(shear_coefficient):
     return data, parse_rig(data, source=str(EXAMPLE))
 
 
-def run_geared(speed=900.0, steps_per_period=(128, 256, 512), periods=60, zeta=0.1):
+def run_geared(speed=900.0, steps_per_period=(128, 256, 512), periods=120, zeta=0.1, uniform=False):
     """Issue #7 benchmark 2 (module docstring): coupled natural frequencies and one speed
     point, ROSS Newmark against gearjax.simulate."""
     import jax
@@ -140,7 +154,8 @@ def run_geared(speed=900.0, steps_per_period=(128, 256, 512), periods=60, zeta=0
     import equinox as eqx
     from gearjax import ToothModifications, quasi_static
     from gearjax.models.geared3d import Geared3DModel
-    from gearjax.ross_bridge import ross_geared_rotor, ross_shear_coefficient
+    from gearjax.ross_bridge import (periodic_mesh_force, ross_geared_rotor, ross_mesh_modes,
+                                     ross_shear_coefficient)
     from gearjax.simulate import simulate
 
     kappa = ross_shear_coefficient(0.05, method="cowper")
@@ -182,15 +197,23 @@ def run_geared(speed=900.0, steps_per_period=(128, 256, 512), periods=60, zeta=0
     print(f"{'gearjax simulate':34s} {int(res.n_steps):8d} {times[1]:9.1f} {df_g:10.6f} {fmin_g:10.6f} "
           f"({int(res.transient_periods)} transient periods, converged {bool(res.converged)})")
 
-    # ROSS: Newmark with the time-varying mesh stiffness
-    n_tab = 8192
-    th = np.linspace(0.0, period, n_tab + 1)
-    qs = quasi_static(model.mesh, ToothModifications.none(), jnp.asarray(th), f_s)
-    k_tab = np.asarray(qs.loaded_stiffness_N_per_m)
+    # ROSS's matrices, periodic orbit computed exactly (shooting, no time-marching error)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         mr, dof = ross_geared_rotor(EXAMPLE, k_m, update_mesh_stiffness=True)
-    mr.mesh.theta_range, mr.mesh.stiffness_range, mr.mesh.stiffness = th, k_tab, k_m
+    mr.mesh.stiffness = k_m
+
+    def k_of(theta):
+        qs = quasi_static(model.mesh, ToothModifications.none(), jnp.asarray(theta), f_s)
+        return np.asarray(qs.loaded_stiffness_N_per_m)
+
+    t0 = time.perf_counter()
+    om, v, c, phi = ross_mesh_modes(mr, speed=speed)
+    _, f_orb = periodic_mesh_force(om, v, zeta, k_m, f_s, k_of, model.jump_thetas, period, speed, 1024)
+    print(f"{'ROSS matrices, exact periodic orbit':34s} {'':8s} {time.perf_counter() - t0:9.1f} {f_orb.max():10.6f} "
+          f"{f_orb.min():10.6f} {f_orb.max() - df_g:+11.2e}")
+
+    # ROSS: Newmark with the time-varying mesh stiffness
     M, K = mr.M(), mr.K(speed)
     n = M.shape[0]
     w2, phi = sl.eigh(K, M)
@@ -199,17 +222,24 @@ def run_geared(speed=900.0, steps_per_period=(128, 256, 512), periods=60, zeta=0
     mr.C = lambda frequency=None, **kw: C  # ROSS has no modal damping (see docstring)
     f0 = np.zeros(n)
     f0[dof(int(data["motor_node"]), 5)] = float(model.pinion_torque_Nm)
-    dofs = [*mr.mesh.driving_gear.dof_global_index.values(), *mr.mesh.driven_gear.dof_global_index.values()]
-    lam, U = np.linalg.eigh(mr.coupling_matrix())
-    c = np.zeros(n)
-    c[dofs] = U[:, -1] * np.sqrt(lam[-1])
     zero = np.zeros((n, n))
+    jumps = sorted({float(np.mod(j, period)) for j in model.jump_thetas})
+    jumps = [0.0 if min(j, period - j) < 1e-9 * period else j for j in jumps]
     for spp in steps_per_period:
-        t = np.arange(periods * spp + 1) * (period / speed / spp)
-        k_t = np.interp(np.mod(speed * t, period), th, k_tab)
+        if uniform:  # uniform steps, k interpolated in a uniform 8192-point table
+            th = np.linspace(0.0, period, 8193)
+            k_tab = k_of(th)
+            grid = np.arange(1, spp + 1) * (period / spp)
+        else:  # jump-aligned steps, the table holds k at the step angles (module docstring)
+            grid, th, k_tab = _aligned_grid(jumps, period, spp, k_of)
+        mr.mesh.theta_range, mr.mesh.stiffness_range = th, k_tab
+        theta = np.concatenate([[0.0], (np.arange(periods)[:, None] * period + grid[None, :]).ravel()])
+        t = theta / speed
+        k_t = np.interp(np.mod(theta, period), th, k_tab)
+        n_per = grid.size
         # static state under the period mean k_bar of k(t) as ROSS samples it (zero-mean
         # forcing); the rigid rotation and the seismic nodes (< 1 rad/s) take no static load
-        k_bar = float(np.mean(k_t[:spp]))
+        k_bar = float(np.sum(0.5 * (k_t[:n_per] + k_t[1:n_per + 1]) * np.diff(t[:n_per + 1])) / (period / speed))
         mr.mesh.stiffness = k_bar
         w2s, phis = sl.eigh(mr.K(speed), M)
         mr.mesh.stiffness = k_m
@@ -222,12 +252,35 @@ def run_geared(speed=900.0, steps_per_period=(128, 256, 512), periods=60, zeta=0
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             t0 = time.perf_counter()
-            _, z, _ = mr.time_response(np.full(t.shape, speed), F, t, method="newmark", G=zero, Ksdt=zero)
+            with contextlib.redirect_stdout(io.StringIO()):  # ROSS's progress prints
+                _, z, _ = mr.time_response(np.full(t.shape, speed), F, t, method="newmark", G=zero, Ksdt=zero)
             t_r = time.perf_counter() - t0
         fm = k_t * (c @ (y_s[:, None] + z.T)) / f_s
-        last, prev = fm[-2 * spp:], fm[-4 * spp:-2 * spp]
+        last = fm[-2 * n_per:]
+        # the slowest damped modes (61.8 and 643.5 rad/s) beat over ~36 mesh periods: spread
+        # of the per-period maxima over the last 36 periods
+        tail = fm[1:][-min(36, periods // 2) * n_per:].reshape(-1, n_per).max(axis=1)
         print(f"{f'ROSS Newmark, {spp}/mesh period':34s} {t.size - 1:8d} {t_r:9.1f} {last.max():10.6f} "
-              f"{last.min():10.6f} {last.max() - df_g:+11.2e} (last 2 periods moved {abs(last.max() - prev.max()):.0e})")
+              f"{last.min():10.6f} {last.max() - df_g:+11.2e} (per-period max over the last "
+              f"{tail.size} periods spans {np.ptp(tail):.0e})")
+
+
+def _aligned_grid(jumps, period, spp, k_of, eps=1e-7):
+    """One mesh period of step angles (``spp`` uniform ones, each jump of k straddled by two
+    angles ``+-eps * period`` apart, one step of ~0 length across it) and ROSS's stiffness
+    table ``(theta_range, stiffness_range)`` holding k at exactly those angles (0 and the
+    period carry the one-sided values)."""
+    u = np.arange(spp + 1) * (period / spp)
+    extra = []
+    for j in jumps:
+        for ref in ((j,) if j > 0 else (0.0, period)):
+            u = u[np.abs(u - ref) > 2 * eps * period]
+        extra += [j - eps * period, j + eps * period] if j > 0 else [eps * period, period - eps * period]
+    grid = np.sort(np.concatenate([u, extra]))
+    grid = grid[(grid > 0) & (grid < period)]
+    th = np.concatenate([[0.0], grid, [period]])
+    k = k_of(np.concatenate([[1e-12 * period], grid, [period * (1 - 1e-12)]]))
+    return grid, th, k
 
 
 def main():
@@ -237,12 +290,15 @@ def main():
     ap.add_argument("--geared", action="store_true", help="add the geared-rotor section (minutes)")
     ap.add_argument("--speed", type=float, default=900.0)
     ap.add_argument("--steps", default="128,256,512", help="Newmark steps per mesh period")
-    ap.add_argument("--periods", type=int, default=60, help="mesh periods integrated by ROSS")
+    ap.add_argument("--periods", type=int, default=120, help="mesh periods integrated by ROSS")
+    ap.add_argument("--uniform", action="store_true",
+                    help="uniform Newmark steps and a uniform k table (first order at the jumps)")
     args = ap.parse_args()
     structure_only()
     if args.geared:
         print()
-        run_geared(args.speed, tuple(int(x) for x in args.steps.split(",")), args.periods)
+        run_geared(args.speed, tuple(int(x) for x in args.steps.split(",")), args.periods,
+                   uniform=args.uniform)
 
 
 def structure_only():
