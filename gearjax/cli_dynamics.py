@@ -20,6 +20,11 @@ Several hosts (or several processes on one host): start the same command on ever
 with ``--distributed`` (cluster auto-detection: SLURM, Open MPI, ...) or with
 ``--coordinator HOST:PORT --num-processes N --process-id I``; the speeds are shared over
 every device of every process and process 0 writes the outputs.
+
+3D modal cut-off: without ``--max-frequency`` the model keeps the modes below 3 mesh
+harmonics of the highest requested speed times 1.5, at least 6 kHz
+(:func:`default_max_frequency_hz`; 16.8 kHz for the default sweep to 900 rad/s, 27.9 kHz
+for the default stability range to 1500 rad/s); ``--max-frequency 0`` keeps all modes.
 """
 
 from __future__ import annotations
@@ -33,10 +38,64 @@ import time
 
 import numpy as np
 
-__all__ = ["register", "build_dynamic_model", "case_name", "summarise_sweep"]
+__all__ = ["register", "build_dynamic_model", "case_name", "summarise_sweep",
+           "default_max_frequency_hz", "modal_cutoff"]
 
 FORMULATIONS = ("reference", "te", "perturbation")
 _SAMPLES_PER_MESH_PERIOD = 128
+# default modal cut-off of the 3D model: 3 mesh harmonics of the highest speed x 1.5
+# (benchmarks/bench_cutoff.py, results/cutoff.md; see default_max_frequency_hz)
+CUTOFF_MESH_HARMONICS = 3
+CUTOFF_MARGIN = 1.5
+CUTOFF_FLOOR_HZ = 6000.0
+
+
+def default_max_frequency_hz(max_speed_rad_s: float, z1: int, *,
+                             n_harmonics: int = CUTOFF_MESH_HARMONICS,
+                             margin: float = CUTOFF_MARGIN,
+                             floor_hz: float = CUTOFF_FLOOR_HZ) -> float:
+    """Modal cut-off (Hz) of the reduced 3D model for pinion speeds up to
+    ``max_speed_rad_s`` (rad/s): ``max(floor_hz, margin * n_harmonics * f_m)`` with the
+    mesh frequency of the highest speed ``f_m = z1 Omega_max / (2 pi)`` (Hz, ``z1`` pinion
+    teeth).
+
+    The reduced model keeps the modes of ``(M, K_bar)`` below the cut-off plus static
+    corrections (the static mesh response, ``X_0``, ``X_S`` and ``C_v`` of Eqs. (33)-(36),
+    stays exact), so a dropped mode at ``f_j`` only loses its dynamic amplification at
+    the mesh harmonics ``h f_m``; the margin keeps the modes just above the highest
+    harmonic of interest, which that harmonic excites nearly resonantly.
+
+    Measured (``benchmarks/bench_cutoff.py``, ``benchmarks/results/cutoff.md``: spur rig,
+    te Eq. (42), short relief, zeta 0.1, steady state by shooting, against all 258 modes):
+    with the cut-off 3 x 1.5 = 4.5 f_m of the top speed of the range the dynamic factor
+    moves by 3.6e-5 / 1.6e-4 / 6.3e-6 and the DTE peak-to-peak by 5.9e-4 / 1.1e-4 / 3e-7
+    at 300 / 860 / 1500 rad/s; 3 or 4 f_m without margin move K_v by up to 1.9e-3 / 3.2e-3
+    (300 rad/s: the 4th harmonic just below modes at 5.05-5.14 kHz), the former fixed
+    6 kHz by 7.5e-4 / 1.7e-3 / 4.4e-3. The error is not monotone in the cut-off at low
+    speed (300 rad/s: 4.5 f_m 3.6e-5, 6 kHz = 4.8 f_m 7.5e-4): high mesh harmonics reach
+    the modes above it. Lower speeds of a range see more harmonics below the cut-off
+    (300 rad/s with the 16.8 kHz of the default sweep to 900 rad/s: 4.9e-5).
+    ``floor_hz`` (the former fixed 6 kHz) keeps ranges below 322 rad/s (z1 = 26)
+    unchanged. Cost at 900 rad/s (16.8 kHz: 146 modal coordinates against 91 at 6 kHz):
+    a transient ``sweep`` 4.8 s against 2.8 s per speed, shooting 5.3 s against 2.1 s.
+    """
+    f_mesh_hz = z1 * float(max_speed_rad_s) / (2 * math.pi)
+    return max(float(floor_hz), margin * n_harmonics * f_mesh_hz)
+
+
+def modal_cutoff(args, rig, speeds_rad_s) -> tuple[float | None, str]:
+    """The 3D cut-off (Hz; None: all modes) of a command and where it comes from:
+    ``--max-frequency`` (0: all modes) or, without it, :func:`default_max_frequency_hz` at
+    the highest requested speed."""
+    hz = args.max_frequency
+    if hz is None:
+        w = float(np.max(speeds_rad_s))
+        hz = default_max_frequency_hz(w, rig.pair.z1)
+        return hz, (f"default: max({CUTOFF_FLOOR_HZ:g} Hz, {CUTOFF_MESH_HARMONICS} mesh "
+                    f"harmonics x {CUTOFF_MARGIN:g} at {w:g} rad/s)")
+    if not (math.isfinite(hz) and hz >= 0):
+        raise ValueError(f"--max-frequency={hz!r}: need a cut-off >= 0 Hz (0: all modes)")
+    return (float(hz), "--max-frequency") if hz > 0 else (None, "--max-frequency 0: all modes")
 
 
 def register(sub, add_rig, add_scenario):
@@ -100,9 +159,10 @@ def _add_dynamics(p: argparse.ArgumentParser):
                    help="drop NLTE from the equations: no NLTE', NLTE'' inertial terms and "
                         "TE_S instead of TE_S - NLTE in the forcing of Eqs. (42), (48a) "
                         "(Section 6.3.2, Fig. 10 'with NLTE = 0')")
-    p.add_argument("--max-frequency", type=float, default=6000.0, metavar="HZ",
-                   help="3d: keep the modes below HZ plus static correction (default 6000; "
-                        "0 keeps all 258 dofs' modes)")
+    p.add_argument("--max-frequency", type=float, default=None, metavar="HZ",
+                   help="3d: keep the modes below HZ plus static correction (0: all modes; "
+                        "default: 3 mesh harmonics of the highest speed x 1.5, at least "
+                        "6000 Hz)")
 
 
 def _parse_speeds(text: str) -> np.ndarray:
@@ -287,6 +347,8 @@ def cmd_sweep(args) -> int:
             os.remove(csv_path)
     chunk = args.chunk or max(1, math.ceil(speeds.size / 10))
     nlte = False if args.no_nlte_terms else None
+    cutoff_hz, cutoff_source = (modal_cutoff(args, rig, np.concatenate([speeds, sig_speeds]))
+                                if args.model == "3d" else (None, None))
     summary = {
         "case": case_name(args), "rig": rig.name, "model": args.model,
         "stiffness_law": args.stiffness, "relief": args.relief,
@@ -294,7 +356,7 @@ def cmd_sweep(args) -> int:
         "relief_extent": [float(v) for v in np.asarray(mods.relief_extent)],
         "pitch_errors": bool(args.pitch_errors), "damping": args.damping,
         "nlte_terms": not args.no_nlte_terms, "encoders": args.encoders,
-        "max_frequency_hz": args.max_frequency if args.model == "3d" else None,
+        "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
         "formulations": {},
     }
@@ -305,7 +367,7 @@ def cmd_sweep(args) -> int:
         model = build_dynamic_model(rig, mods, model=args.model, formulation=form,
                                     law=args.stiffness, damping=args.damping,
                                     encoders=args.encoders, nlte_terms=nlte,
-                                    max_frequency_hz=args.max_frequency)
+                                    max_frequency_hz=cutoff_hz)
         t_build = time.perf_counter() - t0
         if "predicted" not in summary:
             summary["predicted"] = predicted_critical_speeds(model)
@@ -404,6 +466,10 @@ def _print_summary(rig, summary, out):
     print(f"  {summary['model']} model, relief {summary['relief']}, damping {summary['damping']}, "
           f"speeds {summary['speeds_rad_s'][0]:.0f}-{summary['speeds_rad_s'][1]:.0f} rad/s "
           f"({summary['speeds_rad_s'][2]})")
+    if summary["model"] == "3d":
+        fc = summary["max_frequency_hz"]
+        print(f"  modes {'below %.0f Hz' % fc if fc else 'all'} ({summary['max_frequency_source']})"
+              f": {summary['n_modes']} modes")
     print(f"  predicted main tooth critical speed {pred['critical_speed_rad_s']:.0f} rad/s (peak of "
           f"the mesh receptance; mode with most mesh energy: {pred['mode_frequency_hz']:.0f} Hz, "
           f"{100 * pred['mesh_energy_share']:.0f} %, i.e. {pred['mode_critical_speed_rad_s']:.0f} rad/s)")
@@ -436,15 +502,17 @@ def cmd_stability(args) -> int:
     mods = rig.modifications(
         args.relief, args.relief_amplitude, args.relief_extent, args.relief_shape, args.pitch_errors
     )
+    cutoff_hz, cutoff_source = modal_cutoff(args, rig, speeds) if args.model == "3d" else (None, None)
     model = build_dynamic_model(rig, mods, model=args.model, formulation=args.formulation,
                                 law=args.stiffness, damping=args.damping, encoders=args.encoders,
                                 nlte_terms=False if args.no_nlte_terms else None,
-                                max_frequency_hz=args.max_frequency)
+                                max_frequency_hz=cutoff_hz)
     t0 = time.perf_counter()
     rho = spectral_radius(model, speeds)
     out = {
         "rig": rig.name, "model": args.model, "formulation": args.formulation,
         "relief": args.relief, "damping": args.damping, "stiffness_law": args.stiffness,
+        "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "wall_time_s": time.perf_counter() - t0,
         "results": [{"speed_rad_s": float(w), "spectral_radius": float(r)} for w, r in zip(speeds, rho)],
         "unstable_speeds_rad_s": [float(w) for w, r in zip(speeds, rho) if r > 1.0],
@@ -454,6 +522,8 @@ def cmd_stability(args) -> int:
         return 0
     print(f"  {rig.description}; {args.model} {args.formulation}, relief {args.relief}, "
           f"damping {args.damping}")
+    if args.model == "3d":
+        print(f"  modes {'below %.0f Hz' % cutoff_hz if cutoff_hz else 'all'} ({cutoff_source})")
     print(f"  {'speed [rad/s]':>14s} {'spectral radius':>16s}")
     for w, r in zip(speeds, rho):
         print(f"  {w:14.1f} {r:16.6f}{'   UNSTABLE (parametric)' if r > 1 else ''}")

@@ -93,6 +93,8 @@ def test_default_case_name_and_out_dir(capsys, tmp_path, monkeypatch):
     (["sweep", "--coordinator", "127.0.0.1:1234"], ["--coordinator", "--num-processes"]),
     (["sweep", "--coordinator", "h:1", "--num-processes", "2", "--process-id", "2"],
      ["--process-id=2", "0..1"]),
+    (["sweep", "--max-frequency", "-1"], ["--max-frequency", ">= 0 Hz"]),
+    (["stability", "--max-frequency", "nan"], ["--max-frequency", ">= 0 Hz"]),
 ])
 def test_dynamics_bad_input(capsys, argv, words):
     assert main(argv) == 2
@@ -128,3 +130,80 @@ def test_stability_finds_the_principal_zone(capsys):
                          f"{0.3 * principal}:{principal}:2", "--json"])
     rho = [r["spectral_radius"] for r in out["results"]]
     assert rho[0] < 1.0 < rho[1]
+
+
+# ---------------------------------------------------------------------- 3D modal cut-off
+@pytest.mark.parametrize("z1, max_speed", [(26, 20.0), (26, 300.0), (26, 900.0), (26, 1500.0),
+                                           (17, 2500.0), (40, 700.0)])
+def test_default_cutoff_covers_the_mesh_harmonics(z1, max_speed):
+    """The default cut-off keeps every mode up to 3 mesh harmonics of the highest speed
+    with a 1.5 margin: the mesh period of a z1-tooth pinion at Omega is (2 pi / z1) / Omega
+    seconds, its h-th harmonic h / T_m Hz; never below the former fixed 6 kHz."""
+    from gearjax.cli_dynamics import default_max_frequency_hz
+
+    t_mesh_s = (2 * math.pi / z1) / max_speed
+    f3 = 3 / t_mesh_s
+    fc = default_max_frequency_hz(max_speed, z1)
+    assert fc >= 1.5 * f3 * (1 - 1e-12) and fc >= 6000.0
+    assert fc == pytest.approx(max(6000.0, 1.5 * f3), rel=1e-12)  # no more than needed
+    # the Baud-Velex pinion: its angular pitch gives the same mesh period
+    if z1 == 26:
+        pitch_rad = baud_velex_pair(False).mesh_period_rad
+        assert pitch_rad / max_speed == pytest.approx(t_mesh_s, rel=1e-12)
+
+
+class _Built(Exception):
+    pass
+
+
+@pytest.mark.parametrize("argv, expected", [
+    # default: 3 x 1.5 mesh harmonics of the highest speed (sweep range, signals included)
+    (["sweep", "--speeds", "20:900:3", "--formulations", "te"], ("rule", 900.0)),
+    (["sweep", "--speeds", "20:900:3", "--formulations", "te", "--signals", "1200"],
+     ("rule", 1200.0)),
+    (["stability", "--speeds", "100:1500:3"], ("rule", 1500.0)),
+    (["sweep", "--speeds", "20:200:3", "--formulations", "te"], ("hz", 6000.0)),  # floor
+    # an explicit cut-off wins, even below the rule; 0 keeps all modes
+    (["sweep", "--speeds", "20:900:3", "--formulations", "te", "--max-frequency", "7000"],
+     ("hz", 7000.0)),
+    (["stability", "--speeds", "100:1500:3", "--max-frequency", "0"], ("hz", None)),
+])
+def test_cli_passes_the_cutoff_to_the_3d_model(monkeypatch, argv, expected):
+    """The cut-off the 3D model is built with (the build is stopped right there)."""
+    import gearjax.cli_dynamics as cd
+
+    seen = {}
+
+    def fake_build(rig, mods, **kw):
+        seen.update(kw)
+        raise _Built
+
+    monkeypatch.setattr(cd, "build_dynamic_model", fake_build)
+    with pytest.raises(_Built):
+        main(argv + ["--model", "3d", "--json"])
+    kind, value = expected
+    if kind == "rule":
+        f_mesh = 26 * value / (2 * math.pi)
+        assert seen["max_frequency_hz"] == pytest.approx(4.5 * f_mesh, rel=1e-12)
+    else:
+        assert seen["max_frequency_hz"] == value
+
+
+@pytest.mark.slow
+def test_3d_sweep_reports_its_cutoff(capsys, tmp_path):
+    """A one-speed 3D sweep (te, 400 rad/s: 4.5 f_m = 7.45 kHz) reports its cut-off in the
+    summary, and keeps exactly the modes of the full model (all 258 modes of (M, K_bar))
+    at or below it. ~1 min on 2 shared cores."""
+    from gearjax.models.geared3d import Geared3DModel
+
+    summary = _json(capsys, ["sweep", "--model", "3d", "--formulations", "te", "--speeds",
+                             "400:400:1", "--out", str(tmp_path), "--json"])
+    fc = summary["max_frequency_hz"]
+    assert fc == pytest.approx(4.5 * 26 * 400 / (2 * math.pi), rel=1e-12)
+    assert summary["max_frequency_source"].startswith("default")
+    full = Geared3DModel.from_rig(get_rig("baud-velex-spur"),
+                                  get_rig("baud-velex-spur").modifications("short"),
+                                  formulation="te", damping_ratio=0.1, max_frequency_hz=None)
+    f_full = np.asarray(full.omega_r) / (2 * math.pi)
+    assert summary["n_modes"] == int(np.sum(f_full <= fc))
+    assert json.load(open(tmp_path / "summary.json"))["max_frequency_hz"] == fc
