@@ -38,8 +38,9 @@ def _common(p, add_rig):
     p.add_argument("--model", default="torsional", choices=["torsional", "3d"],
                    help="dynamic model: torsional (sdof, default) or 3d (the rig's 3D model "
                         "at its periodic steady state by shooting; ~1 min per gradient)")
-    p.add_argument("--max-frequency", type=float, default=3000.0, metavar="HZ",
-                   help="3D model: keep the modes below HZ (default 3000; 0 = all modes)")
+    p.add_argument("--max-frequency", type=float, default=None, metavar="HZ",
+                   help="3D model: keep the modes below HZ (0 = all modes; default: 3 mesh "
+                        "harmonics x 1.5 of the highest speed, at least 6 kHz, as for sweep)")
     p.add_argument("--objective", default="peak-force", choices=list(_OBJECTIVES),
                    help="peak-force (N), dynamic-factor, dte-ptp (m) over --speeds, or te-ptp / "
                         "te-rms (quasi-static TE_S fluctuation at the rig torque)")
@@ -91,7 +92,8 @@ def _setup(args, separate=False):
         raise _Bad(f"--damping={args.damping!r}: must lie in [0, 1)")
     speeds = _range(args.speeds, "--speeds", 1e-6, 1e6)
     amps = _range(args.amplitudes, "--amplitudes", 0.0, 40e-6)
-    if not (math.isfinite(args.max_frequency) and args.max_frequency >= 0):
+    if args.max_frequency is not None and not (math.isfinite(args.max_frequency)
+                                               and args.max_frequency >= 0):
         raise _Bad(f"--max-frequency={args.max_frequency!r}: need a cut-off >= 0 Hz (0: all modes)")
     rig = get_rig(args.rig)
     mesh = Mesh.build(rig.pair, args.stiffness)
@@ -109,7 +111,8 @@ def _setup(args, separate=False):
         kw = dict(formulation=args.formulation, damping_ratio=args.damping,
                   model=args.model)
         if args.model == "3d":
-            kw.update(rig=rig, max_frequency_hz=args.max_frequency or None)
+            kw.update(rig=rig, max_frequency_hz=("auto" if args.max_frequency is None
+                                                 else args.max_frequency or None))
         else:
             kw.update(inertias_kg_m2=inertias, nlte_reaction=args.nlte_reaction)
     elif args.model == "3d":

@@ -83,7 +83,8 @@ non-smooth in the design; the optimum is checked against it by forward sweeps
 3D model
 --------
 ``DynamicObjective(..., model="3d", rig=rig)`` drives the 3D model of a rig (Eqs. (14),
-(42), (48a), modes below ``max_frequency_hz``, default 3 kHz) at its periodic steady state
+(42), (48a), modes below ``max_frequency_hz``, by default 4.5 mesh harmonics of the
+highest speed, at least 6 kHz) at its periodic steady state
 by shooting (:func:`gearjax.steady.steady_state`: no transient, whose 61.8 rad/s
 shaft-line mode would leave a residue larger than the design's effect). Its events (jumps
 of ``k(theta)``, of NLTE', kinks of TE_S at the relief starts) follow the design through
@@ -437,7 +438,10 @@ class DynamicObjective:
         :data:`DESIGN_INERTIAS` (the gear bodies, sdof only), 0.03).
     nlte_reaction : ``"drive"`` (default) or ``"pinion"`` (module docstring, "Inertias";
         sdof only).
-    max_frequency_hz : modal cut-off of the 3D model (Hz), default 3000 (None: all modes).
+    max_frequency_hz : modal cut-off of the 3D model (Hz; None: all modes); default
+        ``"auto"``: :func:`gearjax.models.geared3d.default_max_frequency_hz` of the highest
+        speed (3 mesh harmonics x 1.5, at least 6 kHz: 16.8 kHz up to 900 rad/s on the
+        Baud-Velex rig, whose mesh modes lie at 3.4-3.5 kHz).
     method : ``"transient"`` (:func:`gearjax.simulate.simulate`, transient then measured
         periods; default for the sdof model) or ``"steady"`` (periodic steady state by
         shooting, :func:`gearjax.steady.steady_state`; default for the 3D model, whose
@@ -455,7 +459,7 @@ class DynamicObjective:
                  model: str = "torsional", rig=None,
                  formulation: str = "perturbation", pinion_torque_Nm: float = 254.8,
                  inertias_kg_m2=DESIGN_INERTIAS, damping_ratio: float = 0.03,
-                 nlte_reaction: str = "drive", max_frequency_hz: float | None = 3000.0,
+                 nlte_reaction: str = "drive", max_frequency_hz: float | str | None = "auto",
                  method: str | None = None,
                  sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
                  sim_kwargs: dict | None = None, adjoint=None):
@@ -485,6 +489,10 @@ class DynamicObjective:
                                      damping_ratio=float(damping_ratio), formulation=formulation,
                                      nlte_reaction=nlte_reaction, n_table=int(n_table))
         else:
+            if max_frequency_hz == "auto":
+                from .models.geared3d import default_max_frequency_hz
+
+                max_frequency_hz = default_max_frequency_hz(float(np.max(speeds)), mesh.pair.z1)
             self.model_kwargs = dict(pinion_torque_Nm=float(pinion_torque_Nm),
                                      damping_ratio=float(damping_ratio), formulation=formulation,
                                      max_frequency_hz=max_frequency_hz, n_table=int(n_table),

@@ -189,7 +189,48 @@ __all__ = [
     "QuasiStatic3D",
     "quasi_static_3d",
     "MESH_VECTORS",
+    "default_max_frequency_hz",
 ]
+
+# default modal cut-off of the 3D model: 3 mesh harmonics of the highest speed x 1.5
+# (benchmarks/bench_cutoff.py, results/cutoff.md; see default_max_frequency_hz)
+CUTOFF_MESH_HARMONICS = 3
+CUTOFF_MARGIN = 1.5
+CUTOFF_FLOOR_HZ = 6000.0
+
+
+def default_max_frequency_hz(max_speed_rad_s: float, z1: int, *,
+                             n_harmonics: int = CUTOFF_MESH_HARMONICS,
+                             margin: float = CUTOFF_MARGIN,
+                             floor_hz: float = CUTOFF_FLOOR_HZ) -> float:
+    """Modal cut-off (Hz) of the reduced 3D model for pinion speeds up to
+    ``max_speed_rad_s`` (rad/s): ``max(floor_hz, margin * n_harmonics * f_m)`` with the
+    mesh frequency of the highest speed ``f_m = z1 Omega_max / (2 pi)`` (Hz, ``z1`` pinion
+    teeth).
+
+    The reduced model keeps the modes of ``(M, K_bar)`` below the cut-off plus static
+    corrections (the static mesh response, ``X_0``, ``X_S`` and ``C_v`` of Eqs. (33)-(36),
+    stays exact), so a dropped mode at ``f_j`` only loses its dynamic amplification at
+    the mesh harmonics ``h f_m``; the margin keeps the modes just above the highest
+    harmonic of interest, which that harmonic excites nearly resonantly.
+
+    Measured (``benchmarks/bench_cutoff.py``, ``benchmarks/results/cutoff.md``: spur rig,
+    te Eq. (42), short relief, zeta 0.1, steady state by shooting, against all 258 modes):
+    with the cut-off 3 x 1.5 = 4.5 f_m of the top speed of the range the dynamic factor
+    moves by 3.6e-5 / 1.6e-4 / 6.3e-6 and the DTE peak-to-peak by 5.9e-4 / 1.1e-4 / 3e-7
+    at 300 / 860 / 1500 rad/s; 3 or 4 f_m without margin move K_v by up to 1.9e-3 / 3.2e-3
+    (300 rad/s: the 4th harmonic just below modes at 5.05-5.14 kHz), the former fixed
+    6 kHz by 7.5e-4 / 1.7e-3 / 4.4e-3. The error is not monotone in the cut-off at low
+    speed (300 rad/s: 4.5 f_m 3.6e-5, 6 kHz = 4.8 f_m 7.5e-4): high mesh harmonics reach
+    the modes above it. Lower speeds of a range see more harmonics below the cut-off
+    (300 rad/s with the 16.8 kHz of the default sweep to 900 rad/s: 4.9e-5).
+    ``floor_hz`` (the former fixed 6 kHz) keeps ranges below 322 rad/s (z1 = 26)
+    unchanged. Cost at 900 rad/s (16.8 kHz: 146 modal coordinates against 91 at 6 kHz):
+    a transient ``sweep`` 4.8 s against 2.8 s per speed, shooting 5.3 s against 2.1 s.
+    """
+    f_mesh_hz = z1 * float(max_speed_rad_s) / (2 * math.pi)
+    return max(float(floor_hz), margin * n_harmonics * f_mesh_hz)
+
 
 FORMULATIONS = ("reference", "te", "perturbation")
 MESH_VECTORS = ("cells", "mean")
