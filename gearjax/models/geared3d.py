@@ -729,15 +729,14 @@ class Geared3DModel(eqx.Module):
             # events of the table move with the design (module docstring)
             model = dataclasses.replace(model, **_moving_events(lo_u, hi_u, *codes,
                                                                 mesh.n_cells, period))
-            kinds, cells = check_event_roots(model._switch_function, model.event_thetas,
+            kinds, cells = check_event_roots(_bare(model)._switch_function, model.event_thetas,
                                              model.event_kinds, model.event_cells,
                                              mesh.pair.mesh_period_rad)
             model = dataclasses.replace(model, event_kinds=tuple(int(k) for k in kinds),
                                         event_cells=tuple((int(a), int(b)) for a, b in cells))
             if model.event_thetas:  # discrete state on each knot's side (prepare checks it)
                 at = jnp.asarray(knots + side * (1e-9 * period))
-                model = dataclasses.replace(model, table_codes=jax.jit(jax.vmap(
-                    lambda t: _state_code(model, t, True)))(at))
+                model = dataclasses.replace(model, table_codes=_state_codes(_bare(model), at, True))
         return model
 
     @classmethod
@@ -1253,6 +1252,22 @@ def _state_code(model: Geared3DModel, t, kinks: bool):
     return jnp.concatenate(parts)
 
 
+def _bare(model: Geared3DModel) -> Geared3DModel:
+    """``model`` without its design-dependent static fields and tables (jump and event
+    angles, table layout): what the build-time quasi-static scans need, so that their
+    compiled functions are reused by every build of the same model shape."""
+    return dataclasses.replace(model, jump_thetas=(), event_thetas=(), event_kinds=(),
+                               event_cells=(), table_knots=None, table_cell_first=None,
+                               table_side=None, table=None, table_codes=None, angle_map=None,
+                               table_origin=0.0, table_cells=0, table_max_extra=1)
+
+
+@eqx.filter_jit
+def _state_codes(model: Geared3DModel, ts, kinks: bool):
+    """:func:`_state_code` at the angles ``ts`` (vmapped; compiled once per model shape)."""
+    return jax.vmap(lambda t: _state_code(model, t, kinks))(ts)
+
+
 def _jump_brackets(model: Geared3DModel, theta, kinks: bool = False, codes: bool = False):
     """Brackets ``(lo, hi)`` (adjacent floats) of the angles where the right-hand side
     jumps or kinks independently of speed: cell engagement/exit, quasi-static active-set
@@ -1265,7 +1280,10 @@ def _jump_brackets(model: Geared3DModel, theta, kinks: bool = False, codes: bool
     :func:`gearjax.models.torsional._event_kinds`."""
     mesh = model.mesh
     period = model.period_rad
-    code_ = jax.jit(jax.vmap(lambda t: _state_code(model, t, kinks)))
+    bare = _bare(model)
+
+    def code_(t):
+        return _state_codes(bare, t, kinks)
 
     def code(t):  # fixed chunks of 32 angles: a single compilation
         t = np.asarray(t, dtype=float)

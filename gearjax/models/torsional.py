@@ -429,9 +429,10 @@ def check_event_roots(switch, s_j, kinds, cells, mesh_period: float, rtol: float
     idx = [j for j, k in enumerate(kinds) if k != _EV_FIXED]
     if not idx:
         return kinds, cells
-    moved = np.asarray(jax.jit(lambda s, k, c: moved_event_angles(switch, s, k, c, 1))(
-        np.asarray(s_j, dtype=float)[idx], np.asarray([kinds[j] for j in idx]),
-        np.asarray([cells[j] for j in idx])))
+    moved = np.asarray(_one_newton_step(
+        switch, jnp.asarray(np.asarray(s_j, dtype=float)[idx]),
+        jnp.asarray([kinds[j] for j in idx], dtype=jnp.int32),
+        jnp.asarray([cells[j] for j in idx], dtype=jnp.int32)))
     step = np.abs(moved - np.asarray(s_j, dtype=float)[idx])
     bad = [j for j, d in zip(idx, step) if not (d <= rtol * mesh_period)]
     if bad:
@@ -444,6 +445,14 @@ def check_event_roots(switch, s_j, kinds, cells, mesh_period: float, rtol: float
         for j in bad:
             kinds[j], cells[j] = _EV_FIXED, (0, 0)
     return kinds, cells
+
+
+@eqx.filter_jit
+def _one_newton_step(switch, s, kinds, cells):
+    """One Newton step of :func:`moved_event_angles`, compiled once per switching-function
+    structure (``switch`` a pytree: an :class:`equinox.Partial` or a bound method of a
+    model) and number of events, not once per build."""
+    return moved_event_angles(switch, s, kinds, cells, 1)
 
 
 def _sdof_switch(mesh, mods, force, kind, a, b, theta):
@@ -671,7 +680,7 @@ class TorsionalModel(eqx.Module):
                     # coinciding brackets: a geometric (fixed) one pins the angle
                     kinds[j], cells_ab[j] = near[0][0], near[0][1:]
         kinds, cells_ab = check_event_roots(
-            lambda kind, a, b, t: _sdof_switch(mesh, mods, force, kind, a, b, t),
+            eqx.Partial(_sdof_switch, mesh, mods, jnp.asarray(force)),
             jumps, kinds, cells_ab, mesh.pair.mesh_period_rad)
         moving = any(k != _EV_FIXED for k in kinds)
         codes = None
