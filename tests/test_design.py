@@ -319,7 +319,7 @@ def test_3d_dynamic_objective_gradients(formulation):
                            max_frequency_hz=3000.0)
     x = np.array([13.3e-6, 0.2])
     sm, ex, jac = obj.all_metrics(x)
-    assert np.all(sm >= ex) and np.all(np.isfinite(jac))
+    assert np.all(sm >= ex * (1 - 1e-12)) and np.all(np.isfinite(jac))  # upper bound (to round-off)
     fds = []
     for i, h in enumerate([3e-8, 1e-4]):
         d = np.zeros(2)
@@ -352,7 +352,7 @@ def test_dynamic_objective_gradients(mesh_iso, shared):
                            sim_kwargs=dict(rtol=1e-10, atol=1e-12))
     x = np.array([13.3e-6, 0.35]) if shared else np.array([13.3e-6, 12e-6, 0.35, 0.4])
     sm, ex, jac = obj.all_metrics(x)
-    assert np.all(sm >= ex) and np.all(np.isfinite(jac))
+    assert np.all(sm >= ex * (1 - 1e-12)) and np.all(np.isfinite(jac))  # upper bound (to round-off)
 
     def central(i, h):
         d = np.zeros(space.size)
