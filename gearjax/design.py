@@ -368,9 +368,8 @@ class QuasiStaticObjective:
         if model == "3d":
             from .models.geared3d import Geared3DModel
 
-            self.model3d = Geared3DModel.build(
-                rig.structure(), mesh, None, torque_node=rig.torque_node,
-                encoder_nodes=rig.encoder_nodes(1), pinion_torque_Nm=float(torques[0]),
+            self.model3d = Geared3DModel.from_rig(
+                rig, None, mesh=mesh, pinion_torque_Nm=float(torques[0]),
                 formulation="reference", max_frequency_hz=1000.0)  # quasi-static: no modes used
         self._value = eqx.filter_jit(self._values)
         self._vjac = eqx.filter_jit(_value_and_jac(self._values))
@@ -495,9 +494,7 @@ class DynamicObjective:
                 max_frequency_hz = default_max_frequency_hz(float(np.max(speeds)), mesh.pair.z1)
             self.model_kwargs = dict(pinion_torque_Nm=float(pinion_torque_Nm),
                                      damping_ratio=float(damping_ratio), formulation=formulation,
-                                     max_frequency_hz=max_frequency_hz, n_table=int(n_table),
-                                     torque_node=rig.torque_node,
-                                     encoder_nodes=rig.encoder_nodes(1))
+                                     max_frequency_hz=max_frequency_hz, n_table=int(n_table))
         self.sharpness = float(sharpness)
         self.sim_kwargs = dict(sim_kwargs or {})
         self.adjoint = diffrax.ForwardMode() if adjoint is None else adjoint
@@ -528,7 +525,7 @@ class DynamicObjective:
         else:
             from .models.geared3d import Geared3DModel
 
-            m = Geared3DModel.build(self.rig.structure(), self.mesh, mods, **self.model_kwargs)
+            m = Geared3DModel.from_rig(self.rig, mods, mesh=self.mesh, **self.model_kwargs)
             if frozen:
                 m = dataclasses.replace(m, event_thetas=(), event_kinds=(), event_cells=(),
                                         table_codes=None)
@@ -609,9 +606,7 @@ def _dyn_values_impl(model, x, speeds, static, adjoint=None):
         res = jax.vmap(lambda w: simulate(m, w, **kw))(speeds)
     per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])
     sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
-    derived = getattr(m, "derived", None)
-    structure = derived.structure_ok if derived is not None else m.structure_ok
-    ok = (jnp.asarray(True) if structure is None else structure) & jnp.all(res.solver_ok)
+    ok = (jnp.asarray(True) if m.structure_ok is None else m.structure_ok) & jnp.all(res.solver_ok)
     return sm, (jnp.max(per, axis=1), per, ok)
 
 

@@ -769,12 +769,15 @@ class Geared3DModel(eqx.Module):
         law: str = "iso6336",
         cells_per_line: int | None = None,
         encoder_position: int = 1,
+        mesh: Mesh | None = None,
         **kwargs,
     ) -> "Geared3DModel":
         """A 3D model of a :class:`gearjax.rigs.Rig` (built-in or rig file): its structure,
-        gear pair, motor node, torque and encoder positions; ``kwargs`` go to
-        :meth:`build`."""
-        mesh = Mesh.build(rig.pair, law, cells_per_line=cells_per_line)
+        gear pair, motor node, torque and encoder positions; ``mesh`` (default: built from
+        the rig's pair with ``law`` and ``cells_per_line``) a ready mesh of that pair;
+        ``kwargs`` go to :meth:`build`."""
+        if mesh is None:
+            mesh = Mesh.build(rig.pair, law, cells_per_line=cells_per_line)
         kwargs.setdefault("torque_node", rig.torque_node)
         kwargs.setdefault("encoder_nodes", rig.encoder_nodes(encoder_position))
         kwargs.setdefault("pinion_torque_Nm", rig.pinion_torque_Nm)

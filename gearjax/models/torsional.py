@@ -851,6 +851,12 @@ class TorsionalModel(eqx.Module):
                      x_ref=x_ref, omega_n=omega_n, kappa=kappa, nlte_dd_coeffs=coeffs)
         return eqx.tree_at(lambda m: m.derived, self, d, is_leaf=lambda x: x is None)
 
+    @property
+    def structure_ok(self):
+        """Traced bool: the design keeps the discrete structure of the build (see
+        :meth:`prepare`); the same attribute as on the 3D model. Requires :meth:`prepare`."""
+        return self._d().structure_ok
+
     def _d(self) -> _Derived:
         if self.derived is None:
             raise RuntimeError("call model.prepare() first (simulate() does it for you)")
