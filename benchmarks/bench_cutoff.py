@@ -2,14 +2,14 @@
 
 Scenario: ``Geared3DModel.baud_velex(False, table1_relief("short"), formulation="te",
 damping_ratio=0.1, max_frequency_hz=f_c)`` (the paper's spur rig of Section 6.1, cell
-structure vectors), steady state by shooting (:func:`gearjax.steady.steady_sweep`, default
+structure vectors), steady state by shooting (:func:`gearjax.dynamics.steady.steady_sweep`, default
 tolerances: exact to ~1e-9, so every difference below is the cut-off's).
 
 Reference: all modes (``max_frequency_hz=None``: the 258 modes of ``(M, K_bar)``, highest
 71 kHz). Cut-offs ``f_c = c f_m`` with the mesh frequency ``f_m = z1 Omega / (2 pi)``
 (Hz, ``z1 = 26``, ``Omega`` the pinion speed in rad/s) and ``c`` in ``--factors`` (mesh
 harmonics, with or without a margin), plus the former fixed 6 kHz and the CLI's default rule
-(:func:`gearjax.cli_dynamics.default_max_frequency_hz`) for speeds up to that speed and,
+(:func:`gearjax.cli.dynamics.default_max_frequency_hz`) for speeds up to that speed and,
 below 900 rad/s, for the default sweep range 20-900 rad/s (cut-offs giving the same modes
 are computed once). The reduced model
 keeps the modes below ``f_c`` plus static-correction pseudo-modes (the static response to
@@ -40,9 +40,9 @@ import time
 import numpy as np
 
 from gearjax import table1_relief
-from gearjax.cli_dynamics import default_max_frequency_hz
+from gearjax.cli.dynamics import default_max_frequency_hz
 from gearjax.models.geared3d import Geared3DModel
-from gearjax.steady import steady_sweep
+from gearjax.dynamics.steady import steady_sweep
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)

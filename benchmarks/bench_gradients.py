@@ -34,8 +34,8 @@ import numpy as np
 
 import gearjax  # noqa: F401  (x64)
 from gearjax.design import DynamicObjective, ReliefSpace
-from gearjax.mesh import Mesh
-from gearjax.rigs import get_rig
+from gearjax.gears.mesh import Mesh
+from gearjax.rigs.registry import get_rig
 
 
 def _time(fn, repeat):

@@ -1,27 +1,27 @@
 """Modal analysis of the Baud-Velex rig structure: gearjax against ROSS (needs gearjax[ross]).
 
 Same shafts, discs, bearings and couplings (``examples/rigs/baud_velex_spur.toml``), no
-mesh, speed 0, undamped; see :mod:`gearjax.ross_bridge` for how the two models are
+mesh, speed 0, undamped; see :mod:`gearjax.rigs.ross_bridge` for how the two models are
 matched. Prints the timings (build and modal analysis separately, median of repeats) and
 the frequency table below 10 kHz:
 
 * ``ours(k_ROSS)``: our structure with ROSS's (Cowper) shear coefficient -> same model;
 * ``ours(default)``: the built-in rig, Hutchinson's shear coefficient (0.925 vs 0.886);
-* ROSS's own ``"hutchinson"`` option (0.712, see :mod:`gearjax.ross_bridge`) is summarised.
+* ROSS's own ``"hutchinson"`` option (0.712, see :mod:`gearjax.rigs.ross_bridge`) is summarised.
 
 Modes are paired by sorted order, so near 9 kHz, where the default-coefficient modes
 cross, the ``ours(default)`` column pairs some modes with neighbours.
 
 ``--geared`` adds issue #7's benchmark 2 (about 8 min), the *geared* rotor in both codes: the pinion and
 gear lines coupled by ROSS's own gear mesh (``ross.MultiRotor``, built by
-:func:`gearjax.ross_bridge.ross_geared_rotor`) against the 3D model (perfect spur gears,
+:func:`gearjax.rigs.ross_bridge.ross_geared_rotor`) against the 3D model (perfect spur gears,
 averaged mesh vector V, all 258 dof, zeta 0.1):
 
 * natural frequencies of the coupled system at the mean mesh stiffness k_m (ROSS
   ``run_modal`` against the modes of gearjax's (M, K + k_m V V^T));
-* one speed point: ``gearjax.simulate`` (reference formulation, default tolerances)
+* one speed point: ``gearjax.dynamics.simulate`` (reference formulation, default tolerances)
   against (i) the exact periodic orbit of ROSS's assembled matrices (its modes and mesh
-  participations, :func:`gearjax.ross_bridge.periodic_mesh_force`: shooting, no
+  participations, :func:`gearjax.rigs.ross_bridge.periodic_mesh_force`: shooting, no
   time-marching error) and (ii) ROSS's Newmark time response (average acceleration,
   ``update_mesh_stiffness=True`` interpolates our k(theta) table at every step). What ROSS
   integrates is the deviation from the static state under the period mean k_bar of k(t),
@@ -101,7 +101,7 @@ def _median(xs):
 
 
 def run_ours(shear_coefficient=None, repeats=5):
-    from gearjax.rigfile import parse_rig
+    from gearjax.rigs.rigfile import parse_rig
     from gearjax.structure import modal_basis
 
     data = tomllib.loads(EXAMPLE.read_text())
@@ -121,7 +121,7 @@ def run_ours(shear_coefficient=None, repeats=5):
 
 
 def run_ross(method="cowper", repeats=3):
-    from gearjax.ross_bridge import ross_natural_frequencies_hz, ross_rotors
+    from gearjax.rigs.ross_bridge import ross_natural_frequencies_hz, ross_rotors
 
     t_build, t_modal = [], []
     for _ in range(repeats):  # fresh rotors each time: ROSS caches run_modal per rotor
@@ -136,7 +136,7 @@ def run_ross(method="cowper", repeats=3):
 
 
 def _geared_rig(shear_coefficient):
-    from gearjax.rigfile import parse_rig
+    from gearjax.rigs.rigfile import parse_rig
 
     data = tomllib.loads(EXAMPLE.read_text())
     for shaft in data["shaft"]:
@@ -146,7 +146,7 @@ def _geared_rig(shear_coefficient):
 
 def run_geared(speed=900.0, steps_per_period=(128, 256, 512), periods=120, zeta=0.1, uniform=False):
     """Issue #7 benchmark 2 (module docstring): coupled natural frequencies and one speed
-    point, ROSS Newmark against gearjax.simulate."""
+    point, ROSS Newmark against gearjax.dynamics.simulate."""
     import jax
     import jax.numpy as jnp
     import scipy.linalg as sl
@@ -154,9 +154,9 @@ def run_geared(speed=900.0, steps_per_period=(128, 256, 512), periods=120, zeta=
     import equinox as eqx
     from gearjax import ToothModifications, quasi_static
     from gearjax.models.geared3d import Geared3DModel
-    from gearjax.ross_bridge import (periodic_mesh_force, ross_geared_rotor, ross_mesh_modes,
+    from gearjax.rigs.ross_bridge import (periodic_mesh_force, ross_geared_rotor, ross_mesh_modes,
                                      ross_shear_coefficient)
-    from gearjax.simulate import simulate
+    from gearjax.dynamics.simulate import simulate
 
     kappa = ross_shear_coefficient(0.05, method="cowper")
     data, rig = _geared_rig(kappa)
@@ -306,7 +306,7 @@ def structure_only():
         warnings.simplefilter("ignore")
         import ross
 
-        from gearjax.ross_bridge import ross_shear_coefficient
+        from gearjax.rigs.ross_bridge import ross_shear_coefficient
 
         kappa = ross_shear_coefficient(0.05, method="cowper")
         f_r, rb, rm = run_ross("cowper")

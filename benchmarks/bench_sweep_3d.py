@@ -5,10 +5,10 @@ Scenario: ``Geared3DModel.baud_velex(helical, short relief, formulation, damping
 max_frequency_hz=6000)`` (the paper's 3D rig, cell structure vectors, modes to 6 kHz plus
 static corrections), speeds linearly spaced in ``--range``.
 
-* gearjax transient: :func:`gearjax.sweep.sweep` (default solver, automatic transient from
-  :func:`gearjax.simulate.transient_start`); compile time from ``lower().compile()`` of the
+* gearjax transient: :func:`gearjax.dynamics.sweep.sweep` (default solver, automatic transient from
+  :func:`gearjax.dynamics.simulate.transient_start`); compile time from ``lower().compile()`` of the
   chunk function, run time of one call (all speeds in one vmapped call).
-* gearjax steady: :func:`gearjax.steady.steady_sweep` (shooting, default tolerances); its
+* gearjax steady: :func:`gearjax.dynamics.steady.steady_sweep` (shooting, default tolerances); its
   run time is a second call of the compiled chunk function (same shape), its compile
   time the first call minus that.
 * accuracy: on ``--check`` speeds spread over the range, both against a tight reference
@@ -39,21 +39,21 @@ import jax.numpy as jnp
 import numpy as np
 
 import gearjax  # noqa: F401
-import gearjax.steady  # noqa: F401
-import gearjax.sweep  # noqa: F401
+import gearjax.dynamics.steady  # noqa: F401
+import gearjax.dynamics.sweep  # noqa: F401
 from gearjax.models.geared3d import Geared3DModel
-from gearjax.rigs import get_rig
-from gearjax.simulate import default_solver, jump_density, transient_start
-from gearjax.steady import steady_sweep
-from gearjax.sweep import sweep
+from gearjax.rigs.registry import get_rig
+from gearjax.dynamics.simulate import default_solver, jump_density, transient_start
+from gearjax.dynamics.steady import steady_sweep
+from gearjax.dynamics.sweep import sweep
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from baselines import solve_ivp_piecewise  # noqa: E402
 from bench_work_precision import machine  # noqa: E402
 
-sweep_mod = sys.modules["gearjax.sweep"]
-steady_mod = sys.modules["gearjax.steady"]
+sweep_mod = sys.modules["gearjax.dynamics.sweep"]
+steady_mod = sys.modules["gearjax.dynamics.steady"]
 
 
 def scipy_run(model, w, n_transient, n_measured=3, samples=128):

@@ -3,7 +3,7 @@
 Scenario: Baud & Velex spur pair (Table 1), short tip relief, 254.8 N m, damping ratio 0.03,
 default (solid-cylinder) inertias, speeds 50-1500 rad/s, the three formulations.
 
-* gearjax: :func:`gearjax.sweep` (one jitted, vmapped call; compile time measured with
+* gearjax: :func:`gearjax.dynamics.sweep` (one jitted, vmapped call; compile time measured with
   ``lower().compile()`` on the chunk function, run time the median of repeated calls).
 * SciPy: ``scipy.integrate.solve_ivp`` looping over the speeds with the *same* equations
   (the model's jitted vector field called from SciPy -- "JAX right-hand side + SciPy
@@ -56,11 +56,11 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import gearjax  # noqa: E402,F401
-import gearjax.sweep as sweep_mod  # noqa: E402
+import gearjax.dynamics.sweep as sweep_mod  # noqa: E402
 from gearjax import Mesh, baud_velex_pair, table1_relief  # noqa: E402
 from gearjax.models.torsional import TorsionalModel  # noqa: E402
-from gearjax.simulate import default_solver, jump_density, simulate  # noqa: E402
-from gearjax.sweep import sweep  # noqa: E402
+from gearjax.dynamics.simulate import default_solver, jump_density, simulate  # noqa: E402
+from gearjax.dynamics.sweep import sweep  # noqa: E402
 
 ZETA = 0.03
 SPEEDS = (50.0, 1500.0)

@@ -13,10 +13,10 @@ methods carry their transient error too (that is what a user gets). Run time: th
 median of repeated calls after compilation (compile time reported apart, via a first
 call minus the run time).
 
-Methods: diffrax through :func:`gearjax.simulate.simulate` (Tsit5, Dopri5, Dopri8,
+Methods: diffrax through :func:`gearjax.dynamics.simulate.simulate` (Tsit5, Dopri5, Dopri8,
 Kvaerno5 implicit) with its automatic transient; a fixed-step Tsit5 (diffrax
 ``ConstantStepSize``, steps not aligned with the jumps); the shooting solver
-:func:`gearjax.steady.steady_sweep`; ``scipy.integrate.solve_ivp`` (RK45, DOP853, LSODA)
+:func:`gearjax.dynamics.steady.steady_sweep`; ``scipy.integrate.solve_ivp`` (RK45, DOP853, LSODA)
 looping over the speeds (NumPy right-hand side on the model's excitation table for
 te/perturbation, the jitted JAX right-hand side for the reference) with the same
 transient and jump splitting; a Newmark-beta average-acceleration integrator in NumPy
@@ -49,9 +49,9 @@ import numpy as np
 import gearjax  # noqa: F401
 from gearjax import Mesh, baud_velex_pair, table1_relief
 from gearjax.models.torsional import TorsionalModel
-from gearjax.simulate import simulate
-from gearjax.steady import steady_sweep
-from gearjax.sweep import sweep
+from gearjax.dynamics.simulate import simulate
+from gearjax.dynamics.steady import steady_sweep
+from gearjax.dynamics.sweep import sweep
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")
@@ -432,7 +432,7 @@ def study_3d(args):
         rows.append((f"diffrax {name} (auto transient)", f"rtol {tol:g}", ef, ed, run, comp))
     for r in rows:
         say(f"| {r[0]} | {r[1]} | {r[2]:.2e} | {r[3]:.2e} | {r[4]:.3f} | {r[5]:.1f} |")
-    say("The transients start from gearjax.simulate.transient_start (the slow, weakly coupled "
+    say("The transients start from gearjax.dynamics.simulate.transient_start (the slow, weakly coupled "
         "61.8 rad/s mode, Floquet radius 0.995-0.999 per mesh period, starts on its period "
         "mean): before that start their error was ~1e-3 (the mode outlived the automatic "
         "transient); the shooting needs no transient.")

@@ -10,36 +10,38 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-from .geometry import GearPair as GearPair
-from .geometry import GeometryError as GeometryError
-from .geometry import baud_velex_pair as baud_velex_pair
-from .mesh import Cells as Cells
-from .mesh import Mesh as Mesh
-from .modifications import ModificationError as ModificationError
-from .modifications import ToothModifications as ToothModifications
-from .modifications import fig5_pitch_errors as fig5_pitch_errors
-from .modifications import table1_relief as table1_relief
-from .quasistatic import QuasiStatic as QuasiStatic
-from .quasistatic import contact_gaps as contact_gaps
-from .quasistatic import quasi_static as quasi_static
-from .quasistatic import solve_unilateral as solve_unilateral
-from .quasistatic import static_mesh_force as static_mesh_force
-from .rigfile import load_rig as load_rig
-from .rigs import Rig as Rig
-from .rigs import RigError as RigError
-from .rigs import get_rig as get_rig
-from .models.torsional import ModelError as ModelError
+from .errors import DesignError as DesignError
+from .errors import GearjaxError as GearjaxError
+from .errors import GeometryError as GeometryError
+from .errors import ModelError as ModelError
+from .errors import ModificationError as ModificationError
+from .errors import RigError as RigError
+from .errors import SimulationError as SimulationError
+from .gears.geometry import GearPair as GearPair
+from .gears.geometry import baud_velex_pair as baud_velex_pair
+from .gears.mesh import Cells as Cells
+from .gears.mesh import Mesh as Mesh
+from .gears.modifications import ToothModifications as ToothModifications
+from .gears.modifications import fig5_pitch_errors as fig5_pitch_errors
+from .gears.modifications import table1_relief as table1_relief
+from .gears.quasistatic import QuasiStatic as QuasiStatic
+from .gears.quasistatic import contact_gaps as contact_gaps
+from .gears.quasistatic import quasi_static as quasi_static
+from .gears.quasistatic import solve_unilateral as solve_unilateral
+from .gears.quasistatic import static_mesh_force as static_mesh_force
+from .rigs.rigfile import load_rig as load_rig
+from .rigs.registry import Rig as Rig
+from .rigs.registry import get_rig as get_rig
 from .models.torsional import TorsionalModel as TorsionalModel
 from .models.geared3d import Geared3DModel as Geared3DModel
-from .simulate import SimulationError as SimulationError
-from .simulate import SimulationResult as SimulationResult
-from .sweep import SweepResult as SweepResult
-from .stability import floquet_multipliers as floquet_multipliers
-from .stability import spectral_radius as spectral_radius
-from .steady import steady_state as steady_state
-from .steady import steady_sweep as steady_sweep
+from .dynamics.simulate import SimulationResult as SimulationResult
+from .dynamics.sweep import SweepResult as SweepResult
+from .dynamics.stability import floquet_multipliers as floquet_multipliers
+from .dynamics.stability import spectral_radius as spectral_radius
+from .dynamics.steady import steady_state as steady_state
+from .dynamics.steady import steady_sweep as steady_sweep
 
-# the functions simulate() and sweep() stay in their modules (gearjax.simulate.simulate,
-# gearjax.sweep.sweep): re-exporting them here would shadow the submodules of the same name
+from .dynamics.simulate import simulate as simulate
+from .dynamics.sweep import sweep as sweep
 
 __version__ = "0.1.0"

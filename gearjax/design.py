@@ -27,7 +27,7 @@ deflection for transmission errors), so that ``max v <= smax <= max v + scale ln
 beta`` (at most 1.2 % of the unit for 12 speeds). The optimiser descends the smooth value;
 every evaluation reports the exact maximum beside it (``exact``). The maximum over time
 inside each steady-state period is the exact maximum of the sampled signal
-(:func:`gearjax.simulate.simulate`).
+(:func:`gearjax.dynamics.simulate.simulate`).
 
 Gradients
 ---------
@@ -73,7 +73,7 @@ Formulation (dynamic objectives)
 Default perturbation (Eq. (47a): constant mean stiffness, linear, always stable, smooth
 in the design). The te formulation (Eq. (20)) with the loaded stiffness of the long
 relief is parametrically unstable around the main critical speed: Floquet spectral
-radius (:func:`gearjax.stability.spectral_radius`) up to 1.074, > 1 over 770-810 rad/s
+radius (:func:`gearjax.dynamics.stability.spectral_radius`) up to 1.074, > 1 over 770-810 rad/s
 (0.97-1.02 of its omega_n / z1 = 795 rad/s), dynamic factor 457 at 800 rad/s; the sdof
 multipliers depend on Omega / omega_n and zeta only, so this holds for any inertias. The
 reference formulation (Eq. (16)) is the physical check, but contact loss makes it
@@ -85,7 +85,7 @@ non-smooth in the design; the optimum is checked against it by forward sweeps
 ``DynamicObjective(..., model="3d", rig=rig)`` drives the 3D model of a rig (Eqs. (14),
 (42), (48a), modes below ``max_frequency_hz``, by default 4.5 mesh harmonics of the
 highest speed, at least 6 kHz) at its periodic steady state
-by shooting (:func:`gearjax.steady.steady_state`: no transient, whose 61.8 rad/s
+by shooting (:func:`gearjax.dynamics.steady.steady_state`: no transient, whose 61.8 rad/s
 shaft-line mode would leave a residue larger than the design's effect). Its events (jumps
 of ``k(theta)``, of NLTE', kinks of TE_S at the relief starts) follow the design through
 the same angle map (:mod:`gearjax.models.geared3d`, "Derivatives with respect to the
@@ -120,9 +120,10 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .mesh import Mesh
-from .modifications import ToothModifications, max_equal_slope_extent
-from .quasistatic import quasi_static, static_mesh_force
+from .gears.mesh import Mesh
+from .gears.modifications import ToothModifications, max_equal_slope_extent
+from .gears.quasistatic import quasi_static, static_mesh_force
+from .errors import DesignError
 
 __all__ = [
     "OBJECTIVES",
@@ -152,15 +153,6 @@ DYNAMIC_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp")
 DESIGN_MODELS = ("torsional", "3d")
 DEFAULT_SHARPNESS = 200.0
 DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (module docstring)
-
-
-class DesignError(ValueError):
-    """Invalid design input: the message names the field, its value and the reason."""
-
-    def __init__(self, field: str, value, reason: str):
-        self.field = field
-        self.value = value
-        super().__init__(f"{field}={value!r}: {reason}")
 
 
 def design_inertias(mesh: Mesh, inertias_kg_m2=DESIGN_INERTIAS) -> tuple:
@@ -262,7 +254,7 @@ class ReliefSpace:
 
     def for_dynamics(self, pair, margin: float = 0.005) -> "ReliefSpace":
         """This space with the upper extent bound lowered to ``margin`` below
-        :func:`gearjax.modifications.max_equal_slope_extent` for linear reliefs: beyond it
+        :func:`gearjax.gears.modifications.max_equal_slope_extent` for linear reliefs: beyond it
         the same relief on both gears has a flat band the dynamic models refuse (0.7906
         for the Table 1 spur pair, 0.5 for a helical pair; with separate reliefs each
         extent below it keeps ``L_c1 + L_c2 - 1`` below the limit for equal slopes)."""
@@ -340,7 +332,7 @@ class QuasiStaticObjective:
         (TE_S = W^T X_S + NLTE of the 3D quasi-static solution of ``rig``, Eqs. (10),
         (25): shaft and bearing deflections included, the load applied at the rig's
         torque node and scaled linearly with the torque).
-    rig : the :class:`gearjax.rigs.Rig` of a 3D objective.
+    rig : the :class:`gearjax.rigs.registry.Rig` of a 3D objective.
     """
 
     def __init__(self, mesh: Mesh, space: ReliefSpace, torques_Nm=254.8, kind: str = "te-rms",
@@ -351,7 +343,7 @@ class QuasiStaticObjective:
         if model not in DESIGN_MODELS:
             raise DesignError("model", model, f"must be one of {DESIGN_MODELS}")
         if model == "3d" and rig is None:
-            raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.get_rig)")
+            raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.registry.get_rig)")
         torques = np.atleast_1d(np.asarray(torques_Nm, dtype=float))
         if torques.ndim != 1 or not np.all(np.isfinite(torques)) or np.any(torques <= 0):
             raise DesignError("torques_Nm", torques.tolist(), "need finite torques > 0 (N m)")
@@ -427,7 +419,7 @@ class DynamicObjective:
     kind : ``"peak-force"`` (N), ``"dynamic-factor"`` or ``"dte-ptp"`` (m).
     model : ``"torsional"`` (default; Eqs. (16), (20), (47a)) or ``"3d"`` (the 3D model of
         ``rig``, Eqs. (14), (42), (48a), reduced to the modes below ``max_frequency_hz``).
-    rig : the :class:`gearjax.rigs.Rig` of a 3D objective (structure, torque node,
+    rig : the :class:`gearjax.rigs.registry.Rig` of a 3D objective (structure, torque node,
         encoder position 1).
     formulation : ``"perturbation"`` (Eq. (47a) / (48a), default), ``"te"`` (Eq. (20) /
         (42)) or ``"reference"`` (Eq. (16) / (14)); see the module docstring,
@@ -441,14 +433,14 @@ class DynamicObjective:
         ``"auto"``: :func:`gearjax.models.geared3d.default_max_frequency_hz` of the highest
         speed (3 mesh harmonics x 1.5, at least 6 kHz: 16.8 kHz up to 900 rad/s on the
         Baud-Velex rig, whose mesh modes lie at 3.4-3.5 kHz).
-    method : ``"transient"`` (:func:`gearjax.simulate.simulate`, transient then measured
+    method : ``"transient"`` (:func:`gearjax.dynamics.simulate.simulate`, transient then measured
         periods; default for the sdof model) or ``"steady"`` (periodic steady state by
-        shooting, :func:`gearjax.steady.steady_state`; default for the 3D model, whose
+        shooting, :func:`gearjax.dynamics.steady.steady_state`; default for the 3D model, whose
         slow shaft-line modes would need long transients).
     sharpness : beta of the smooth maximum over speeds (module docstring).
     n_table : table knots per mesh period of the model.
-    sim_kwargs : options of :func:`gearjax.simulate.simulate` (or of
-        :func:`gearjax.steady.steady_state`) (static).
+    sim_kwargs : options of :func:`gearjax.dynamics.simulate.simulate` (or of
+        :func:`gearjax.dynamics.steady.steady_state`) (static).
     adjoint : diffrax adjoint for the gradient (default ``diffrax.ForwardMode()`` with
         ``jax.jacfwd``; a ``RecursiveCheckpointAdjoint`` uses ``jax.jacrev``, transient
         method only: the shooting is forward mode).
@@ -467,7 +459,7 @@ class DynamicObjective:
         if model not in DESIGN_MODELS:
             raise DesignError("model", model, f"must be one of {DESIGN_MODELS}")
         if model == "3d" and rig is None:
-            raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.get_rig)")
+            raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.registry.get_rig)")
         method = ("steady" if model == "3d" else "transient") if method is None else method
         if method not in ("transient", "steady"):
             raise DesignError("method", method, "must be 'transient' or 'steady'")
@@ -591,13 +583,13 @@ class DynamicObjective:
 
 def _dyn_values_impl(model, x, speeds, static, adjoint=None):
     """Smooth and exact maxima over ``speeds`` of (max F_D, max F_D / F_S, DTE ptp)."""
-    from .simulate import simulate
+    from .dynamics.simulate import simulate
 
     space, scales, sharpness, sim_kw, method = static
     m = eqx.tree_at(lambda mm: mm.mods, model, space.mods(x)).prepare()
     kw = dict(sim_kw)
     if method == "steady":
-        from .steady import steady_state
+        from .dynamics.steady import steady_state
 
         res = jax.vmap(lambda w: steady_state(m, w, **kw).result)(speeds)
     else:

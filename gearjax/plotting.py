@@ -23,7 +23,7 @@ def _pyplot():
 def plot_quasistatic(result, mesh, path: str, title: str = ""):
     """TE_S and NLTE (um) and the load carried by each tooth pair (N) against theta.
 
-    ``result`` is a :class:`gearjax.quasistatic.QuasiStatic`; the abscissa is the pinion
+    ``result`` is a :class:`gearjax.gears.quasistatic.QuasiStatic`; the abscissa is the pinion
     angle in mesh periods.
     """
     plt = _pyplot()

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from gearjax.cli import main
-from gearjax.geometry import baud_velex_pair
+from gearjax.cli.main import main
+from gearjax.gears.geometry import baud_velex_pair
 
 
 def _json(capsys, argv):

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from gearjax.cli import main
-from gearjax.geometry import baud_velex_pair
-from gearjax.mesh import Mesh
+from gearjax.cli.main import main
+from gearjax.gears.geometry import baud_velex_pair
+from gearjax.gears.mesh import Mesh
 from gearjax.models.torsional import TorsionalModel
-from gearjax.rigs import get_rig
+from gearjax.rigs.registry import get_rig
 
 CSV_COLUMNS = ("speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor", "dte_ptp_m",
                "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged")
@@ -65,7 +65,7 @@ def test_torsional_sweep_with_signals(capsys, tmp_path):
     # differ only in the number of measured periods: equal at steady state)
     r = TorsionalModel.build(Mesh.build(baud_velex_pair(False), "iso6336"), get_rig(
         "baud-velex-spur").modifications("short"), damping_ratio=0.1, formulation="te")
-    from gearjax.simulate import simulate
+    from gearjax.dynamics.simulate import simulate
 
     one = simulate(r, 300.0)
     f_te = sig["mesh_force_N"][sig["formulation"] == "te"]
@@ -139,7 +139,7 @@ def test_default_cutoff_covers_the_mesh_harmonics(z1, max_speed):
     """The default cut-off keeps every mode up to 3 mesh harmonics of the highest speed
     with a 1.5 margin: the mesh period of a z1-tooth pinion at Omega is (2 pi / z1) / Omega
     seconds, its h-th harmonic h / T_m Hz; never below the former fixed 6 kHz."""
-    from gearjax.cli_dynamics import default_max_frequency_hz
+    from gearjax.cli.dynamics import default_max_frequency_hz
 
     t_mesh_s = (2 * math.pi / z1) / max_speed
     f3 = 3 / t_mesh_s
@@ -170,7 +170,7 @@ class _Built(Exception):
 ])
 def test_cli_passes_the_cutoff_to_the_3d_model(monkeypatch, argv, expected):
     """The cut-off the 3D model is built with (the build is stopped right there)."""
-    import gearjax.cli_dynamics as cd
+    import gearjax.cli.dynamics as cd
 
     seen = {}
 

@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gearjax.cli import main
+from gearjax.cli.main import main
 from gearjax.design import (
     DesignError,
     DynamicObjective,
@@ -22,13 +22,13 @@ from gearjax.design import (
     multi_start,
     optimise,
 )
-from gearjax.mesh import Mesh
+from gearjax.gears.mesh import Mesh
 from gearjax.models.torsional import TorsionalModel
-from gearjax.modifications import ToothModifications
-from gearjax.quasistatic import quasi_static, static_mesh_force
-from gearjax.rigs import get_rig
-from gearjax.simulate import simulate
-from gearjax.sweep import sweep
+from gearjax.gears.modifications import ToothModifications
+from gearjax.gears.quasistatic import quasi_static, static_mesh_force
+from gearjax.rigs.registry import get_rig
+from gearjax.dynamics.simulate import simulate
+from gearjax.dynamics.sweep import sweep
 
 RIG = get_rig("baud-velex-spur")
 
@@ -169,7 +169,7 @@ def test_3d_dynamic_gradients_against_central_differences():
     against central differences of the same model (its events follow the design through
     the angle map). Measured: 8e-5 / 2e-7 (amplitude), 2e-7 / 3e-7 (extent); without the
     map the fixed knots miss the jumps of k(theta) moving with the design."""
-    from gearjax.steady import steady_state
+    from gearjax.dynamics.steady import steady_state
 
     x0, h = np.array([13.3e-6, 0.2]), np.array([3e-8, 1e-4])
     tight = dict(rtol=1e-11, atol=1e-13, measure_rtol=1e-11, measure_atol=1e-13)
@@ -241,7 +241,7 @@ def test_dynamic_space_stays_below_the_overlap_limit(helical):
     limit the model builds refuse: the flat band (2 L_c - 1) g_alpha against the base
     pitch (spur) or zero (helical), geometry from ISO 21771 here. A design at the lowered
     bound builds; one past the limit is refused with the field named."""
-    from gearjax.modifications import ModificationError
+    from gearjax.gears.modifications import ModificationError
 
     pair = get_rig("baud-velex-helical" if helical else "baud-velex-spur").pair
     mesh = Mesh.build(pair)

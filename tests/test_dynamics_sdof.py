@@ -33,7 +33,7 @@ from gearjax import (
     table1_relief,
 )
 from gearjax.models.torsional import ModelError, TorsionalModel, solid_cylinder_inertias
-from gearjax.simulate import SimulationError, simulate
+from gearjax.dynamics.simulate import SimulationError, simulate
 from oscillators import HarmonicOscillator
 
 SAMPLES = 128  # simulate's default samples per mesh period

@@ -6,9 +6,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gearjax.geometry import baud_velex_pair
-from gearjax.mesh import Mesh
-from gearjax.models.element import PinionGearElement
+from gearjax.gears.geometry import baud_velex_pair
+from gearjax.gears.mesh import Mesh
+from gearjax.structure.element import PinionGearElement
 
 # node dof order (u, v, w, phi, psi, theta): translations along (z, s, t), rotations about (s, t, z)
 def _node_dofs(trans_stz, rot_stz):

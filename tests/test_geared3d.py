@@ -17,17 +17,19 @@ import numpy as np
 import pytest
 
 from gearjax import Mesh, ToothModifications, baud_velex_pair, quasi_static, table1_relief
-from gearjax.analytic import analytic_relations
-from gearjax.models.element import PinionGearElement
+from gearjax.structure.analytic import analytic_relations
+from gearjax.structure.element import PinionGearElement
 from gearjax.models.geared3d import Condensation, Geared3DModel, quasi_static_3d
 from gearjax.models.torsional import ModelError, TorsionalModel, solid_cylinder_inertias
-from gearjax.quasistatic import static_mesh_force
-from gearjax.simulate import simulate as _simulate
+from gearjax.gears.quasistatic import static_mesh_force
+from gearjax.dynamics.simulate import simulate as _simulate
 
 simulate = eqx.filter_jit(_simulate)  # one compilation per model structure, no eager tracing
 from gearjax.structure import (
-    MOTOR_NODE,
     StructureBuilder,
+)
+from gearjax.rigs.baud_velex import (
+    MOTOR_NODE,
     baud_velex_structure,
     encoder_nodes,
 )
@@ -328,7 +330,7 @@ def test_pinion_eccentricity_terms(torsional_setup):
 
 @pytest.mark.slow
 def test_sweep_vmaps_the_3d_model(rig_te):
-    from gearjax.sweep import sweep
+    from gearjax.dynamics.sweep import sweep
 
     r = sweep(rig_te, np.array([250.0, 500.0]), progress=False, n_transient_periods=10,
               n_measured_periods=2)
@@ -343,7 +345,7 @@ def test_3d_floquet_perturbation_closed_form_and_te_stable(torsional_setup):
     factor, every Floquet multiplier over T = P / Omega has modulus exp(-zeta omega_j T),
     so rho = exp(-zeta omega_min T). The te formulation of the same structure is an LTP
     system; away from parametric zones its rho stays below 1."""
-    from gearjax.stability import spectral_radius
+    from gearjax.dynamics.stability import spectral_radius
 
     mesh, _, inert, s, fixed = torsional_setup
     mods = table1_relief("short")

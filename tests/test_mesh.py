@@ -7,8 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gearjax.geometry import baud_velex_pair
-from gearjax.mesh import Mesh
+from gearjax.gears.geometry import baud_velex_pair
+from gearjax.gears.mesh import Mesh
 
 
 def _pairs_in_contact(pair, theta):

@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
 
-from gearjax.geometry import baud_velex_pair
-from gearjax.mesh import Mesh
-from gearjax.modifications import ModificationError, ToothModifications, table1_relief
-from gearjax.quasistatic import quasi_static, solve_unilateral, static_mesh_force
+from gearjax.gears.geometry import baud_velex_pair
+from gearjax.gears.mesh import Mesh
+from gearjax.gears.modifications import ModificationError, ToothModifications, table1_relief
+from gearjax.gears.quasistatic import quasi_static, solve_unilateral, static_mesh_force
 
 TORQUE = 254.8
 

@@ -1,4 +1,4 @@
-"""Rig files in TOML (gearjax.rigfile): the shipped Baud-Velex file equals the built-in rig,
+"""Rig files in TOML (gearjax.rigs.rigfile): the shipped Baud-Velex file equals the built-in rig,
 a small custom rig equals the same structure assembled by hand, malformed files raise a
 RigError naming the field, the value and the reason."""
 
@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gearjax.modifications import fig5_pitch_errors
-from gearjax.rigfile import load_rig
-from gearjax.rigs import RigError, get_rig
+from gearjax.gears.modifications import fig5_pitch_errors
+from gearjax.rigs.rigfile import load_rig
+from gearjax.rigs.registry import RigError, get_rig
 from gearjax.structure import StructureBuilder, disc_properties
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "rigs" / "baud_velex_spur.toml"
@@ -204,7 +204,7 @@ def test_small_custom_rig_equals_hand_assembly(tmp_path):
 @pytest.mark.slow
 def test_small_rig_3d_figures_satisfy_appendix_a(tmp_path):
     """The Appendix A relations (Eqs. (33)-(35)) hold on the rig-file structure too."""
-    from gearjax.rigs import three_d_figures
+    from gearjax.rigs.registry import three_d_figures
 
     out = three_d_figures(load_rig(_write(tmp_path, SMALL)), n_frequencies=5)
     assert out["n_dof"] == 36

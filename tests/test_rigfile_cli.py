@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from gearjax.cli import main
+from gearjax.cli.main import main
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "rigs" / "baud_velex_spur.toml"
 

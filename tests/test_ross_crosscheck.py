@@ -5,9 +5,9 @@ structure of ``examples/rigs/baud_velex_spur.toml``, identical to the built-in r
 without the pinion-gear element, which a single ROSS rotor does not have. Without the mesh
 our ``(M, K)`` is block-diagonal, so its modes are the union of the pinion line's and the
 gear line's; ROSS models each line as its own ``Rotor`` (non-rotating, speed 0, no damping,
-no gyroscopic terms), built by :mod:`gearjax.ross_bridge` from the rig file itself.
+no gyroscopic terms), built by :mod:`gearjax.rigs.ross_bridge` from the rig file itself.
 
-Settings matched rather than tolerances widened (details in :mod:`gearjax.ross_bridge`):
+Settings matched rather than tolerances widened (details in :mod:`gearjax.rigs.ross_bridge`):
 ROSS computes its own Timoshenko shear coefficient (Cowper here) and takes no override, so
 our shafts get ROSS's value through the rig file's ``shear_coefficient`` (with our default,
 Hutchinson's 0.925 against Cowper's 0.886 for solid steel shafts, the two differ by up to
@@ -33,9 +33,9 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from gearjax.rigfile import load_rig, parse_rig  # noqa: E402
-from gearjax.rigs import get_rig  # noqa: E402
-from gearjax.ross_bridge import (  # noqa: E402
+from gearjax.rigs.rigfile import load_rig, parse_rig  # noqa: E402
+from gearjax.rigs.registry import get_rig  # noqa: E402
+from gearjax.rigs.ross_bridge import (  # noqa: E402
     ross_natural_frequencies_hz,
     ross_rotors,
     ross_shear_coefficient,
@@ -83,13 +83,13 @@ def test_rig_natural_frequencies_match_ross_below_10kHz():
 def test_geared_rotor_natural_frequencies_match_ross_multirotor():
     """With the mesh: the pinion and gear lines coupled by ROSS's own gear element
     (``ross.MultiRotor``, Stringer's coupling matrix, built by
-    :func:`gearjax.ross_bridge.ross_geared_rotor`) at our mean mesh stiffness k_m, against
+    :func:`gearjax.rigs.ross_bridge.ross_geared_rotor`) at our mean mesh stiffness k_m, against
     the modes of our 3D model's (M, K + k_m V V^T) (perfect spur gears, averaged V, all
     modes). Measured 2026-11-22: 102 modes below 10 kHz, max relative difference 5.5e-9.
     This checks our pinion-gear element (direction, base-radius arms, signs) against an
     independent one, not only the shafts."""
     from gearjax.models.geared3d import Geared3DModel
-    from gearjax.ross_bridge import ross_geared_rotor
+    from gearjax.rigs.ross_bridge import ross_geared_rotor
 
     kappa = ross_shear_coefficient(0.05, 0.0, nu=0.3, method="cowper")
     data = tomllib.loads(EXAMPLE.read_text())
@@ -116,7 +116,7 @@ def test_geared_rotor_periodic_mesh_force_matches_ross_matrices():
     formulation, perfect spur gears, averaged V, zeta 0.1, 900 rad/s near the main critical
     speed) against the periodic orbit of ROSS's own assembled MultiRotor -- its modes and
     mesh participations phi^T c, modal damping 0.1 on every mode, our k(theta) -- computed
-    exactly by shooting (:func:`gearjax.ross_bridge.periodic_mesh_force`: RK4 aligned on the
+    exactly by shooting (:func:`gearjax.rigs.ross_bridge.periodic_mesh_force`: RK4 aligned on the
     stiffness jumps, monodromy matrix), so neither gearjax's integrator nor ROSS's Newmark
     is involved on the ROSS side. Also checks that the mesh participations of the coupled
     modes agree (mode shapes seen by the mesh, not only frequencies). Measured 2026-11-23:
@@ -126,8 +126,8 @@ def test_geared_rotor_periodic_mesh_force_matches_ross_matrices():
 
     from gearjax import ToothModifications, quasi_static
     from gearjax.models.geared3d import Geared3DModel
-    from gearjax.ross_bridge import periodic_mesh_force, ross_geared_rotor, ross_mesh_modes
-    from gearjax.simulate import simulate
+    from gearjax.rigs.ross_bridge import periodic_mesh_force, ross_geared_rotor, ross_mesh_modes
+    from gearjax.dynamics.simulate import simulate
 
     zeta, speed = 0.1, 900.0
     kappa = ross_shear_coefficient(0.05, 0.0, nu=0.3, method="cowper")

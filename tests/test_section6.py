@@ -9,10 +9,10 @@ import json
 import numpy as np
 import pytest
 
-from gearjax.cli import main
-from gearjax.cli_dynamics import build_dynamic_model, predicted_critical_speeds
-from gearjax.rigs import get_rig
-from gearjax.sweep import sweep
+from gearjax.cli.main import main
+from gearjax.cli.dynamics import build_dynamic_model, predicted_critical_speeds
+from gearjax.rigs.registry import get_rig
+from gearjax.dynamics.sweep import sweep
 
 CSV_COLUMNS = ["speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor", "dte_ptp_m",
                "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged"]

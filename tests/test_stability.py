@@ -19,8 +19,8 @@ from scipy.linalg import expm
 
 from gearjax import Mesh, ToothModifications, baud_velex_pair, table1_relief
 from gearjax.models.torsional import TorsionalModel
-from gearjax.simulate import SimulationError, simulate
-from gearjax.stability import floquet_multipliers, monodromy, spectral_radius
+from gearjax.dynamics.simulate import SimulationError, simulate
+from gearjax.dynamics.stability import floquet_multipliers, monodromy, spectral_radius
 
 ZETA = 0.02
 

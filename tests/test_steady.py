@@ -1,12 +1,12 @@
-"""Periodic steady state by shooting (gearjax.steady) against independent results.
+"""Periodic steady state by shooting (gearjax.dynamics.steady) against independent results.
 
 * a constant-stiffness oscillator under harmonic excitation: the periodic start and the
   peak-to-peak response against the closed-form frequency response;
-* the monodromy matrix of the shooting against :func:`gearjax.stability.monodromy` (the
+* the monodromy matrix of the shooting against :func:`gearjax.dynamics.stability.monodromy` (the
   model's own homogeneous equation, a different integration);
 * the sdof model (te, perturbation, reference; spur and helical pairs) against long
-  diffrax transients of :func:`gearjax.simulate.simulate` with the decay of the transient
-  guaranteed by the Floquet multipliers of :mod:`gearjax.stability`;
+  diffrax transients of :func:`gearjax.dynamics.simulate.simulate` with the decay of the transient
+  guaranteed by the Floquet multipliers of :mod:`gearjax.dynamics.stability`;
 * the 3D rigs (spur and helical, te formulation) against long transients (slow).
 """
 
@@ -21,14 +21,14 @@ import pytest
 
 from gearjax import Mesh, baud_velex_pair, table1_relief
 from gearjax.models.torsional import TorsionalModel
-from gearjax.simulate import SimulationError, simulate
-from gearjax.stability import spectral_radius
-from gearjax.steady import (
+from gearjax.dynamics.simulate import SimulationError, simulate
+from gearjax.dynamics.stability import spectral_radius
+from gearjax.dynamics.steady import (
     spectral_radius_of,
     steady_state,
     steady_sweep,
 )
-from gearjax.sweep import SweepResult
+from gearjax.dynamics.sweep import SweepResult
 from oscillators import HarmonicOscillator
 
 SAMPLES = 128
@@ -96,7 +96,7 @@ def te_model(spur):
 
 def test_monodromy_matches_stability_and_unstable_is_flagged(te_model):
     """The shooting's Phi (linearised full vector field, augmented solve) has the Floquet
-    spectral radius of gearjax.stability (homogeneous equation, separate solve). 1500 rad/s
+    spectral radius of gearjax.dynamics.stability (homogeneous equation, separate solve). 1500 rad/s
     lies in a parametric instability zone of the te model with this relief: the periodic
     orbit exists but is unstable, so its finite metrics come with converged=False and
     spectral_radius > 1 (never a silently wrong steady state)."""
@@ -134,7 +134,7 @@ def _agrees_with_long_transient(model, speeds, n_transient):
 @pytest.mark.slow
 def test_te_agrees_with_long_transient(te_model):
     """Against simulate with 600 transient periods at rtol 1e-10 (Floquet radius <= 0.97
-    at these speeds, checked with gearjax.stability: the transient has decayed by
+    at these speeds, checked with gearjax.dynamics.stability: the transient has decayed by
     rho^600 < 1e-9). At 753 rad/s (rho = 0.96) the automatic transient of sweep() is too
     short and reads converged=False; the shooting needs none."""
     _agrees_with_long_transient(te_model, np.array([380.0, 753.3]), 600)

@@ -20,9 +20,9 @@ import pytest
 
 from gearjax import Mesh, ModificationError, ToothModifications, baud_velex_pair, table1_relief
 from gearjax.models.torsional import TorsionalModel, solid_cylinder_inertias
-from gearjax.simulate import simulate
-from gearjax.steady import steady_sweep
-from gearjax.sweep import sweep
+from gearjax.dynamics.simulate import simulate
+from gearjax.dynamics.steady import steady_sweep
+from gearjax.dynamics.sweep import sweep
 
 from oscillators import HarmonicOscillator
 
@@ -260,7 +260,7 @@ def _stiff_bearing_rig(k_bearing):
     import os
     import tomllib
 
-    from gearjax.rigfile import parse_rig
+    from gearjax.rigs.rigfile import parse_rig
 
     path = os.path.join(os.path.dirname(__file__), "..", "examples", "rigs", "baud_velex_spur.toml")
     with open(path, "rb") as fh:

@@ -18,29 +18,31 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gearjax.structure import (
-    BAUD_VELEX_BEARINGS,
-    ENCODER_POSITIONS,
-    GEAR_NODE,
-    LOAD_NODE,
-    MOTOR_NODE,
-    PINION_NODE,
     ElementInputError,
     Material,
     RigidBodyModeWarning,
     Structure,
     StructureBuilder,
     StructureInputError,
-    baud_velex_structure,
     coupling_stiffness,
     disc_properties,
-    encoder_nodes,
     modal_basis,
     modal_damping_matrix,
-    paper_node,
     reduced_model,
     shear_coefficient_hutchinson,
     timoshenko_element,
     torsional_coupling,
+)
+from gearjax.rigs.baud_velex import (
+    BAUD_VELEX_BEARINGS,
+    ENCODER_POSITIONS,
+    GEAR_NODE,
+    LOAD_NODE,
+    MOTOR_NODE,
+    PINION_NODE,
+    baud_velex_structure,
+    encoder_nodes,
+    paper_node,
 )
 
 E, NU, RHO = 2.1e11, 0.3, 7800.0
@@ -653,9 +655,9 @@ def test_rig_with_pinion_gear_element_satisfies_appendix_a() -> None:
     V^T R = 0), and Eqs. (33)-(35) hold: C_vv k_m = 1, C_wv k_m cos(beta_b) = 1 for every
     encoder position, w_x0 equal at positions 1 and 2 (no torque beyond the mesh on the
     free-end side) and different at position 3 (on the torque path)."""
-    from gearjax.geometry import baud_velex_pair
-    from gearjax.mesh import Mesh
-    from gearjax.models.element import PinionGearElement
+    from gearjax.gears.geometry import baud_velex_pair
+    from gearjax.gears.mesh import Mesh
+    from gearjax.structure.element import PinionGearElement
 
     pair = baud_velex_pair()
     s = baud_velex_structure(

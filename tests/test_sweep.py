@@ -14,11 +14,11 @@ import equinox as eqx
 import numpy as np
 import pytest
 
-import gearjax.sweep as sweep_mod
+import gearjax.dynamics.sweep as sweep_mod
 from gearjax import Mesh, baud_velex_pair, table1_relief
 from gearjax.models.torsional import TorsionalModel
-from gearjax.simulate import SimulationError, simulate
-from gearjax.sweep import CSV_COLUMNS, sweep
+from gearjax.dynamics.simulate import SimulationError, simulate
+from gearjax.dynamics.sweep import CSV_COLUMNS, sweep
 
 OPTS = dict(n_transient_periods=12, n_measured_periods=2)
 
@@ -95,7 +95,7 @@ _SHARDED = textwrap.dedent(
     import jax
     from gearjax import Mesh, baud_velex_pair, table1_relief
     from gearjax.models.torsional import TorsionalModel
-    from gearjax.sweep import sweep
+    from gearjax.dynamics.sweep import sweep
     assert len(jax.devices()) == 4, jax.devices()
     m = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
                              formulation="perturbation")
@@ -133,7 +133,7 @@ _MULTI_PROCESS = textwrap.dedent(
     import csv, json, os, sys
     pid, port, out = int(sys.argv[1]), sys.argv[2], sys.argv[3]
     import jax
-    from gearjax.cli import main
+    from gearjax.cli.main import main
     args = ["sweep", "--model", "torsional", "--formulations", "te", "--speeds", "100:1300:7",
             "--chunk", "3", "--json", "--out", out, "--coordinator", f"127.0.0.1:{port}",
             "--num-processes", "2", "--process-id", str(pid)]
@@ -144,9 +144,9 @@ _MULTI_PROCESS = textwrap.dedent(
     assert rc == 0, rc
     assert jax.process_count() == 2 and len(jax.devices()) == 4, jax.devices()
     if pid == 0:
-        from gearjax.cli_dynamics import build_dynamic_model
-        from gearjax.rigs import get_rig
-        from gearjax.sweep import sweep
+        from gearjax.cli.dynamics import build_dynamic_model
+        from gearjax.rigs.registry import get_rig
+        from gearjax.dynamics.sweep import sweep
         rig = get_rig("baud-velex-spur")
         m = build_dynamic_model(rig, rig.modifications("short", None, None, "linear", False),
                                 model="torsional", formulation="te")
@@ -188,7 +188,7 @@ def test_multi_process_sweep_equals_single_device(tmp_path):
         assert p.returncode == 0, e[-3000:]
     # process 1 prints nothing (gloo's own connection lines aside) and no progress
     assert [ln for ln in outs[1][0].splitlines() if not ln.startswith("[Gloo]")] == []
-    assert "[gearjax.sweep]" not in outs[1][1]
+    assert "[gearjax.dynamics.sweep]" not in outs[1][1]
     data = json.loads(outs[0][0].strip().splitlines()[-1])
     rows = sorted(data["rows"], key=lambda r: float(r["speed_rad_s"]))
     assert [float(r["speed_rad_s"]) for r in rows] == data["ref_speed"]
@@ -207,8 +207,8 @@ def test_3d_slow_mode_transient_is_right_or_flagged():
     converged=False (the convergence measure extrapolates the slow mode's decay), or be
     right to 1e-4."""
     from gearjax.models.geared3d import Geared3DModel
-    from gearjax.rigs import get_rig
-    from gearjax.steady import steady_sweep
+    from gearjax.rigs.registry import get_rig
+    from gearjax.dynamics.steady import steady_sweep
 
     model = Geared3DModel.baud_velex(False, get_rig("baud-velex-spur").modifications("short"),
                                      formulation="te", damping_ratio=0.1,
@@ -227,7 +227,7 @@ def test_3d_slow_mode_transient_is_right_or_flagged():
 
 def test_method_steady_matches_steady_sweep(tmp_path):
     """sweep(method="steady") is steady_sweep with sweep's interface (CSV written)."""
-    from gearjax.steady import steady_sweep
+    from gearjax.dynamics.steady import steady_sweep
 
     model = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
                                  formulation="te", damping_ratio=0.03)

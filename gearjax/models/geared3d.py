@@ -1,9 +1,9 @@
 """3D geared-system model: shafts + bearings + pinion-gear element (paper Section 4).
 
 The structure (``M``, ``K``: shafts, discs, bearings, couplings, the resisting torsional
-spring; :mod:`gearjax.structure`) is coupled to the mesh cells of :mod:`gearjax.mesh`
+spring; :mod:`gearjax.structure`) is coupled to the mesh cells of :mod:`gearjax.gears.mesh`
 through the structure vectors ``V(M_i)`` of the pinion-gear element (Eq. (8a),
-:class:`gearjax.models.element.PinionGearElement`). Three formulations, a static choice so
+:class:`gearjax.structure.element.PinionGearElement`). Three formulations, a static choice so
 that each compiles only its own terms (``' = d/dtheta``, ``theta = Omega1 t``):
 
 ``"reference"`` -- Eq. (14), instantaneous unilateral contact on every cell::
@@ -61,7 +61,7 @@ the kinks of ``TE_S`` and NLTE (measured on the spur rig, short relief: ``k`` to
 solve over the cells at every right-hand side (``excitation="inline"``, kept to check the
 table): a 16-speed te sweep of the reduced spur rig took 237 s inline and 65 s with the
 table (the latter with other jobs loading the 2 cores about 3x; the default solver choice,
-:func:`gearjax.simulate.jump_density`, matters as much).
+:func:`gearjax.dynamics.simulate.jump_density`, matters as much).
 
 Derivatives with respect to the design (moving events)
 ------------------------------------------------------
@@ -107,7 +107,7 @@ Inertial excitations E, F, G (text after Eq. (14))
   shaft line for lumped inertias; the consistent-mass generalisation otherwise), plus the
   gear-eccentricity components of ``E~``.
 * ``F``, ``G``: eccentricities of pinion and gear (mass ``m_k`` of the pinion/gear discs).
-  Phases follow :mod:`gearjax.modifications`: the mass centre of gear k sits at
+  Phases follow :mod:`gearjax.gears.modifications`: the mass centre of gear k sits at
   ``e_k (cos psi_k, sin psi_k)`` in (s, t) with ``psi_1 = theta - lambda_1 - pi/2`` and
   ``psi_2 = lambda_2 - pi/2 - theta Rb1/Rb2`` (the gear turns backwards), which is the
   offset whose projection on the normal gives the geometric excess
@@ -165,10 +165,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..mesh import Mesh
-from ..modifications import ToothModifications
-from ..quasistatic import contact_gaps, static_mesh_force
-from .element import PinionGearElement
+from ..gears.mesh import Mesh
+from ..gears.modifications import ToothModifications
+from ..gears.quasistatic import contact_gaps, static_mesh_force
+from ..structure.element import PinionGearElement
 from .torsional import (
     _EV_FIXED,
     AngleMap,
@@ -400,7 +400,7 @@ class _Ecc(eqx.Module):
 
 class Geared3DModel(eqx.Module):
     """3D geared system, Eqs. (14), (42), (48a); simulation interface of
-    :mod:`gearjax.simulate` (``prepare``, ``initial_state``, ``vector_field``, ``outputs``,
+    :mod:`gearjax.dynamics.simulate` (``prepare``, ``initial_state``, ``vector_field``, ``outputs``,
     ``decay_rate_per_rad``, ``period_rad``, ``mesh_period_rad``, ``jump_thetas``,
     ``static_force_N``, ``formulation``). Build with :meth:`build` (or :meth:`baud_velex`).
 
@@ -752,8 +752,8 @@ class Geared3DModel(eqx.Module):
     ) -> "Geared3DModel":
         """The Baud & Velex rig of Section 6.1 (258 dof, Table 1 gears, Table 2 bearings,
         254.8 N m on the motor node); ``kwargs`` go to :meth:`build`."""
-        from ..geometry import baud_velex_pair
-        from ..structure import MOTOR_NODE, baud_velex_structure, encoder_nodes
+        from ..gears.geometry import baud_velex_pair
+        from ..rigs.baud_velex import MOTOR_NODE, baud_velex_structure, encoder_nodes
 
         mesh = Mesh.build(baud_velex_pair(helical), law, cells_per_line=cells_per_line)
         kwargs.setdefault("torque_node", MOTOR_NODE)
@@ -772,7 +772,7 @@ class Geared3DModel(eqx.Module):
         mesh: Mesh | None = None,
         **kwargs,
     ) -> "Geared3DModel":
-        """A 3D model of a :class:`gearjax.rigs.Rig` (built-in or rig file): its structure,
+        """A 3D model of a :class:`gearjax.rigs.registry.Rig` (built-in or rig file): its structure,
         gear pair, motor node, torque and encoder positions; ``mesh`` (default: built from
         the rig's pair with ``law`` and ``cells_per_line``) a ready mesh of that pair;
         ``kwargs`` go to :meth:`build`."""
@@ -1084,7 +1084,7 @@ class Geared3DModel(eqx.Module):
 
     def homogeneous_vector_field(self, theta, y, omega):
         """The linear part of :meth:`vector_field` (te/perturbation: the right-hand side is
-        affine in ``y``), for the Floquet analysis of :mod:`gearjax.stability`."""
+        affine in ``y``), for the Floquet analysis of :mod:`gearjax.dynamics.stability`."""
         if self.formulation == "reference":
             raise ModelError("formulation", "reference", "the contact law is not linear; the "
                              "linearisation about the quasi-static contact is the te formulation")

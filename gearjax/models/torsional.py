@@ -1,7 +1,7 @@
 """Sdof torsional gear model, paper Section 3 (Eqs. (15)-(24)) and Section 5 (Eq. (47a)).
 
 The pinion-gear pair is two rigid inertias ``J1, J2`` (pinion and gear shaft lines) linked by
-the mesh cells of :mod:`gearjax.mesh` (Fig. 2). The single unknown is the transverse elastic
+the mesh cells of :mod:`gearjax.gears.mesh` (Fig. 2). The single unknown is the transverse elastic
 approach on the base plane ``x = Rb1 theta1 + Rb2 theta2`` (m), written in the angular
 variable ``theta = Omega1 t`` (rad), with ``' = d/dtheta``. Three formulations (a static
 choice, so each compiles only its own terms):
@@ -178,10 +178,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..geometry import GearPair
-from ..mesh import Mesh
-from ..modifications import ToothModifications
-from ..quasistatic import contact_gaps, solve_unilateral, static_mesh_force
+from ..gears.geometry import GearPair
+from ..gears.mesh import Mesh
+from ..gears.modifications import ToothModifications
+from ..gears.quasistatic import contact_gaps, solve_unilateral, static_mesh_force
+from ..errors import ModelError
 
 __all__ = [
     "TorsionalModel",
@@ -202,15 +203,6 @@ NLTE_REACTIONS = ("pinion", "drive")
 STEEL_DENSITY_KG_M3 = 7800.0
 
 
-class ModelError(ValueError):
-    """Invalid model input: the message names the field, its value and the reason."""
-
-    def __init__(self, field: str, value, reason: str):
-        self.field = field
-        self.value = value
-        super().__init__(f"{field}={value!r}: {reason}")
-
-
 def solid_cylinder_inertias(pair: GearPair, density_kg_m3: float = STEEL_DENSITY_KG_M3):
     """Polar inertias (kg m^2) of solid cylinders at the pitch radii with the face widths.
 
@@ -227,7 +219,7 @@ def solid_cylinder_inertias(pair: GearPair, density_kg_m3: float = STEEL_DENSITY
 def unilateral_solve_pairwise(k, gap, force):
     """Exact unilateral contact of parallel springs, without a sort (Eq. (17)).
 
-    Same root as :func:`gearjax.quasistatic.solve_unilateral`: for every active cell j the
+    Same root as :func:`gearjax.gears.quasistatic.solve_unilateral`: for every active cell j the
     candidate active set is ``{l : gap_l <= gap_j}`` (a prefix of the gap-sorted cells) and
     ``y = min_j (F + sum_l k_l gap_l) / sum_l k_l`` over those sets. O(n^2) operations with
     no data-dependent ordering, which vectorises better than a sort for n <= ~200.
@@ -486,15 +478,15 @@ class TorsionalModel(eqx.Module):
     Build with :meth:`build`. Array fields are differentiable data; the configuration
     (formulation, which terms exist, period, jump angles, table layout) is static.
 
-    The simulation interface (used by :func:`gearjax.simulate.simulate`) is
+    The simulation interface (used by :func:`gearjax.dynamics.simulate.simulate`) is
     :meth:`prepare`, :meth:`initial_state`, :meth:`vector_field`, :meth:`outputs`,
     :meth:`decay_rate_per_rad`, :attr:`period_rad`, :attr:`mesh_period_rad`,
     :attr:`jump_thetas`, :attr:`static_force_N`, :attr:`formulation`.
 
     Attributes
     ----------
-    mesh : :class:`gearjax.mesh.Mesh` (cells and stiffness law).
-    mods : :class:`gearjax.modifications.ToothModifications`.
+    mesh : :class:`gearjax.gears.mesh.Mesh` (cells and stiffness law).
+    mods : :class:`gearjax.gears.modifications.ToothModifications`.
     inertias_kg_m2 : (2,) polar inertias J1, J2 of the pinion and gear shaft lines (kg m^2).
     pinion_torque_Nm : input torque C_m0 on the pinion (N m), > 0.
     damping_ratio : zeta in [0, 1), ``c = 2 zeta sqrt(k_m cos^2 b_b m_eq)``.
@@ -995,7 +987,7 @@ class TorsionalModel(eqx.Module):
         ``y = (x_D/x_ref, x_D'/(r x_ref))``: ``Omega^2 m_eq x_D'' + Omega c x_D' + k(theta)
         cos^2(b_b) x_D = 0`` with ``k = (sum k_i)^S`` (te; the reference formulation
         linearised about the quasi-static contact) or ``k_m`` (perturbation). Used by
-        :mod:`gearjax.stability`."""
+        :mod:`gearjax.dynamics.stability`."""
         d = self._d()
         r = d.omega_n / omega
         if self.formulation == "perturbation":
@@ -1026,7 +1018,7 @@ def _signature_one(mesh, mods, force, theta):
     """Discrete state of the quasi-static solution at one angle theta: loaded cells, the
     cell realising NLTE, and, per cell, inside/outside the path of contact and
     inside/outside each tip-relief zone (where the gaps, hence TE_S and NLTE, have kinks;
-    the zones follow :mod:`gearjax.modifications`). Traceable in ``mods``."""
+    the zones follow :mod:`gearjax.gears.modifications`). Traceable in ``mods``."""
     p = mesh.pair
     cos_bb = math.cos(p.base_helix_angle_rad)
     xi_a, xi_e = p.contact_limits_m
@@ -1144,7 +1136,7 @@ def _signature_brackets(sig, theta, scan, period):
 
 def _engagement_angles(mesh, period) -> np.ndarray:
     """Angles where cells enter (xi = xi_start) or leave (xi = xi_end) the path of contact:
-    ``Rb1 theta - n p_bt - eta tan(b_b) = 0`` or ``g_alpha`` (see :mod:`gearjax.mesh`)."""
+    ``Rb1 theta - n p_bt - eta tan(b_b) = 0`` or ``g_alpha`` (see :mod:`gearjax.gears.mesh`)."""
     p = mesh.pair
     pm = p.mesh_period_rad
     n_mesh = int(round(period / pm))

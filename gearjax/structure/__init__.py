@@ -2,9 +2,9 @@
 
 Shafts (Timoshenko beams), rigid discs, bearings, couplings and torsional springs
 assembled into the constant matrices ``M`` and ``K`` of Eqs. (12)-(14) of Velex & Ajmi,
-plus the modal tools (modal basis, modal damping, reduced models) and the Baud & Velex
-test rig of Section 6.1. Node dof order: ``(u, v, w, phi, psi, theta)``; global index
-``6 * node + dof``; SI units.
+plus the modal tools (modal basis, modal damping, reduced models). The Baud & Velex test
+rig of Section 6.1 is in :mod:`gearjax.rigs.baud_velex`. Node dof order:
+``(u, v, w, phi, psi, theta)``; global index ``6 * node + dof``; SI units.
 """
 
 from .assembly import ElementRecord as ElementRecord
@@ -31,12 +31,3 @@ from .beams import shear_coefficient_hutchinson as shear_coefficient_hutchinson
 from .beams import timoshenko_element as timoshenko_element
 from .beams import torsional_coupling as torsional_coupling
 from .beams import torsional_spring_to_ground as torsional_spring_to_ground
-from .rigs import BAUD_VELEX_BEARINGS as BAUD_VELEX_BEARINGS
-from .rigs import ENCODER_POSITIONS as ENCODER_POSITIONS
-from .rigs import GEAR_NODE as GEAR_NODE
-from .rigs import LOAD_NODE as LOAD_NODE
-from .rigs import MOTOR_NODE as MOTOR_NODE
-from .rigs import PINION_NODE as PINION_NODE
-from .rigs import baud_velex_structure as baud_velex_structure
-from .rigs import encoder_nodes as encoder_nodes
-from .rigs import paper_node as paper_node

@@ -36,6 +36,7 @@ from .beams import (
     timoshenko_element,
     torsional_spring_to_ground,
 )
+from ..errors import StructureInputError
 
 __all__ = [
     "ElementRecord",
@@ -49,10 +50,6 @@ __all__ = [
     "modal_damping_matrix",
     "reduced_model",
 ]
-
-
-class StructureInputError(ElementInputError):
-    """Invalid structure input: the message names the offending field and value."""
 
 
 class RigidBodyModeWarning(UserWarning):

@@ -45,6 +45,7 @@ import math
 
 import numpy as np
 from numpy.typing import NDArray
+from ..errors import ElementInputError
 
 __all__ = [
     "DOF_NAMES",
@@ -68,10 +69,6 @@ DOF_NAMES: tuple[str, ...] = ("u", "v", "w", "phi", "psi", "theta")
 
 # Local indices inside one node.
 _U, _V, _W, _PHI, _PSI, _THETA = range(6)
-
-
-class ElementInputError(ValueError):
-    """An element parameter is out of its physical range (names the field and value)."""
 
 
 def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:

@@ -1,4 +1,4 @@
-"""Speed sweeps: one jitted, vmapped :func:`gearjax.simulate.simulate` per chunk of speeds.
+"""Speed sweeps: one jitted, vmapped :func:`gearjax.dynamics.simulate.simulate` per chunk of speeds.
 
 * The speeds are the only batched input, so a new set of speeds (same chunk size) never
   recompiles: the model's array data and the speeds are traced, only its static structure
@@ -60,7 +60,7 @@ class SweepResult(eqx.Module):
     speed_rad_s, max_mesh_force_N, min_mesh_force_N, dynamic_factor, dte_ptp_m,
     accel_ptp_m_s2, contact_loss, convergence, converged, solver_ok, n_steps,
     transient_periods : NumPy arrays of shape (n_speeds,), see
-        :class:`gearjax.simulate.SimulationResult`.
+        :class:`gearjax.dynamics.simulate.SimulationResult`.
     formulation : the model's formulation (str).
     """
 
@@ -180,7 +180,7 @@ def sweep(
 
     Parameters
     ----------
-    model : a model with the simulation interface (see :mod:`gearjax.simulate`).
+    model : a model with the simulation interface (see :mod:`gearjax.dynamics.simulate`).
     speeds_rad_s : (n,) pinion speeds Omega1 (rad/s), finite and > 0.
     chunk_size : speeds per compiled call (default: all, rounded up to a multiple of the
         device count). Smaller chunks give earlier progress/CSV output; chunks are padded
@@ -189,18 +189,18 @@ def sweep(
     out_csv : append one row per speed (columns :data:`CSV_COLUMNS`) as chunks complete.
     devices : list of JAX devices to shard the speed axis over; ``None`` uses one device
         (the default device), ``"all"`` every device of the default backend.
-    method : ``"transient"`` (default): :func:`gearjax.simulate.simulate` at every speed
-        (diffrax from the start of :func:`gearjax.simulate.transient_start`, automatic
-        transient). ``"steady"``: :func:`gearjax.steady.steady_sweep` (periodic orbit by
+    method : ``"transient"`` (default): :func:`gearjax.dynamics.simulate.simulate` at every speed
+        (diffrax from the start of :func:`gearjax.dynamics.simulate.transient_start`, automatic
+        transient). ``"steady"``: :func:`gearjax.dynamics.steady.steady_sweep` (periodic orbit by
         shooting; the reference formulation is continued by ``simulate`` with
         ``**simulate_kwargs`` at speeds with contact loss or no stable orbit); returns a
-        :class:`gearjax.steady.SteadySweepResult` (a ``SweepResult`` with
+        :class:`gearjax.dynamics.steady.SteadySweepResult` (a ``SweepResult`` with
         ``spectral_radius`` and ``continued``); ``devices`` must be None, the CSV is
         written when the sweep ends, and of ``**simulate_kwargs`` the transient options
         (``n_transient_periods``, ``transient_decay``, ``min/max_transient_mesh_periods``,
         ``start``) go to the continuation only. See ``benchmarks/results/README.md`` for
         which is faster where.
-    **simulate_kwargs : options of :func:`gearjax.simulate.simulate` (static).
+    **simulate_kwargs : options of :func:`gearjax.dynamics.simulate.simulate` (static).
 
     Returns
     -------
@@ -303,7 +303,7 @@ def sweep(
             real = np.asarray(list(first.values())) - c * chunk
             bar = "#" * round(20 * n_done / speeds.size)
             print(
-                f"[gearjax.sweep] {formulation:12s} [{bar:<20s}] chunk {c + 1}/{n_chunks}: {len(first)} speeds "
+                f"[gearjax.dynamics.sweep] {formulation:12s} [{bar:<20s}] chunk {c + 1}/{n_chunks}: {len(first)} speeds "
                 f"{speeds[sel].min():.4g}-{speeds[sel].max():.4g} rad/s in {dt:.2f} s "
                 f"({'incl. compile, ' if c == 0 else ''}{n_done}/{speeds.size} done, "
                 f"{int(np.sum(~conv[real]))} not converged, "
@@ -321,7 +321,7 @@ def sweep(
     failed = ~res.solver_ok.astype(bool)
     if np.any(failed) and lead:
         print(
-            f"[gearjax.sweep] WARNING: integration failed (step limit or non-finite state) at "
+            f"[gearjax.dynamics.sweep] WARNING: integration failed (step limit or non-finite state) at "
             f"{int(failed.sum())} speed(s): {speeds[failed][:10].tolist()} rad/s; their metrics "
             "are NaN and converged=False",
             file=sys.stderr, flush=True,

@@ -7,7 +7,7 @@ mesh are laid on the base plane. Tooth pair ``n`` (a global counter; pinion toot
 
     xi_n(theta, eta) = xi_start + Rb1 theta - n p_bt - eta tan(beta_b)
 
-(``xi`` from T1 along the transverse line of action, see :mod:`gearjax.geometry`). Each
+(``xi`` from T1 along the transverse line of action, see :mod:`gearjax.gears.geometry`). Each
 line is cut into ``cells_per_line`` cells across the face width; a cell is active when
 ``xi_start <= xi <= xi_end``. Shapes are fixed (``n_slots`` tooth-pair slots x cells), with
 masks, so everything jits and vmaps over ``theta``.

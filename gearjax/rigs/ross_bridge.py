@@ -1,7 +1,7 @@
 """The shaft lines of a rig file as ROSS rotors (optional dependency ``ross-rotordynamics``).
 
 An independent check of :mod:`gearjax.structure`: the same shafts, discs, bearings and
-couplings, read again from the TOML rig file (:mod:`gearjax.rigfile` schema) and
+couplings, read again from the TOML rig file (:mod:`gearjax.rigs.rigfile` schema) and
 assembled by ROSS (https://github.com/petrobras/ross, ``pip install 'gearjax[ross]'``),
 one :class:`ross.Rotor` per shaft line. ROSS has no pinion-gear element in a single rotor,
 so the comparison is for the structure without the mesh: the undamped modes of ``(M, K)``,

@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..mesh import Mesh
+from ..gears.mesh import Mesh
 
 __all__ = ["PinionGearElement"]
 
@@ -50,7 +50,7 @@ class PinionGearElement(eqx.Module):
 
     Attributes
     ----------
-    mesh : the :class:`gearjax.mesh.Mesh`.
+    mesh : the :class:`gearjax.gears.mesh.Mesh`.
     n_dof : total number of dofs of the structure.
     pinion_dofs, gear_dofs : the 6 global dof indices of each centre node, in the order
         (u, v, w, phi, psi, theta).

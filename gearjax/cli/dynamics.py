@@ -1,10 +1,10 @@
 """``gearjax sweep`` and ``gearjax stability``: dynamic response curves (Figs. 8-13) and
 Floquet stability maps, for the sdof torsional model and the 3D model.
 
-Registered by :mod:`gearjax.cli` (``_EXTENSIONS``). The commands parse options, build the
+Registered by :mod:`gearjax.cli.main` (``_EXTENSIONS``). The commands parse options, build the
 models with :func:`build_dynamic_model` and format results; the physics lives in
-:mod:`gearjax.models`, :mod:`gearjax.simulate`, :mod:`gearjax.sweep` and
-:mod:`gearjax.stability`.
+:mod:`gearjax.models`, :mod:`gearjax.dynamics.simulate`, :mod:`gearjax.dynamics.sweep` and
+:mod:`gearjax.dynamics.stability`.
 
 Section 6.3 cases (Velex & Ajmi), one command each (``--speeds`` to taste)::
 
@@ -38,7 +38,7 @@ import time
 
 import numpy as np
 
-from .models.geared3d import (  # the default modal cut-off rule lives with the 3D model
+from ..models.geared3d import (  # the default modal cut-off rule lives with the 3D model
     CUTOFF_FLOOR_HZ,
     CUTOFF_MARGIN,
     CUTOFF_MESH_HARMONICS,
@@ -170,14 +170,14 @@ def build_dynamic_model(rig, mods, *, model: str, formulation: str, law: str = "
     (default inertias, see its docstring) or :class:`~gearjax.models.geared3d.Geared3DModel`
     of the rig (``max_frequency_hz`` None or 0: all modes)."""
     if model == "torsional":
-        from .mesh import Mesh
-        from .models.torsional import TorsionalModel
+        from ..gears.mesh import Mesh
+        from ..models.torsional import TorsionalModel
 
         return TorsionalModel.build(
             Mesh.build(rig.pair, law), mods, pinion_torque_Nm=rig.pinion_torque_Nm,
             damping_ratio=damping, formulation=formulation, nlte_terms=nlte_terms,
         )
-    from .models.geared3d import Geared3DModel
+    from ..models.geared3d import Geared3DModel
 
     return Geared3DModel.from_rig(
         rig, mods, law=law, encoder_position=encoders, formulation=formulation,
@@ -249,7 +249,7 @@ def predicted_critical_speeds(model, speeds_rad_s=None) -> dict:
 
 
 def summarise_sweep(res, speeds) -> dict:
-    """Per-formulation summary of a :class:`gearjax.sweep.SweepResult`."""
+    """Per-formulation summary of a :class:`gearjax.dynamics.sweep.SweepResult`."""
     df = np.asarray(res.dynamic_factor, dtype=float)
     ok = np.isfinite(df)
     i = int(np.nanargmax(df)) if ok.any() else 0
@@ -294,8 +294,8 @@ def _init_distributed(args) -> bool:
 
 
 def cmd_sweep(args) -> int:
-    from .rigs import get_rig
-    from .sweep import sweep
+    from ..rigs.registry import get_rig
+    from ..dynamics.sweep import sweep
 
     lead = _init_distributed(args)
     rig = get_rig(args.rig)
@@ -368,7 +368,7 @@ def cmd_sweep(args) -> int:
             for f, r in results.items() if f != "reference"
         }
     summary["results_csv"] = csv_path
-    from .plotting import plot_response_curves
+    from ..plotting import plot_response_curves
 
     fig_path = os.path.join(out, "response_curves.png")
     title = (f"{rig.name}, {args.model}, relief {args.relief}"
@@ -390,7 +390,7 @@ def cmd_sweep(args) -> int:
 
 def _signals(model, speeds):
     """Signals over the last mesh period at each speed (mesh force, DTE, acceleration)."""
-    from .simulate import simulate
+    from ..dynamics.simulate import simulate
 
     out = []
     for w in speeds:
@@ -422,7 +422,7 @@ def _write_signals(signals, out, title) -> dict:
                 for t, f, d, a in zip(s["t_over_Tm"], s["mesh_force_N"], s["dte_m"], acc):
                     wr.writerow([form, f"{s['speed_rad_s']:.6g}", f"{t:.6f}", f"{f:.8e}", f"{d:.8e}",
                                  "" if a is None else f"{a:.8e}"])
-    from .plotting import plot_mesh_force_signals
+    from ..plotting import plot_mesh_force_signals
 
     fig = os.path.join(out, "mesh_force_signals.png")
     plot_mesh_force_signals(signals, fig, title=title)
@@ -462,8 +462,8 @@ def _print_summary(rig, summary, out):
 
 
 def cmd_stability(args) -> int:
-    from .rigs import get_rig
-    from .stability import spectral_radius
+    from ..rigs.registry import get_rig
+    from ..dynamics.stability import spectral_radius
 
     rig = get_rig(args.rig)
     speeds = _parse_speeds(args.speeds)

@@ -14,15 +14,12 @@ import os
 
 import numpy as np
 
-from .geometry import GearPair, baud_velex_pair
-from .modifications import ToothModifications, fig5_pitch_errors, table1_relief
+from ..gears.geometry import GearPair, baud_velex_pair
+from ..gears.modifications import ToothModifications, fig5_pitch_errors, table1_relief
+from ..errors import RigError
 
 __all__ = ["Rig", "RIGS", "get_rig", "RigError", "system_3d", "three_d_figures",
            "iso6336_resonance_speed"]
-
-
-class RigError(ValueError):
-    """Unknown rig or bad rig data."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,10 +53,10 @@ class Rig:
 
     def structure(self):
         """The rig's shafts, discs, bearings and couplings, with the centre line set by
-        this rig's gear pair (default :func:`gearjax.structure.rigs.baud_velex_structure`)."""
+        this rig's gear pair (default :func:`gearjax.rigs.baud_velex.baud_velex_structure`)."""
         if self.structure_factory is not None:
             return self.structure_factory(self.pair)
-        from .structure.rigs import baud_velex_structure
+        from .baud_velex import baud_velex_structure
 
         return baud_velex_structure(
             centre_distance_m=self.pair.centre_distance_m,
@@ -71,14 +68,14 @@ class Rig:
         """Node carrying C_m0 (default the Baud-Velex motor node)."""
         if self.motor_node is not None:
             return int(self.motor_node)
-        from .structure.rigs import MOTOR_NODE
+        from .baud_velex import MOTOR_NODE
 
         return MOTOR_NODE
 
     def encoder_nodes(self, position: int = 1) -> tuple[int, int]:
         """Nodes (I, II) of encoder position ``position`` (Fig. 7, Eq. (9))."""
         if self.encoder_positions is None:
-            from .structure.rigs import encoder_nodes
+            from .baud_velex import encoder_nodes
 
             try:
                 return encoder_nodes(position)
@@ -136,7 +133,7 @@ RIGS = {
 
 def get_rig(name: str) -> Rig:
     """A built-in rig by name (``baud-velex-spur`` or ``baud-velex-helical``), or a rig
-    file (a name ending in ``.toml`` or an existing path; see :mod:`gearjax.rigfile`)."""
+    file (a name ending in ``.toml`` or an existing path; see :mod:`gearjax.rigs.rigfile`)."""
     if name not in RIGS and (str(name).endswith(".toml") or os.path.isfile(name)):
         from .rigfile import load_rig
 
@@ -149,10 +146,10 @@ def get_rig(name: str) -> Rig:
 
 def torsional_stiffness_figures(rig: Rig, law: str = "iso6336") -> dict:
     """Mesh figures of a rig at its nominal torque (used by ``gearjax info``)."""
-    from .mesh import Mesh
-    from .quasistatic import static_mesh_force
+    from ..gears.mesh import Mesh
+    from ..gears.quasistatic import static_mesh_force
 
-    from .models.torsional import solid_cylinder_inertias
+    from ..models.torsional import solid_cylinder_inertias
 
     mesh = Mesh.build(rig.pair, law)
     k_m, alpha, _ = mesh.stiffness_variation(mesh.theta_grid(512))
@@ -206,9 +203,9 @@ def system_3d(rig: Rig, law: str = "iso6336", encoder_position: int = 1):
     position ``encoder_position``), ``F0`` (pinion torque on the motor's torsional dof,
     N m), ``k_m`` (mean mesh stiffness, N/m) and ``F_S`` (N).
     """
-    from .mesh import Mesh
-    from .models.element import PinionGearElement
-    from .quasistatic import static_mesh_force
+    from ..gears.mesh import Mesh
+    from ..structure.element import PinionGearElement
+    from ..gears.quasistatic import static_mesh_force
     structure = rig.structure()
     mesh = Mesh.build(rig.pair, law)
     element = PinionGearElement.at_nodes(mesh, structure.n_dof, structure.pinion_node, structure.gear_node)
@@ -232,8 +229,8 @@ def three_d_figures(rig: Rig, law: str = "iso6336", encoder_position: int = 1, n
     """3D figures of a rig for ``gearjax info --model 3d``: dof count, the Appendix A
     relations normalised to 1 (Eqs. (33)-(35)), w_x0 and the lowest natural frequencies of
     (M, K_bar) with K_bar = K + k_m V V^T."""
-    from .analytic import analytic_relations
-    from .structure import modal_basis
+    from ..structure.analytic import analytic_relations
+    from ..structure import modal_basis
 
     sys3 = system_3d(rig, law, encoder_position)
     rel = analytic_relations(

@@ -5,9 +5,9 @@ Commands
 ``gearjax info``        geometry and mesh figures of a rig at its nominal torque.
 ``gearjax quasistatic`` TE_S and NLTE over a mesh period (a pinion revolution with pitch
                         errors), load sharing, CSV/JSON/plot output.
-``gearjax sweep``       response curves of Figs. 8-13 (:mod:`gearjax.cli_dynamics`).
-``gearjax stability``   Floquet spectral radius over speeds (:mod:`gearjax.cli_dynamics`).
-``gearjax optimise``, ``gearjax harris-map``  tip-relief design (:mod:`gearjax.cli_design`).
+``gearjax sweep``       response curves of Figs. 8-13 (:mod:`gearjax.cli.dynamics`).
+``gearjax stability``   Floquet spectral radius over speeds (:mod:`gearjax.cli.dynamics`).
+``gearjax optimise``, ``gearjax harris-map``  tip-relief design (:mod:`gearjax.cli.design`).
 
 The CLI only parses arguments and formats results; all physics lives in the library.
 """
@@ -70,7 +70,7 @@ def _parser() -> argparse.ArgumentParser:
 
 # Modules adding sub-commands: each defines ``register(subparsers, add_rig, add_scenario)``
 # that adds its parsers with ``set_defaults(func=...)``; ``func(args) -> int``.
-_EXTENSIONS: tuple[str, ...] = ("gearjax.cli_dynamics", "gearjax.cli_design")
+_EXTENSIONS: tuple[str, ...] = ("gearjax.cli.dynamics", "gearjax.cli.design")
 
 
 def _add_scenario(p: argparse.ArgumentParser):
@@ -91,14 +91,14 @@ def _fail(msg: str) -> int:
 
 
 def _cmd_info(args) -> int:
-    from .rigs import get_rig, torsional_stiffness_figures
+    from ..rigs.registry import get_rig, torsional_stiffness_figures
 
     rig = get_rig(args.rig)
     out = {"rig": rig.name, "description": rig.description}
     out.update(rig.pair.summary())
     out.update(torsional_stiffness_figures(rig, args.stiffness))
     if args.model == "3d":
-        from .rigs import three_d_figures
+        from ..rigs.registry import three_d_figures
 
         out.update(three_d_figures(rig, args.stiffness, args.encoders))
     if args.json:
@@ -140,9 +140,9 @@ def _cmd_info(args) -> int:
 
 
 def _cmd_quasistatic(args) -> int:
-    from .mesh import Mesh
-    from .quasistatic import quasi_static, static_mesh_force
-    from .rigs import get_rig
+    from ..gears.mesh import Mesh
+    from ..gears.quasistatic import quasi_static, static_mesh_force
+    from ..rigs.registry import get_rig
 
     rig = get_rig(args.rig)
     if args.positions < 8:
@@ -182,7 +182,7 @@ def _cmd_quasistatic(args) -> int:
                    comments="", fmt="%.10e")
         summary["csv"] = args.csv
     if args.plot:
-        from .plotting import plot_quasistatic
+        from ..plotting import plot_quasistatic
 
         plot_quasistatic(res, mesh, args.plot, title=f"{rig.name}, relief {args.relief}")
         summary["plot"] = args.plot
@@ -208,11 +208,6 @@ def _cmd_quasistatic(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    from .geometry import GeometryError
-    from .modifications import ModificationError
-    from .models.torsional import ModelError
-    from .rigs import RigError
-
     try:
         if args.command == "info":
             return _cmd_info(args)
@@ -220,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_quasistatic(args)
         if hasattr(args, "func"):
             return args.func(args)
-    except (GeometryError, ModificationError, RigError, ModelError, ValueError) as exc:
+    except ValueError as exc:  # GearjaxError and argument conversions
         return _fail(str(exc))
     return _fail(f"unknown command {args.command!r}")
 

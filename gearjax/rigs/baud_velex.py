@@ -69,7 +69,7 @@ Assumptions (the paper does not print them; chosen for a 4 mm module, z = 26/157
   (default 0.366 m = m (z1 + z2) / 2 for the spur pair, x1 + x2 = 0) and ``g`` the
   centre-line angle measured from S towards T. The default ``g = alpha_w - pi/2``
   (``alpha_w`` the working transverse pressure angle, 20 deg for the spur pair) matches the
-  frame of :mod:`gearjax.models.element`: S along the line of action from T1 to T2 and
+  frame of :mod:`gearjax.structure.element`: S along the line of action from T1 to T2 and
   ``O2 = O1 + a (sin alpha_w S - cos alpha_w T)``. The pinion and gear centres share the
   plane z = 0. The positions are metadata (the dofs are the same in any layout).
 
@@ -88,8 +88,8 @@ import math
 
 import numpy as np
 
-from .assembly import Structure, StructureBuilder, StructureInputError
-from .beams import STEEL, Material, disc_properties
+from ..structure.assembly import Structure, StructureBuilder, StructureInputError
+from ..structure.beams import STEEL, Material, disc_properties
 
 __all__ = [
     "BAUD_VELEX_BEARINGS",
@@ -186,7 +186,7 @@ def baud_velex_structure(
     centre_line_angle_rad : float, optional
         Direction of ``O1 -> O2`` in the (S, T) plane, from S towards T (rad). Default
         ``working_pressure_angle_rad - pi/2`` (S along the line of action, as in
-        :mod:`gearjax.models.element`).
+        :mod:`gearjax.structure.element`).
     working_pressure_angle_rad : float
         Working transverse pressure angle ``alpha_w`` (rad) used by the default above
         (``pair.working_pressure_angle_rad``; 20 deg for the spur pair of Table 1).

@@ -16,7 +16,7 @@ error control; the jumps of ``k(theta)`` passed as ``jump_ts``). For a linear sy
 adaptive solve, whose step sizes would be chosen for one primal trajectory only.
 
 Models provide ``homogeneous_vector_field(theta, y, omega)`` (linear in ``y``) and the
-simulation interface of :mod:`gearjax.simulate` (``prepare``, ``period_rad``,
+simulation interface of :mod:`gearjax.dynamics.simulate` (``prepare``, ``period_rad``,
 ``jump_thetas``). For :class:`gearjax.models.torsional.TorsionalModel` the reference
 formulation is linearised about the quasi-static contact (same equation as te, valid while
 no cell changes contact), and the perturbation formulation has constant coefficients

@@ -14,10 +14,10 @@ matrix (``Phi' = A(theta) Phi``, ``Phi(0) = I``), the periodic start ``y*`` solv
 ``Phi`` and ``y_p`` come from *one* ``diffeqsolve`` over one period of the augmented state
 ``(y, Phi)``, ``Phi' = (df/dy) Phi`` with ``df/dy`` applied by forward-mode linearisation
 of the model's ``vector_field`` (exact for an affine vector field, and the same matrix as
-:func:`gearjax.stability.monodromy`, which integrates the model's
+:func:`gearjax.dynamics.stability.monodromy`, which integrates the model's
 ``homogeneous_vector_field``: checked in ``tests/test_steady.py``; the 3D model has only the
 full vector field, hence the linearisation here). Both share one error control and the
-jump angles of the model (:class:`gearjax.simulate.PeriodicJumpController`).
+jump angles of the model (:class:`gearjax.dynamics.simulate.PeriodicJumpController`).
 
 The reference formulation (Eq. (14) / (16)) is piecewise linear in ``y``: the same
 step is a Newton iteration ``y <- y + (I - Phi(y))^-1 (y_P(y) - y)`` on the periodicity
@@ -25,10 +25,10 @@ residual (quadratic convergence while the set of loaded cells along the orbit st
 same; ``max_newton`` iterations, stopped when the step is below ``newton_tol`` on the
 dimensionless state). Where teeth separate the periodic orbit found may be unstable or
 not the one a transient reaches: :func:`steady_sweep` then recomputes those speeds with
-:func:`gearjax.simulate.simulate` (its automatic transient, from the quasi-static start
+:func:`gearjax.dynamics.simulate.simulate` (its automatic transient, from the quasi-static start
 as ``sweep``), so the sweep stays exact where it matters.
 
-Metrics: the periodic start is handed to :func:`gearjax.simulate.simulate` (through a thin
+Metrics: the periodic start is handed to :func:`gearjax.dynamics.simulate.simulate` (through a thin
 wrapper whose ``initial_state`` is ``y*``) with no transient and ``n_measured_periods``
 (default 2) measured periods: every metric has exactly the meaning it has in ``simulate``
 (max/min mesh force, dynamic factor, DTE and acceleration peak-to-peak, contact loss) and
@@ -117,7 +117,7 @@ class PeriodicState(eqx.Module):
 
 
 class SteadyStateResult(eqx.Module):
-    """:class:`gearjax.simulate.SimulationResult` of the periodic orbit plus its
+    """:class:`gearjax.dynamics.simulate.SimulationResult` of the periodic orbit plus its
     :class:`PeriodicState` (``periodic``)."""
 
     result: SimulationResult
@@ -215,7 +215,7 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
 
     Parameters
     ----------
-    model : a model with the simulation interface of :mod:`gearjax.simulate`.
+    model : a model with the simulation interface of :mod:`gearjax.dynamics.simulate`.
     omega : pinion speed Omega1 (rad/s).
     solver, rtol, atol : diffrax solver and tolerances of the period integration (default
         Dopri8, 1e-9, 1e-11 on the model's dimensionless state).
@@ -267,7 +267,7 @@ def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
     """Steady-state metrics at one speed from the periodic orbit (no transient, no
     continuation: see :func:`steady_sweep` for that). Jit/vmap-compatible.
 
-    The metrics are those of :func:`gearjax.simulate.simulate` over ``n_measured_periods``
+    The metrics are those of :func:`gearjax.dynamics.simulate.simulate` over ``n_measured_periods``
     periods started on ``y*`` (``measure_*``: its solver options, default
     ``simulate``'s). ``converged`` = simulate's (the orbit is periodic to
     ``convergence_tol``) and ``spectral_radius < 1`` and, for the reference formulation,
@@ -304,7 +304,7 @@ def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
 
 # ---------------------------------------------------------------------- sweeps
 class SteadySweepResult(SweepResult):
-    """:class:`gearjax.sweep.SweepResult` of :func:`steady_sweep`, with per speed the
+    """:class:`gearjax.dynamics.sweep.SweepResult` of :func:`steady_sweep`, with per speed the
     Floquet ``spectral_radius`` of the orbit and ``continued`` (the metrics come from a
     diffrax transient started on the periodic orbit, see :func:`steady_sweep`)."""
 
@@ -334,12 +334,12 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
                  continuation: bool = True, continuation_kwargs: dict | None = None,
                  **steady_kwargs) -> SteadySweepResult:
     """Steady state over pinion speeds by shooting (vmapped, one compilation per chunk
-    shape), returning the :class:`~gearjax.sweep.SweepResult` fields of
-    :func:`gearjax.sweep.sweep` with the same meaning.
+    shape), returning the :class:`~gearjax.dynamics.sweep.SweepResult` fields of
+    :func:`gearjax.dynamics.sweep.sweep` with the same meaning.
 
     Reference formulation: at every speed where the periodic orbit shows contact loss,
     is unstable (``spectral_radius >= 1``) or was not found (Newton not converged), the
-    metrics are replaced by a :func:`gearjax.simulate.simulate` run from the quasi-static
+    metrics are replaced by a :func:`gearjax.dynamics.simulate.simulate` run from the quasi-static
     start with its automatic transient (``continuation_kwargs`` go to it), so that those
     speeds are exactly what ``sweep`` computes (after contact loss several attractors can
     coexist; a continuation started on the unstable orbit reached another one). te/perturbation are never
@@ -388,7 +388,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
             y0s = np.full((speeds.size, y.shape[1]), np.nan)
         y0s[sel] = y
         if progress:
-            print(f"[gearjax.steady] chunk {c + 1}/{n_chunks}: {len(set(sel.tolist()))} speeds "
+            print(f"[gearjax.dynamics.steady] chunk {c + 1}/{n_chunks}: {len(set(sel.tolist()))} speeds "
                   f"in {time.perf_counter() - t0:.2f} s", file=sys.stderr, flush=True)
     out["transient_periods"][:] = 0.0
     continued = np.zeros(speeds.size, dtype=bool)
@@ -409,11 +409,11 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
                 out[f][idx] = np.asarray(v, dtype=float)
             continued[idx] = True
             if progress:
-                print(f"[gearjax.steady] continued {idx.size} speed(s) with contact loss or "
+                print(f"[gearjax.dynamics.steady] continued {idx.size} speed(s) with contact loss or "
                       f"without a stable orbit by simulate in {time.perf_counter() - t0:.2f} s",
                       file=sys.stderr, flush=True)
     if progress:
-        print(f"[gearjax.steady] {formulation}: {speeds.size} speeds in "
+        print(f"[gearjax.dynamics.steady] {formulation}: {speeds.size} speeds in "
               f"{time.perf_counter() - t_start:.2f} s", file=sys.stderr, flush=True)
     for f in ("contact_loss", "converged", "solver_ok"):
         out[f] = out[f] > 0

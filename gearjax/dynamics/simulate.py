@@ -78,7 +78,7 @@ per-period extrema by only 9e-5 and was read as converged). ``converged`` theref
 means "periodic with the excitation period to within the tolerance": a sub-harmonic
 response (after contact loss, or in a parametric instability zone of the reference), a
 quasi-periodic or chaotic one, a response still growing (parametric instability of the
-linear te model, see :mod:`gearjax.stability`) or an insufficient transient all read as
+linear te model, see :mod:`gearjax.dynamics.stability`) or an insufficient transient all read as
 not converged. A failed integration (step limit, non-finite state) gives
 ``solver_ok = False``, ``converged = False`` and NaN metrics: never a silent NaN.
 
@@ -101,6 +101,7 @@ import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 import numpy as np
+from ..errors import SimulationError
 
 __all__ = [
     "simulate",
@@ -113,15 +114,6 @@ __all__ = [
     "transient_start",
     "slowest_output_mode",
 ]
-
-
-class SimulationError(ValueError):
-    """Invalid simulation input: names the field, its value and the reason."""
-
-    def __init__(self, field: str, value, reason: str):
-        self.field = field
-        self.value = value
-        super().__init__(f"{field}={value!r}: {reason}")
 
 
 # Solver and tolerances per formulation, chosen by measurement (see module
@@ -317,7 +309,7 @@ def transient_start(model, omega, n_average: int = 64):
     mesh, decays by only 0.998 per mesh period at 700 rad/s and zeta 0.1), and that
     transient outlived the automatic transient: dynamic factor off by 1.7e-3 with
     ``converged`` True. Measured (spur te, zeta 0.1, distance of the start from the
-    periodic orbit of :mod:`gearjax.steady`, dimensionless state): 3.5 / 8.1 / 16.2 from
+    periodic orbit of :mod:`gearjax.dynamics.steady`, dimensionless state): 3.5 / 8.1 / 16.2 from
     the quasi-static start against 0.15 / 0.19 / 0.11 from the mean at 300 / 700 / 1400
     rad/s; the 61.8 rad/s mode's amplitude falls ~200x.
     """

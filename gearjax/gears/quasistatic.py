@@ -70,7 +70,7 @@ def contact_gaps(mesh: Mesh, mods: ToothModifications, theta):
 
     Returns
     -------
-    (cells, delta_e, nlte) : :class:`gearjax.mesh.Cells`; ``delta_e_i = r_i - min r`` over the
+    (cells, delta_e, nlte) : :class:`gearjax.gears.mesh.Cells`; ``delta_e_i = r_i - min r`` over the
     cells inside the path of contact (m, >= 0 there); NLTE (m, transverse, Eq. (9)).
     """
     # shapes are static: checked at trace time; flat relief bands are fine here (exact)
@@ -131,8 +131,8 @@ def quasi_static(mesh: Mesh, mods: ToothModifications, theta, static_force_N) ->
 
     Parameters
     ----------
-    mesh : :class:`gearjax.mesh.Mesh`.
-    mods : :class:`gearjax.modifications.ToothModifications`.
+    mesh : :class:`gearjax.gears.mesh.Mesh`.
+    mods : :class:`gearjax.gears.modifications.ToothModifications`.
     theta : (n,) pinion angles (rad), e.g. ``mesh.theta_grid(256)``.
     static_force_N : static normal mesh force F_S (N), see :func:`static_mesh_force`.
     """

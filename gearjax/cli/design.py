@@ -1,6 +1,6 @@
 """``gearjax optimise`` and ``gearjax harris-map``: tip-relief design from the command line.
 
-Registered through the ``_EXTENSIONS`` hook of :mod:`gearjax.cli`. All physics lives in
+Registered through the ``_EXTENSIONS`` hook of :mod:`gearjax.cli.main`. All physics lives in
 :mod:`gearjax.design`; this module parses options and formats results.
 """
 
@@ -84,9 +84,9 @@ def register(subparsers, add_rig, add_scenario):
 
 
 def _setup(args, separate=False):
-    from .design import ReliefSpace, make_objective
-    from .mesh import Mesh
-    from .rigs import get_rig
+    from ..design import ReliefSpace, make_objective
+    from ..gears.mesh import Mesh
+    from ..rigs.registry import get_rig
 
     if not (0.0 <= args.damping < 1.0):
         raise _Bad(f"--damping={args.damping!r}: must lie in [0, 1)")
@@ -126,7 +126,7 @@ def _setup(args, separate=False):
 
 
 def _cmd_harris_map(args) -> int:
-    from .design import harris_map, plot_design_map
+    from ..design import harris_map, plot_design_map
 
     try:
         rig, obj, amps, exts = _setup(args)
@@ -157,7 +157,7 @@ def _cmd_harris_map(args) -> int:
 
 
 def _cmd_optimise(args) -> int:
-    from .design import coarse_starts, harris_map, multi_start, plot_design_map, plot_history
+    from ..design import coarse_starts, harris_map, multi_start, plot_design_map, plot_history
 
     if args.starts < 1:
         return _fail(f"--starts={args.starts}: need at least 1 start per variable")

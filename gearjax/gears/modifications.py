@@ -10,7 +10,7 @@ Every deviation is expressed as material **removed** from the nominal flank, mea
 along the flank normal n (m), composite over pinion and gear: ``r(M) >= 0`` for a relief.
 The paper's composite normal deviation is ``e(M) = -r(M)`` and the initial gap of Eq. (7)
 is ``delta_e(M_i) = max_j e(M_j) - e(M_i) = r(M_i) - min_j r(M_j)`` over the cells inside
-the path of contact (see :mod:`gearjax.quasistatic`).
+the path of contact (see :mod:`gearjax.gears.quasistatic`).
 
 * Tip relief of gear k (Fig. 4): amplitude ``P_c`` at the tip, extent ``L_c`` as a fraction
   of the nominal path of contact ``g_alpha`` measured on the base plane, starting
@@ -36,14 +36,11 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from ..errors import ModificationError
 
 __all__ = ["ToothModifications", "ModificationError", "table1_relief", "fig5_pitch_errors"]
 
 ReliefShape = Literal["linear", "parabolic"]
-
-
-class ModificationError(ValueError):
-    """Invalid tooth modification: the message names the field, its value and the reason."""
 
 
 def _concrete(x) -> np.ndarray | None:
@@ -156,7 +153,7 @@ class ToothModifications(eqx.Module):
 
         Parameters
         ----------
-        pair : :class:`gearjax.geometry.GearPair`.
+        pair : :class:`gearjax.gears.geometry.GearPair`.
         xi, eta : cell positions on the base plane (m), any shape.
         pinion_tooth, gear_tooth : integer tooth indices, same shape.
         theta : pinion angle (rad), scalar.

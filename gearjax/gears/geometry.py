@@ -22,17 +22,9 @@ import dataclasses
 import math
 
 import numpy as np
+from ..errors import GeometryError
 
 __all__ = ["GearPair", "GeometryError", "involute", "inverse_involute", "baud_velex_pair"]
-
-
-class GeometryError(ValueError):
-    """Invalid gear data: the message names the field, its value and why it is wrong."""
-
-    def __init__(self, field: str, value, reason: str):
-        self.field = field
-        self.value = value
-        super().__init__(f"{field}={value!r}: {reason}")
 
 
 def involute(alpha: float) -> float:

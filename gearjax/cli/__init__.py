@@ -1,0 +1,3 @@
+"""The ``gearjax`` command line: argument parsing and formatting only."""
+
+from .main import main as main
