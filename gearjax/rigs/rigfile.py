@@ -134,7 +134,8 @@ except ModuleNotFoundError:  # Python 3.10
 from ..gears.geometry import GearPair, GeometryError
 from ..gears.modifications import ModificationError, ToothModifications
 from .registry import Rig, RigError
-from ..structure.assembly import Structure, StructureBuilder, modal_basis
+from ..structure.assembly import Structure, StructureBuilder
+from ..structure.modal import modal_basis
 from ..structure.beams import DOF_NAMES, STEEL, ElementInputError, Material, disc_properties
 
 __all__ = ["load_rig", "parse_rig"]

@@ -8,15 +8,9 @@ rig of Section 6.1 is in :mod:`gearjax.rigs.baud_velex`. Node dof order:
 """
 
 from .assembly import ElementRecord as ElementRecord
-from .assembly import ModalBasis as ModalBasis
-from .assembly import ReducedModel as ReducedModel
-from .assembly import RigidBodyModeWarning as RigidBodyModeWarning
 from .assembly import Structure as Structure
 from .assembly import StructureBuilder as StructureBuilder
 from .assembly import StructureInputError as StructureInputError
-from .assembly import modal_basis as modal_basis
-from .assembly import modal_damping_matrix as modal_damping_matrix
-from .assembly import reduced_model as reduced_model
 from .beams import DOF_NAMES as DOF_NAMES
 from .beams import DOFS_PER_NODE as DOFS_PER_NODE
 from .beams import STEEL as STEEL
@@ -31,3 +25,9 @@ from .beams import shear_coefficient_hutchinson as shear_coefficient_hutchinson
 from .beams import timoshenko_element as timoshenko_element
 from .beams import torsional_coupling as torsional_coupling
 from .beams import torsional_spring_to_ground as torsional_spring_to_ground
+from .modal import ModalBasis as ModalBasis
+from .modal import ReducedModel as ReducedModel
+from .modal import RigidBodyModeWarning as RigidBodyModeWarning
+from .modal import modal_basis as modal_basis
+from .modal import modal_damping_matrix as modal_damping_matrix
+from .modal import reduced_model as reduced_model
