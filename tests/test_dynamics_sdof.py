@@ -314,18 +314,19 @@ def test_misread_switching_event_is_kept_fixed_with_a_warning(monkeypatch):
     does not vanish at its build angle (here every engagement is misread as a relief-zone
     crossing) is kept fixed with a RuntimeWarning, and k_m stays the quasi-static mean."""
     import gearjax.models.torsional as tors
+    from gearjax.excitation import events
 
     spur = Mesh.build(baud_velex_pair(False))
     good = TorsionalModel.build(spur, table1_relief("short"), formulation="te")
-    real = tors._event_kinds
+    real = events.event_kinds
 
     def misread(c_lo, c_hi, n):
         kind, a, b = real(c_lo, c_hi, n)
-        if kind == tors._EV_FIXED:
-            return tors._EV_ZONE1, 0, 0
+        if kind == events.EV_FIXED:
+            return events.EV_ZONE1, 0, 0
         return kind, a, b
 
-    monkeypatch.setattr(tors, "_event_kinds", misread)
+    monkeypatch.setattr(tors, "event_kinds", misread)
     with pytest.warns(RuntimeWarning, match="kept at their build angles"):
         bad = TorsionalModel.build(spur, table1_relief("short"), formulation="te")
     assert bad.jump_kinds == good.jump_kinds

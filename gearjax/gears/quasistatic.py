@@ -4,15 +4,8 @@ Torsional (sdof) model, Eq. (17): with ``y = x cos(beta_b)`` the normal approach
 loaded cells satisfy ``sum_i k_i max(0, y - delta_e_i) = F_S`` with ``F_S = F_t / cos(beta_b)``
 (equivalently ``(sum k_i)^S cos^2(beta_b) x_S = F_t + (sum k_i delta_e_i)^S cos(beta_b)``).
 
-The solve is exact, not a penalty approximation: ``f(y) = sum_i k_i max(0, y - delta_e_i)``
-is increasing and piecewise linear, and for *any* prefix ``j`` of the cells sorted by gap,
-``f(y) >= f_j(y) = sum_{l<=j} k_l (y - delta_e_l)`` because ``max(0, z) >= z`` and the
-dropped terms are >= 0. Hence the root is ``y* = min_j (F_S + sum_{l<=j} k_l delta_e_l) /
-sum_{l<=j} k_l``, attained by the true active set. One sort, two cumulative sums, one min:
-branch-free, jit/vmap/grad friendly and differentiable almost everywhere.
-
-The 3D model reuses :func:`solve_unilateral` through the condensed compliance of the
-pinion-gear dofs (see ``gearjax.models``).
+The root is found exactly by :func:`gearjax.gears.contact.solve_unilateral` (re-exported
+here). The 3D model reuses it through the condensed compliance of the pinion-gear dofs.
 
 Transmission errors are transverse distances on the base plane (m), Eq. (9):
 ``NLTE = min_i r(M_i) / cos(beta_b)`` (rigid approach to first contact, ``r`` the composite
@@ -27,6 +20,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from .contact import solve_unilateral
 from .mesh import Mesh
 from .modifications import ToothModifications
 
@@ -36,33 +30,6 @@ __all__ = ["QuasiStatic", "solve_unilateral", "contact_gaps", "quasi_static", "s
 def static_mesh_force(pair, pinion_torque_Nm: float) -> float:
     """Static normal mesh force F_S = C_m0 / (Rb1 cos(beta_b)) (N) (Section 3, Eq. (23))."""
     return float(pinion_torque_Nm) / (pair.base_radii_m[0] * math.cos(pair.base_helix_angle_rad))
-
-
-def solve_unilateral(k, gap, force):
-    """Exact unilateral contact of parallel springs under a total force (Eq. (17)).
-
-    Parameters
-    ----------
-    k : (n,) cell stiffnesses (N/m); cells with ``k == 0`` are ignored.
-    gap : (n,) initial gaps delta_e_i (m).
-    force : total normal force F_S (N), > 0.
-
-    Returns
-    -------
-    (y, loads) : the normal approach y (m) and the cell loads ``k_i max(0, y - gap_i)`` (N).
-    """
-    active = k > 0
-    key = jnp.where(active, gap, jnp.inf)
-    order = jnp.argsort(key)
-    ks = k[order]
-    gs = jnp.where(active[order], gap[order], 0.0)
-    kc = jnp.cumsum(ks)
-    sc = jnp.cumsum(ks * gs)
-    ok = kc > 0
-    y_j = jnp.where(ok, (force + sc) / jnp.where(ok, kc, 1.0), jnp.inf)
-    y = jnp.min(y_j)
-    loads = jnp.where(active, k * jnp.maximum(y - gap, 0.0), 0.0)
-    return y, loads
 
 
 def contact_gaps(mesh: Mesh, mods: ToothModifications, theta):

@@ -170,7 +170,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import warnings
 from typing import Literal
 
 import equinox as eqx
@@ -181,7 +180,21 @@ import numpy as np
 from ..gears.geometry import GearPair
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
-from ..gears.quasistatic import contact_gaps, solve_unilateral, static_mesh_force
+from ..gears.contact import solve_unilateral, unilateral_solve_pairwise
+from ..gears.quasistatic import contact_gaps, static_mesh_force
+from ..excitation.events import (
+    EV_FIXED,
+    check_event_roots,
+    code,
+    code_jnp,
+    engagement_angles,
+    event_kinds,
+    find_brackets,
+    moved_event_angles,
+    quiet_origin,
+    switch_value,
+)
+from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..errors import ModelError
 
 __all__ = [
@@ -216,35 +229,6 @@ def solid_cylinder_inertias(pair: GearPair, density_kg_m3: float = STEEL_DENSITY
     )
 
 
-def unilateral_solve_pairwise(k, gap, force):
-    """Exact unilateral contact of parallel springs, without a sort (Eq. (17)).
-
-    Same root as :func:`gearjax.gears.quasistatic.solve_unilateral`: for every active cell j the
-    candidate active set is ``{l : gap_l <= gap_j}`` (a prefix of the gap-sorted cells) and
-    ``y = min_j (F + sum_l k_l gap_l) / sum_l k_l`` over those sets. O(n^2) operations with
-    no data-dependent ordering, which vectorises better than a sort for n <= ~200.
-
-    Parameters
-    ----------
-    k : (n,) cell stiffnesses (N/m); cells with ``k == 0`` are ignored.
-    gap : (n,) initial gaps (m).
-    force : total normal force (N), > 0.
-
-    Returns
-    -------
-    (y, k_loaded) : normal approach (m) and the stiffness of the loaded cells (N/m).
-    """
-    active = k > 0
-    le = (gap[None, :] <= gap[:, None]) & active[None, :]  # [j, l]: l in set of j
-    ksum = jnp.sum(jnp.where(le, k[None, :], 0.0), axis=1)
-    ksg = jnp.sum(jnp.where(le, (k * gap)[None, :], 0.0), axis=1)
-    ok = active & (ksum > 0)
-    y_j = jnp.where(ok, (force + ksg) / jnp.where(ok, ksum, 1.0), jnp.inf)
-    y = jnp.min(y_j)
-    k_loaded = jnp.sum(jnp.where(active & (gap < y), k, 0.0))
-    return y, k_loaded
-
-
 class ModelOutputs(eqx.Module):
     """Observables at one angle (all scalars).
 
@@ -259,192 +243,6 @@ class ModelOutputs(eqx.Module):
     mesh_force_N: jax.Array
     dte_m: jax.Array
     accel_m_s2: jax.Array | None = None
-
-
-class PeriodicHermiteTable(eqx.Module):
-    """Piecewise cubic Hermite interpolation of periodic signals with known jumps.
-
-    Knots cover ``[origin, origin + period]``: a uniform grid of ``n_cells`` intervals plus
-    extra knots (e.g. the two floating-point neighbours of a jump). Values and slopes are
-    given at every knot, so jumps and kinks placed between two adjacent extra knots are
-    reproduced exactly. Lookup is O(1): the uniform cell gives the first knot, at most
-    ``max_extra`` comparisons give the segment.
-
-    Attributes
-    ----------
-    knots : (K,) sorted angles (rad), ``knots[0] = origin``, ``knots[-1] = origin + period``.
-    values, slopes : (K, q) signal values and d/dtheta at the knots.
-    cell_first : (n_cells,) index of the uniform knot opening each cell.
-    origin, period, n_cells, max_extra : static layout.
-    """
-
-    knots: jax.Array
-    values: jax.Array
-    slopes: jax.Array
-    cell_first: jax.Array
-    origin: float = eqx.field(static=True)
-    period: float = eqx.field(static=True)
-    n_cells: int = eqx.field(static=True)
-    max_extra: int = eqx.field(static=True)
-
-    @staticmethod
-    def layout(origin: float, period: float, n_cells: int, extra) -> tuple[np.ndarray, np.ndarray, int]:
-        """Knots (uniform grid + ``extra`` folded into the period), first knot per cell,
-        and the largest number of extra knots in a cell (NumPy, build time)."""
-        grid = origin + np.arange(n_cells + 1) * (period / n_cells)
-        grid[-1] = origin + period
-        extra = np.asarray(extra, dtype=float).reshape(-1)
-        extra = extra[(extra > origin) & (extra < origin + period)]
-        knots = np.unique(np.concatenate([grid, extra]))
-        cell_first = np.searchsorted(knots, grid[:-1], side="left")
-        counts = np.diff(np.concatenate([cell_first, [len(knots) - 1]])) - 1
-        return knots, cell_first, int(max(1, counts.max()))
-
-    def wrap(self, theta):
-        """theta folded into [origin, origin + period)."""
-        return self.origin + jnp.mod(theta - self.origin, self.period)
-
-    def __call__(self, theta):
-        """(values (q,), slopes (q,)) at ``theta`` (rad)."""
-        s = self.wrap(theta)
-        h = self.period / self.n_cells
-        i = jnp.clip(jnp.floor((s - self.origin) / h).astype(jnp.int32), 0, self.n_cells - 1)
-        j0 = self.cell_first[i]
-        last = self.knots.shape[0] - 2
-        cand = jnp.minimum(j0 + 1 + jnp.arange(self.max_extra), last + 1)
-        j = jnp.minimum(j0 + jnp.sum(self.knots[cand] <= s), last)
-        t0, t1 = self.knots[j], self.knots[j + 1]
-        w = jnp.maximum(t1 - t0, 1e-300)
-        u = jnp.clip((s - t0) / w, 0.0, 1.0)
-        v0, v1 = self.values[j], self.values[j + 1]
-        d0, d1 = self.slopes[j] * w, self.slopes[j + 1] * w
-        u2, u3 = u * u, u * u * u
-        val = (2 * u3 - 3 * u2 + 1) * v0 + (u3 - 2 * u2 + u) * d0 + (-2 * u3 + 3 * u2) * v1 + (u3 - u2) * d1
-        der = ((6 * u2 - 6 * u) * v0 + (3 * u2 - 4 * u + 1) * d0 + (-6 * u2 + 6 * u) * v1 + (3 * u2 - 2 * u) * d1) / w
-        return val, der
-
-    def mean(self):
-        """Exact mean over one period of the Hermite interpolant, (q,)."""
-        w = jnp.diff(self.knots)[:, None]
-        v, d = self.values, self.slopes
-        seg = w * (v[:-1] + v[1:]) / 2 + w * w * (d[:-1] - d[1:]) / 12
-        return jnp.sum(seg, axis=0) / self.period
-
-
-class AngleMap(eqx.Module):
-    """Periodic C^1 map ``theta = phi(s) = s + H(s)`` from the simulation angle s (rad) to
-    the pinion angle theta (rad) that sends the build-time switching angles ``s_j`` to the
-    current ones ``theta_j = s_j + Delta_j`` (``H`` is the cubic Hermite interpolant of the
-    ``Delta_j`` with zero slopes at the nodes, so ``phi' = 1`` there and is continuous).
-
-    Attributes
-    ----------
-    nodes : (n + 2,) the ``s_j`` in [0, period), extended by one node on each side.
-    deltas : (n + 2,) the ``Delta_j`` (rad) at those nodes.
-    period : the period (rad), ``phi(s + period) = phi(s) + period``.
-    """
-
-    nodes: jax.Array
-    deltas: jax.Array
-    period: float = eqx.field(static=True)
-
-    @classmethod
-    def through(cls, s_j, theta_j, period: float) -> "AngleMap":
-        """The map sending the sorted build angles ``s_j`` (in [0, period)) to
-        ``theta_j``."""
-        s_j = np.asarray(s_j, dtype=float)
-        d = theta_j - jnp.asarray(s_j)
-        nodes = jnp.asarray(np.concatenate([[s_j[-1] - period], s_j, [s_j[0] + period]]))
-        return cls(nodes=nodes, deltas=jnp.concatenate([d[-1:], d, d[:1]]), period=period)
-
-    def __call__(self, s):
-        """(theta, dtheta/ds) at the simulation angle ``s``."""
-        k = jnp.floor(s / self.period)
-        sm = s - k * self.period
-        i = jnp.clip(jnp.searchsorted(self.nodes, sm, side="right") - 1, 0, self.nodes.shape[0] - 2)
-        s0, s1 = self.nodes[i], self.nodes[i + 1]
-        w = s1 - s0
-        u = (sm - s0) / w
-        d0, d1 = self.deltas[i], self.deltas[i + 1]
-        h = d0 + (d1 - d0) * (u * u * (3.0 - 2.0 * u))
-        dh = (d1 - d0) * 6.0 * u * (1.0 - u) / w
-        return s + h, 1.0 + dh
-
-
-def switch_value(mesh, mods, cells, theta, approach_minus_gap, kind, a, b):
-    """The switching function of an event of ``kind`` (see
-    :meth:`TorsionalModel._switch_function`) given the loaded-set one,
-    ``approach_minus_gap`` of cell a (which the sdof and 3D quasi-static solutions give
-    differently)."""
-    r = mesh.removed_material(mods, cells, theta)
-    xi_s, xi_e = mesh.pair.contact_limits_m
-    ext = mods.relief_extent * mesh.pair.path_of_contact_m
-    g = jnp.stack([
-        jnp.zeros_like(approach_minus_gap),
-        approach_minus_gap,
-        r[a] - r[b],
-        cells.xi_m[a] - (xi_e - ext[0]),
-        cells.xi_m[a] - (xi_s + ext[1]),
-    ])
-    return g[kind]
-
-
-def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = 4):
-    """Event angles of the current design: ``newton_steps`` Newton iterations on
-    ``switch(kind, a, b, theta)`` from each build angle ``s_j`` (events of kind
-    ``_EV_FIXED`` stay). Differentiable: at the root the unrolled iterations return
-    ``d theta_j = -(dg/d design) / (dg/d theta)`` (implicit function theorem)."""
-    s_j = jnp.asarray(s_j, dtype=float)
-    kinds = jnp.asarray(kinds, dtype=jnp.int32)
-    ab = jnp.asarray(cells, dtype=jnp.int32).reshape(-1, 2)
-
-    def one(s, kind, a, b):
-        th = s
-        fixed = kind == _EV_FIXED
-        for _ in range(newton_steps):
-            g, dg = jax.jvp(lambda t: switch(kind, a, b, t), (th,), (jnp.ones((), dtype=float),))
-            th = th - jnp.where(fixed, 0.0, g / jnp.where(fixed, 1.0, dg))
-        return th
-
-    return jax.vmap(one)(s_j, kinds, ab[:, 0], ab[:, 1])
-
-
-def check_event_roots(switch, s_j, kinds, cells, mesh_period: float, rtol: float = 1e-8):
-    """Build-time self-check of the event classification: at the build design every
-    moving event's switching function must vanish at its build angle, i.e. one Newton
-    step from ``s_j`` must stay within ``rtol`` mesh periods. An event that fails (a
-    misread bracket would make the angle map fold onto itself, giving a wrong mean
-    stiffness) is kept fixed, with a warning: the forward model is then exact and only the
-    derivative of that event's angle with respect to the design is lost.
-    Returns the (kinds, cells) to store."""
-    kinds, cells = list(kinds), list(cells)
-    idx = [j for j, k in enumerate(kinds) if k != _EV_FIXED]
-    if not idx:
-        return kinds, cells
-    moved = np.asarray(_one_newton_step(
-        switch, jnp.asarray(np.asarray(s_j, dtype=float)[idx]),
-        jnp.asarray([kinds[j] for j in idx], dtype=jnp.int32),
-        jnp.asarray([cells[j] for j in idx], dtype=jnp.int32)))
-    step = np.abs(moved - np.asarray(s_j, dtype=float)[idx])
-    bad = [j for j, d in zip(idx, step) if not (d <= rtol * mesh_period)]
-    if bad:
-        warnings.warn(
-            f"{len(bad)} of {len(idx)} design-dependent switching angles could not be "
-            f"located by their switching function at the build design (e.g. angle "
-            f"{s_j[bad[0]]:.6g} rad, kind {kinds[bad[0]]}, cells {cells[bad[0]]}); they are "
-            "kept at their build angles (forward results exact, their design derivative "
-            "is not followed)", RuntimeWarning, stacklevel=3)
-        for j in bad:
-            kinds[j], cells[j] = _EV_FIXED, (0, 0)
-    return kinds, cells
-
-
-@eqx.filter_jit
-def _one_newton_step(switch, s, kinds, cells):
-    """One Newton step of :func:`moved_event_angles`, compiled once per switching-function
-    structure (``switch`` a pytree: an :class:`equinox.Partial` or a bound method of a
-    model) and number of events, not once per build."""
-    return moved_event_angles(switch, s, kinds, cells, 1)
 
 
 def _sdof_switch(mesh, mods, force, kind, a, b, theta):
@@ -636,13 +434,13 @@ class TorsionalModel(eqx.Module):
             nlte_terms = bool(np.max(np.abs(scan["nlte"])) > 0.0)
         # table origin far from every change of the discrete quasi-static state, then the
         # changes bracketed by adjacent floats *in table coordinates* [origin, origin + P)
-        c0 = _code(scan)
+        c0 = code(scan)
         coarse = theta[np.any(c0 != np.roll(c0, -1, axis=0), axis=1)]
-        origin = _quiet_origin(coarse, period)
+        origin = quiet_origin(coarse, period)
         grid = origin + theta
         scan_u = {k: np.asarray(v) for k, v in sig(jnp.asarray(grid)).items()}
-        lo, hi = _signature_brackets(sig, grid, scan_u, period)
-        geo = _engagement_angles(mesh, period)
+        lo, hi = find_brackets(lambda t: code(sig(jnp.asarray(t))), grid, code(scan_u), period)
+        geo = engagement_angles(mesh, period)
         jumps = np.unique(np.mod(np.concatenate([geo, hi]), period))
         jumps = jumps[np.concatenate([[True], np.diff(jumps) > 1e-12 * period])]
         if jumps.size > 1 and jumps[-1] > period * (1 - 1e-12) and jumps[0] < 1e-12 * period:
@@ -660,25 +458,25 @@ class TorsionalModel(eqx.Module):
         n_cells = mesh.n_cells
         kinds, cells_ab = [0] * jumps.size, [(0, 0)] * jumps.size
         if lo.size:
-            c_lo = _code(sig(jnp.asarray(lo)))
-            c_hi = _code(sig(jnp.asarray(hi)))
+            c_lo = code(sig(jnp.asarray(lo)))
+            c_hi = code(sig(jnp.asarray(hi)))
             hi_mod = np.mod(hi, period)
             for j, t in enumerate(jumps):
                 dist = np.abs(hi_mod - t)
                 dist = np.minimum(dist, period - dist)
-                near = [_event_kinds(c_lo[i], c_hi[i], n_cells)
+                near = [event_kinds(c_lo[i], c_hi[i], n_cells)
                         for i in np.nonzero(dist <= 1e-9 * period)[0]]
-                if near and all(ev[0] != _EV_FIXED for ev in near):
+                if near and all(ev[0] != EV_FIXED for ev in near):
                     # coinciding brackets: a geometric (fixed) one pins the angle
                     kinds[j], cells_ab[j] = near[0][0], near[0][1:]
         kinds, cells_ab = check_event_roots(
             eqx.Partial(_sdof_switch, mesh, mods, jnp.asarray(force)),
             jumps, kinds, cells_ab, mesh.pair.mesh_period_rad)
-        moving = any(k != _EV_FIXED for k in kinds)
+        moving = any(k != EV_FIXED for k in kinds)
         codes = None
         if moving:
             delta = 1e-9 * period
-            codes = jnp.asarray(_code(sig(jnp.asarray(knots + side * delta))), dtype=jnp.int32)
+            codes = jnp.asarray(code(sig(jnp.asarray(knots + side * delta))), dtype=jnp.int32)
         return cls(
             mesh=mesh,
             mods=mods,
@@ -759,7 +557,7 @@ class TorsionalModel(eqx.Module):
     @property
     def moving_jumps(self) -> bool:
         """Some switching angles depend on the design (module docstring)."""
-        return any(k != _EV_FIXED for k in self.jump_kinds)
+        return any(k != EV_FIXED for k in self.jump_kinds)
 
     def _switch_function(self, kind, a, b, theta):
         """g(theta) whose root is the switching angle of an event of ``kind`` (m):
@@ -822,7 +620,7 @@ class TorsionalModel(eqx.Module):
             table = PeriodicHermiteTable(values=vals[:, :3], slopes=slopes[:, :3], **layout)
             k_m = PeriodicHermiteTable(values=vals[:, 3:], slopes=slopes[:, 3:], **layout).mean()[0]
             th = jax.vmap(amap)(self.table_knots)[0] + self.table_side * delta
-            sig = jax.vmap(lambda t: _code_jnp(_signature_one(
+            sig = jax.vmap(lambda t: code_jnp(_signature_one(
                 self.mesh, self.mods, self.static_force_N, t)))(th)
             structure_ok = jnp.all(sig == self.table_codes)
         m_eq = self.equivalent_mass_kg
@@ -1051,107 +849,7 @@ def _signature_fn(mesh, mods, force):
     return sig
 
 
-def _code_jnp(d):
-    """:func:`_code` of one angle's signature, traceable: (1 + 3 n_cells,) int array."""
-    return jnp.concatenate([
-        jnp.reshape(d["nlte_arg"], (1,)).astype(jnp.int32),
-        d["loaded"].astype(jnp.int32), d["inside"].astype(jnp.int32), d["zone"].astype(jnp.int32),
-    ])
-
-
-# kinds of design-dependent switching angles (see :meth:`TorsionalModel._switch_function`)
-_EV_FIXED, _EV_LOADED, _EV_NLTE, _EV_ZONE1, _EV_ZONE2 = 0, 1, 2, 3, 4
-
-
-def _event_kinds(c_lo, c_hi, n):
-    """Kind and cells of the switching event between adjacent angles with codes c_lo, c_hi.
-
-    A change of ``inside`` is an engagement (geometric, fixed); otherwise a zone change
-    (cell crossing a relief start, which moves with L_c), a change of the loaded set (a
-    cell's gap equals the approach, moves with P_c and L_c), or of the cell realising NLTE
-    (two removed materials equal). One event per bracket; the first changed cell wins."""
-    d = c_lo != c_hi
-    ins, zone, load = d[1 + n:1 + 2 * n], d[1 + 2 * n:], d[1:1 + n]
-    if ins.any():
-        return _EV_FIXED, 0, 0
-    z_lo, z_hi = c_lo[1 + 2 * n:], c_hi[1 + 2 * n:]
-    if (zone & ((z_lo < 0) | (z_hi < 0))).any():
-        # an engagement seen through the zone code (-1 = outside): XLA may evaluate the
-        # ``inside`` flag of the same cell one float apart in the two fields (helical
-        # cells), so the bracket holding the zone change need not hold the inside change
-        return _EV_FIXED, 0, 0
-    if zone.any():
-        c = int(np.argmax(zone))
-        bits = int(c_lo[1 + 2 * n + c]) ^ int(c_hi[1 + 2 * n + c])
-        return (_EV_ZONE1 if bits & 1 else _EV_ZONE2), c, c
-    if load.any():
-        c = int(np.argmax(load))
-        return _EV_LOADED, c, c
-    if d[0]:
-        return _EV_NLTE, int(c_lo[0]), int(c_hi[0])
-    return _EV_FIXED, 0, 0
-
-
-def _code(d) -> np.ndarray:
-    n = np.asarray(d["nlte_arg"]).shape[0]
-    parts = [np.asarray(d["nlte_arg"]).reshape(n, 1)]
-    parts += [np.asarray(d[k]).reshape(n, -1) for k in ("loaded", "inside", "zone")]
-    return np.concatenate([q.astype(np.int64) for q in parts], axis=1)
-
-
-def _signature_brackets(sig, theta, scan, period):
-    """Pairs of adjacent floats (lo, hi), ``theta[0] <= lo < hi <= theta[0] + period``,
-    bracketing every change of the quasi-static active set or of the cell realising NLTE:
-    bisection from the uniform scan ``theta`` (several changes in one scan interval are
-    found one after the other)."""
-    c = _code(scan)
-    nxt = np.roll(c, -1, axis=0)
-    changed = np.any(c != nxt, axis=1)
-    h = period / len(theta)
-    a = theta[changed].copy()
-    b = a + h
-    ca, cb = c[changed], nxt[changed]
-    los, his = [], []
-    for _ in range(64):  # rounds: one change per open interval per round
-        if a.size == 0:
-            break
-        lo, hi = a.copy(), b.copy()
-        for _ in range(80):
-            mid = 0.5 * (lo + hi)
-            interior = (mid > lo) & (mid < hi)
-            if not np.any(interior):
-                break
-            same = np.all(_code(sig(jnp.asarray(mid))) == ca, axis=1)
-            lo = np.where(interior & same, mid, lo)
-            hi = np.where(interior & ~same, mid, hi)
-        los.append(lo)
-        his.append(hi)
-        c_hi = _code(sig(jnp.asarray(hi)))
-        more = np.any(c_hi != cb, axis=1)  # another change between hi and b
-        a, b, ca, cb = hi[more], b[more], c_hi[more], cb[more]
-    if not los:
-        return np.zeros(0), np.zeros(0)
-    return np.concatenate(los), np.concatenate(his)
-
-
-def _engagement_angles(mesh, period) -> np.ndarray:
-    """Angles where cells enter (xi = xi_start) or leave (xi = xi_end) the path of contact:
-    ``Rb1 theta - n p_bt - eta tan(b_b) = 0`` or ``g_alpha`` (see :mod:`gearjax.gears.mesh`)."""
-    p = mesh.pair
-    pm = p.mesh_period_rad
-    n_mesh = int(round(period / pm))
-    eta = (np.arange(mesh.cells_per_line) + 0.5) * (p.face_width_m / mesh.cells_per_line)
-    shift = eta * math.tan(abs(p.base_helix_angle_rad))
-    base = np.concatenate([shift, shift + p.path_of_contact_m]) / p.base_radii_m[0]
-    k = np.arange(-int(np.ceil(base.max() / pm)) - 1, n_mesh + 1)
-    return np.mod((base[None, :] + pm * k[:, None]).ravel(), period)
-
-
-def _quiet_origin(points, period) -> float:
-    """A table origin far from every jump (middle of the widest gap between them)."""
-    if len(points) == 0:
-        return 0.0
-    p = np.sort(np.mod(points, period))
-    gaps = np.diff(np.concatenate([p, [p[0] + period]]))
-    i = int(np.argmax(gaps))
-    return float(np.mod(p[i] + 0.5 * gaps[i], period))
+# old private names, kept importable until the 3D model imports from gearjax.excitation
+_EV_FIXED = EV_FIXED
+_event_kinds = event_kinds
+_quiet_origin = quiet_origin

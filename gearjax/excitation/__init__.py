@@ -1,0 +1,1 @@
+"""Speed-independent excitations of the gear models: periodic tables, angle map, events."""
