@@ -28,8 +28,9 @@ __all__ = ["main"]
 def _add_rig(p: argparse.ArgumentParser):
     p.add_argument(
         "--rig",
-        default="baud-velex-spur",
-        help="built-in rig: baud-velex-spur (default) or baud-velex-helical",
+        default="baud-velex-spur", metavar="RIG",
+        help="built-in rig baud-velex-spur (default) or baud-velex-helical, or a rig file "
+             "FILE.toml (schema: gearjax.rigs.rigfile; e.g. examples/rigs/baud_velex_spur.toml)",
     )
     p.add_argument(
         "--stiffness",
@@ -44,7 +45,9 @@ def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="gearjax",
         description="Differentiable gear dynamics (Velex & Ajmi transmission-error models).",
+        epilog=_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    ap.add_argument("--version", action="version", version=f"gearjax {_version()}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     info = sub.add_parser("info", help="geometry and mesh figures of a rig")
@@ -73,14 +76,30 @@ def _parser() -> argparse.ArgumentParser:
 _EXTENSIONS: tuple[str, ...] = ("gearjax.cli.dynamics", "gearjax.cli.design")
 
 
+_EXAMPLES = """examples:
+  gearjax info --rig baud-velex-helical            gear data, mesh stiffness, 3D natural frequencies
+  gearjax quasistatic --csv te.csv --plot te.png   quasi-static TE_S and NLTE over a mesh period
+  gearjax sweep --model torsional --speeds 100:900:40 --out sweep1
+                                                   response curves (Figs. 8-13); --resume continues
+'gearjax COMMAND --help' lists the options of a command."""
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__
+
+
 def _add_scenario(p: argparse.ArgumentParser):
-    p.add_argument("--relief", default="short", choices=["none", "short", "long"],
-                   help="Table 1 tip relief on both gears (default short)")
+    p.add_argument("--relief", default=None, choices=["none", "short", "long"],
+                   help="Table 1 tip relief on both gears (default: the rig file's "
+                        "[modifications], else short)")
     p.add_argument("--relief-amplitude", type=float, metavar="METRES",
                    help="tip relief amplitude P_c on both gears (m), e.g. 13.3e-6")
     p.add_argument("--relief-extent", type=float, metavar="FRACTION",
                    help="relief extent L_c as a fraction of the path of contact, in (0, 1]")
-    p.add_argument("--relief-shape", default="linear", choices=["linear", "parabolic"])
+    p.add_argument("--relief-shape", default=None, choices=["linear", "parabolic"],
+                   help="relief shape (default: the rig file's, else linear)")
     p.add_argument("--pitch-errors", action="store_true",
                    help="add the pinion cumulative pitch errors (periods of a pinion revolution)")
 
@@ -91,15 +110,14 @@ def _fail(msg: str) -> int:
 
 
 def _cmd_info(args) -> int:
-    from ..rigs.registry import get_rig, torsional_stiffness_figures
+    from ..rigs.figures import three_d_figures, torsional_stiffness_figures
+    from ..rigs.registry import get_rig
 
     rig = get_rig(args.rig)
     out = {"rig": rig.name, "description": rig.description}
     out.update(rig.pair.summary())
     out.update(torsional_stiffness_figures(rig, args.stiffness))
     if args.model == "3d":
-        from ..rigs.registry import three_d_figures
-
         out.update(three_d_figures(rig, args.stiffness, args.encoders))
     if args.json:
         print(json.dumps(out, indent=2))
@@ -144,14 +162,21 @@ def _cmd_quasistatic(args) -> int:
     from ..gears.quasistatic import quasi_static, static_mesh_force
     from ..rigs.registry import get_rig
 
-    rig = get_rig(args.rig)
+    from .outputs import check_output_file
+    from .scenario import scenario_modifications
+
     if args.positions < 8:
         return _fail(f"--positions={args.positions}: need at least 8 positions per mesh period")
-    mods = rig.modifications(
-        args.relief, args.relief_amplitude, args.relief_extent, args.relief_shape, args.pitch_errors
-    )
-    mesh = Mesh.build(rig.pair, args.stiffness)
+    if args.csv:
+        check_output_file("--csv", args.csv)
+    if args.plot:
+        check_output_file("--plot", args.plot, figure=True)
+    rig = get_rig(args.rig)
     n_periods = rig.pair.z1 if args.pitch_errors else 1
+    _check_positions_memory(args.positions, n_periods)
+    scen = scenario_modifications(rig, args)
+    mods = scen.mods
+    mesh = Mesh.build(rig.pair, args.stiffness)
     theta = mesh.theta_grid(args.positions, n_periods)
     f_s = static_mesh_force(rig.pair, rig.pinion_torque_Nm)
     res = quasi_static(mesh, mods, theta, f_s)
@@ -160,10 +185,8 @@ def _cmd_quasistatic(args) -> int:
     summary = {
         "rig": rig.name,
         "stiffness_law": args.stiffness,
-        "relief": args.relief,
-        "relief_amplitude_m": [float(v) for v in np.asarray(mods.relief_amplitude_m)],
-        "relief_extent": [float(v) for v in np.asarray(mods.relief_extent)],
-        "relief_shape": args.relief_shape,
+        "relief": args.relief or scen.key,
+        **scen.summary(),
         "pitch_errors": bool(args.pitch_errors),
         "positions": int(theta.shape[0]),
         "span_rad": float(n_periods * rig.pair.mesh_period_rad),
@@ -184,14 +207,15 @@ def _cmd_quasistatic(args) -> int:
     if args.plot:
         from ..plotting import plot_quasistatic
 
-        plot_quasistatic(res, mesh, args.plot, title=f"{rig.name}, relief {args.relief}")
+        plot_quasistatic(res, mesh, args.plot, title=f"{rig.name}, {scen.label}"
+                                                    f"{', pitch errors' if args.pitch_errors else ''}")
         summary["plot"] = args.plot
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
         um = 1e6
         print(f"  {rig.description}")
-        print(f"  relief {args.relief} ({args.relief_shape}), amplitude "
+        print(f"  {scen.label} [{scen.source}], amplitude "
               f"{summary['relief_amplitude_m'][0] * um:.2f} um, extent {summary['relief_extent'][0]:.3f}"
               f"{', pinion pitch errors' if args.pitch_errors else ''}; law {args.stiffness}")
         print(f"  TE_S  mean {summary['te_s_mean_m'] * um:8.3f} um   peak-to-peak "
@@ -206,7 +230,29 @@ def _cmd_quasistatic(args) -> int:
     return 0
 
 
+# bytes of working memory per quasi-static position (measured: ~1.3 kB on the spur rig,
+# doubled for margin); --positions is refused when the grid would not fit in memory
+_BYTES_PER_POSITION = 4096
+
+
+def _check_positions_memory(positions: int, n_periods: int) -> None:
+    from ..errors import GearjaxError
+    from .outputs import available_memory_bytes
+
+    need = positions * n_periods * _BYTES_PER_POSITION
+    have = available_memory_bytes()
+    limit = 0.5 * have if have else 8 * 2**30
+    if need > limit:
+        span = f" x {n_periods} mesh periods (--pitch-errors)" if n_periods > 1 else ""
+        raise GearjaxError("--positions", positions,
+                           f"{positions}{span} positions need about {need / 2**30:.1f} GiB, more "
+                           f"than half the available memory ({limit * 2 / 2**30:.1f} GiB); "
+                           f"use at most {int(limit // (n_periods * _BYTES_PER_POSITION))}")
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``gearjax`` command line; returns the exit status (0 done, 2 bad input,
+    130 interrupted by Ctrl-C)."""
     args = _parser().parse_args(argv)
     try:
         if args.command == "info":
@@ -217,6 +263,11 @@ def main(argv: list[str] | None = None) -> int:
             return args.func(args)
     except ValueError as exc:  # GearjaxError and argument conversions
         return _fail(str(exc))
+    except KeyboardInterrupt:
+        print("gearjax: interrupted (Ctrl-C); nothing more was written", file=sys.stderr)
+        return 130
+    except OSError as exc:  # an output that became unwritable while computing
+        return _fail(f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": "))
     return _fail(f"unknown command {args.command!r}")
 
 

@@ -27,6 +27,9 @@ from ..errors import GeometryError
 __all__ = ["GearPair", "GeometryError", "involute", "inverse_involute", "baud_velex_pair"]
 
 
+MAX_TEETH = 2000  # tooth-number range checked by GearPair
+
+
 def involute(alpha: float) -> float:
     """inv(alpha) = tan(alpha) - alpha."""
     return math.tan(alpha) - alpha
@@ -93,12 +96,18 @@ class GearPair:
 
     def __post_init__(self):
         _positive("normal_module_m", self.normal_module_m)
+        if self.normal_module_m > 0.1:
+            raise GeometryError("normal_module_m", self.normal_module_m,
+                                "above 0.1 m (100 mm): beyond any real gear; the module is in metres")
         _positive("face_width1_m", self.face_width1_m)
         _positive("face_width2_m", self.face_width2_m)
         for name in ("z1", "z2"):
             z = getattr(self, name)
             if int(z) != z or z < 5:
                 raise GeometryError(name, z, "tooth number must be an integer >= 5")
+            if z > MAX_TEETH:
+                raise GeometryError(name, z, f"tooth number above {MAX_TEETH}: beyond any real "
+                                             "gear (the mesh and quasi-static grids grow with z)")
         an = float(self.normal_pressure_angle_rad)
         if not (math.radians(5.0) <= an <= math.radians(40.0)):
             raise GeometryError(

@@ -1,0 +1,126 @@
+"""A sweep's output folder: the case record (``case.json``), resuming from ``results.csv``
+and the summary of whatever rows it holds (a finished, an interrupted or a resumed run).
+
+``case.json`` is written before the first speed is computed; ``gearjax sweep --resume``
+compares it with the new command (same case, same speeds, same formulations) and skips
+the (formulation, speed) rows already in ``results.csv``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+
+import numpy as np
+
+from ..errors import GearjaxError
+
+__all__ = ["RESULT_FILES", "CASE_FILE", "write_case", "check_resume", "read_rows",
+           "done_speeds", "summarise_rows"]
+
+CASE_FILE = "case.json"
+# files a sweep writes in its folder (an earlier run is recognised by any of them)
+RESULT_FILES = ("results.csv", "summary.json", CASE_FILE, "response_curves.png",
+                "signals.csv", "mesh_force_signals.png")
+
+
+def write_case(out: str, record: dict) -> None:
+    with open(os.path.join(out, CASE_FILE), "w") as fh:
+        json.dump(record, fh, indent=2)
+
+
+def check_resume(out: str, record: dict) -> None:
+    """Refuse ``--resume`` unless ``out`` holds a run of the same case (``record``)."""
+    path = os.path.join(out, CASE_FILE)
+    has_csv = os.path.exists(os.path.join(out, "results.csv"))
+    if not os.path.exists(path):
+        if has_csv:
+            raise GearjaxError("--resume", out, f"{CASE_FILE} is missing, so the results.csv there "
+                                                "cannot be checked to belong to this case; use "
+                                                "--overwrite or another --out folder")
+        return  # nothing to resume: a fresh run
+    try:
+        with open(path) as fh:
+            old = json.load(fh)
+    except (OSError, ValueError) as exc:
+        raise GearjaxError("--resume", out, f"cannot read {CASE_FILE} ({exc})") from None
+    diff = [k for k in sorted(set(old) | set(record)) if old.get(k) != record.get(k)]
+    if diff:
+        k = diff[0]
+        raise GearjaxError("--resume", out, f"the folder holds another case: {k} was "
+                                            f"{old.get(k)!r}, now {record.get(k)!r}; resume with "
+                                            "the same options, or use --overwrite or another --out")
+
+
+def _float(text: str) -> float:
+    return float(text) if text not in ("", None) else math.nan
+
+
+def read_rows(csv_path: str, *, repair: bool = False) -> list[dict]:
+    """The complete rows of a ``results.csv`` (an interrupted write may leave a partial
+    last line: ``repair`` rewrites the file without it so that appending can go on)."""
+    if not os.path.exists(csv_path) or os.path.getsize(csv_path) == 0:
+        return []
+    with open(csv_path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        fields = reader.fieldnames
+        rows, bad = [], 0
+        for r in reader:
+            try:
+                if None in r or any(v is None for v in r.values()):
+                    raise ValueError
+                float(r["speed_rad_s"])
+                rows.append(r)
+            except (ValueError, KeyError, TypeError):
+                bad += 1
+    if repair and (bad or not open(csv_path).read().endswith("\n")):
+        tmp = csv_path + ".tmp"
+        with open(tmp, "w", newline="") as fh:
+            wr = csv.DictWriter(fh, fieldnames=fields)
+            wr.writeheader()
+            wr.writerows(rows)
+        os.replace(tmp, csv_path)
+    return rows
+
+
+def done_speeds(rows: list[dict]) -> dict[str, set[float]]:
+    """``{formulation: speeds already in the file}``."""
+    out: dict[str, set[float]] = {}
+    for r in rows:
+        out.setdefault(r["formulation"], set()).add(float(r["speed_rad_s"]))
+    return out
+
+
+def summarise_rows(rows: list[dict], formulation: str, speeds: np.ndarray) -> dict:
+    """Summary of one formulation's rows. The peak dynamic factor is taken over converged
+    speeds only (an unconverged run's maximum is not a steady-state response; those speeds
+    are listed, and the peak is NaN when none converged)."""
+    rs = sorted((r for r in rows if r["formulation"] == formulation),
+                key=lambda r: float(r["speed_rad_s"]))
+    w = np.array([float(r["speed_rad_s"]) for r in rs])
+    df = np.array([_float(r["dynamic_factor"]) for r in rs])
+    fmax = np.array([_float(r["max_mesh_force_N"]) for r in rs])
+    conv = np.array([r["converged"] == "True" for r in rs], dtype=bool)
+    loss = np.array([r["contact_loss"] == "True" for r in rs], dtype=bool)
+    finite = np.isfinite(df)
+    ok = conv & finite
+    i = int(np.argmax(np.where(ok, df, -np.inf))) if ok.any() else None
+    missing = [float(v) for v in speeds if not np.any(w == v)]
+    return {
+        "peak_dynamic_factor": float(df[i]) if i is not None else float("nan"),
+        "critical_speed_rad_s": float(w[i]) if i is not None else float("nan"),
+        "peak_over": "converged speeds only",
+        "max_mesh_force_N": float(np.max(fmax[ok])) if ok.any() else float("nan"),
+        "speeds_done": int(w.size),
+        "missing_speeds": missing,
+        "contact_loss_speeds": [float(v) for v in w[loss]],
+        "unconverged_speeds": [float(v) for v in w[~conv]],
+        "failed_speeds": [float(v) for v in w[~finite]],
+    }
+
+
+def max_force_by_speed(rows: list[dict], formulation: str) -> dict[float, float]:
+    return {float(r["speed_rad_s"]): _float(r["max_mesh_force_N"])
+            for r in rows if r["formulation"] == formulation}

@@ -1,0 +1,100 @@
+"""The tooth modifications of a command-line scenario and a label made from the values used.
+
+Precedence: a rig file's ``[modifications]`` table is the rig's default relief; the CLI
+relief options override it (``--relief`` replaces it by a Table 1 relief, then
+``--relief-amplitude`` / ``--relief-extent`` / ``--relief-shape`` replace single fields).
+Without a ``[modifications]`` table the default is Table 1's short relief.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+__all__ = ["Scenario", "scenario_modifications"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Scenario:
+    """Modifications of a scenario and where they come from.
+
+    source : ``"rig file [modifications]"``, ``"--relief short"`` (Table 1), ...
+    label : short text for titles, e.g. ``relief short`` or ``relief 10 um x 0.30 linear``.
+    key : folder-name part, e.g. ``short`` or ``relief1e-05x0.3``.
+    """
+
+    mods: object
+    source: str
+    label: str
+    key: str
+
+    def summary(self) -> dict:
+        m = self.mods
+        return {
+            "relief_source": self.source,
+            "relief_label": self.label,
+            "relief_amplitude_m": [float(v) for v in np.asarray(m.relief_amplitude_m)],
+            "relief_extent": [float(v) for v in np.asarray(m.relief_extent)],
+            "relief_shape": m.relief_shape,
+            "pitch_errors_in_mods": m.pitch_errors_m is not None,
+        }
+
+
+def _overridden(args) -> bool:
+    return (getattr(args, "relief", None) is not None or args.relief_amplitude is not None
+            or args.relief_extent is not None or getattr(args, "relief_shape", None) is not None)
+
+
+def scenario_modifications(rig, args) -> Scenario:
+    """The :class:`Scenario` of parsed CLI ``args`` (``relief``, ``relief_amplitude``,
+    ``relief_extent``, ``relief_shape``, ``pitch_errors``) on ``rig``."""
+    from ..gears.modifications import ToothModifications
+
+    relief = getattr(args, "relief", None)
+    shape = getattr(args, "relief_shape", None)
+    file_mods = getattr(rig, "modifications_default", None)
+    if file_mods is not None and relief is None:
+        amp = np.asarray(file_mods.relief_amplitude_m, dtype=float)
+        ext = np.asarray(file_mods.relief_extent, dtype=float)
+        base_shape = file_mods.relief_shape
+        base = "rig file [modifications]"
+    else:
+        relief = relief or "short"
+        base_mods = rig.modifications(relief, None, None, shape or "linear", False)
+        amp = np.asarray(base_mods.relief_amplitude_m, dtype=float)
+        ext = np.asarray(base_mods.relief_extent, dtype=float)
+        base_shape = base_mods.relief_shape
+        base = f"--relief {relief}" + (" (default)" if getattr(args, "relief", None) is None else "")
+        file_mods = None
+    changed = []
+    if args.relief_amplitude is not None:
+        amp = np.full(2, float(args.relief_amplitude))
+        changed.append("--relief-amplitude")
+    if args.relief_extent is not None:
+        ext = np.full(2, float(args.relief_extent))
+        changed.append("--relief-extent")
+    if shape is not None and shape != base_shape:
+        changed.append("--relief-shape")
+    shape = shape or base_shape
+    mods = ToothModifications.tip_relief(amp, ext, shape)
+    if file_mods is not None:  # keep the file's pitch errors, eccentricity and crowning
+        mods = dataclasses.replace(
+            mods, pitch_errors_m=file_mods.pitch_errors_m, eccentricity_m=file_mods.eccentricity_m,
+            eccentricity_phase_rad=file_mods.eccentricity_phase_rad,
+            crowning_m=file_mods.crowning_m)
+    if getattr(args, "pitch_errors", False):
+        mods = mods.with_pitch_errors(rig.pinion_pitch_errors_m, np.zeros(rig.pair.z2))
+    source = base + (" with " + ", ".join(changed) if changed else "")
+    if not changed and file_mods is None:
+        label = f"relief {relief}" + (f" ({shape})" if shape != "linear" else "")
+        key = relief if shape == "linear" else f"{relief}-{shape}"
+    else:
+        um = amp * 1e6
+        a = f"{um[0]:.3g}" if um[0] == um[1] else f"{um[0]:.3g}/{um[1]:.3g}"
+        e = f"{ext[0]:.3g}" if ext[0] == ext[1] else f"{ext[0]:.3g}/{ext[1]:.3g}"
+        label = f"relief {a} um x {e} {shape}" + (" (rig file)" if file_mods is not None
+                                                   and not changed else "")
+        key = ("file" if file_mods is not None and not changed
+               else f"relief{amp[0]:g}x{ext[0]:g}" + ("" if shape == "linear" else f"-{shape}"))
+    return Scenario(mods=mods, source=source, label=label, key=key)
