@@ -67,6 +67,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import watchdog
 from .simulate import (PeriodicJumpController, SimulationError, SimulationResult, simulate,
                        transient_start)
 from .sweep import _FIELDS, SweepResult
@@ -380,6 +381,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
         sel = padded[c * chunk:(c + 1) * chunk]
         t0 = time.perf_counter()
         res = jax.device_get(_steady_batch(model, jnp.asarray(speeds[sel]), kw))
+        watchdog.progress(f"steady-state sweep chunk {c + 1}/{n_chunks}")
         for f, v in zip(_FIELDS, res[:len(_FIELDS)]):
             out[f][sel] = np.asarray(v, dtype=float)
         rho[sel] = np.asarray(res[-2], dtype=float)
@@ -408,6 +410,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
             for f, v in zip(_FIELDS, res):
                 out[f][idx] = np.asarray(v, dtype=float)
             continued[idx] = True
+            watchdog.progress("steady-state sweep continuation")
             if progress:
                 print(f"[gearjax.dynamics.steady] continued {idx.size} speed(s) with contact loss or "
                       f"without a stable orbit by simulate in {time.perf_counter() - t0:.2f} s",

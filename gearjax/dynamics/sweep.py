@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import watchdog
 from .simulate import SimulationError, SimulationResult, simulate
 
 __all__ = ["sweep", "SweepResult", "CSV_COLUMNS"]
@@ -283,6 +284,7 @@ def sweep(
             out = multihost_utils.process_allgather(out, tiled=True)
         out = jax.device_get(out)
         dt = time.perf_counter() - t0
+        watchdog.progress(f"sweep ({formulation}) chunk {c + 1}/{n_chunks}")
         for f, v in zip(_FIELDS, out):
             results[f][c * chunk:(c + 1) * chunk] = np.asarray(v, dtype=float)
         # rows of the real (non-padded) speeds of this chunk, in sorted-speed order

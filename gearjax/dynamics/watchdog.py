@@ -1,0 +1,134 @@
+"""Stall watchdog: a long computation that makes no progress ends with a message.
+
+A computation stuck inside the XLA runtime cannot be interrupted from Python (the main
+thread waits in C++ for a result that never comes; issue 16 saw this on the CPU backend,
+see ``benchmarks/results/soak_3d.md``). The watchdog is a daemon thread that the long
+loops *feed*: :func:`progress` after every completed unit of work (a sweep chunk, an
+optimiser step). When no progress arrives for ``timeout_s`` seconds it prints one line
+to stderr naming the last progress point, runs the stall hooks (e.g. "results so far
+are in results.csv") and ends the process with :data:`STALL_EXIT_CODE` through
+``os._exit`` (a normal exit would wait for the stuck main thread).
+
+Usage (the CLI's ``--stall-timeout`` does this around every command)::
+
+    from gearjax.dynamics import watchdog
+    with watchdog.stall_guard(600.0, what="gearjax sweep"):
+        res = gj.sweep(model, speeds)       # sweep() calls watchdog.progress() per chunk
+
+:func:`progress` is a no-op when no guard is active, so library loops call it freely.
+The first unit includes compilation (minutes for the 3D model on a small machine): keep
+the timeout generous (default :data:`DEFAULT_STALL_TIMEOUT_S`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import threading
+import time
+from typing import Callable
+
+__all__ = ["DEFAULT_STALL_TIMEOUT_S", "STALL_EXIT_CODE", "stall_guard", "progress",
+           "add_stall_hook", "StallGuard"]
+
+DEFAULT_STALL_TIMEOUT_S = 600.0
+STALL_EXIT_CODE = 3
+
+_lock = threading.Lock()
+_active: list["StallGuard"] = []
+
+
+class StallGuard:
+    """One watchdog thread: ends the process when :meth:`progress` is not called for
+    ``timeout_s`` seconds between :meth:`start` and :meth:`stop`."""
+
+    def __init__(self, timeout_s: float, what: str = "computation", *,
+                 exit_code: int = STALL_EXIT_CODE, stream=None, exit: Callable | None = None):
+        self.timeout_s = float(timeout_s)
+        self.what = what
+        self.exit_code = exit_code
+        self.stream = stream
+        self._exit = os._exit if exit is None else exit
+        self._hooks: list[Callable[[], str | None]] = []
+        self._last = time.monotonic()
+        self._where = "start"
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def progress(self, where: str | None = None) -> None:
+        self._last = time.monotonic()
+        if where is not None:
+            self._where = where
+
+    def add_hook(self, fn: Callable[[], str | None]) -> None:
+        self._hooks.append(fn)
+
+    def start(self) -> "StallGuard":
+        self._last = time.monotonic()
+        self._thread = threading.Thread(target=self._run, name="gearjax-stall-watchdog",
+                                        daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            left = self._last + self.timeout_s - time.monotonic()
+            if left <= 0:
+                self._stalled()
+                return
+            self._stop.wait(min(left, 1.0))
+
+    def _stalled(self) -> None:
+        stream = self.stream or sys.stderr
+        idle = time.monotonic() - self._last
+        lines = [f"gearjax: stalled: no progress for {idle:.0f} s in {self.what} "
+                 f"(last progress: {self._where}); stopped by the stall watchdog "
+                 f"(--stall-timeout {self.timeout_s:g}; 0 disables it)"]
+        for hook in self._hooks:
+            try:
+                note = hook()
+            except Exception as exc:  # noqa: BLE001 - a failing hook must not keep us alive
+                note = f"stall hook failed: {exc}"
+            if note:
+                lines.append(f"gearjax: {note}")
+        try:
+            stream.write("\n".join(lines) + "\n")
+            stream.flush()
+        finally:
+            self._exit(self.exit_code)
+
+
+@contextlib.contextmanager
+def stall_guard(timeout_s: float | None = DEFAULT_STALL_TIMEOUT_S, what: str = "computation",
+                **kwargs):
+    """Watch the body: :func:`progress` must be called at least every ``timeout_s``
+    seconds (``None`` or ``<= 0``: no watchdog). Yields the :class:`StallGuard` (or None)."""
+    if timeout_s is None or timeout_s <= 0:
+        yield None
+        return
+    guard = StallGuard(timeout_s, what, **kwargs).start()
+    with _lock:
+        _active.append(guard)
+    try:
+        yield guard
+    finally:
+        guard.stop()
+        with _lock:
+            _active.remove(guard)
+
+
+def progress(where: str | None = None) -> None:
+    """Report progress (``where``: what just finished) to every active guard."""
+    for g in tuple(_active):
+        g.progress(where)
+
+
+def add_stall_hook(fn: Callable[[], str | None]) -> None:
+    """Add ``fn`` to the innermost active guard (no-op without one): called in the
+    watchdog thread on a stall, before the exit; its returned text is printed."""
+    if _active:
+        _active[-1].add_hook(fn)

@@ -1,0 +1,77 @@
+"""Stall watchdog (gearjax.dynamics.watchdog, issue 16): a computation without progress
+ends the process with one clear line and the stall exit code, never a silent hang.
+
+Each case runs in a subprocess (the watchdog ends its process with os._exit) with a
+1 s timeout and a fake stall: a Python sleep, and a jitted computation blocked inside
+the XLA runtime (a host callback that sleeps), which is where the real hang sat."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+import time
+
+from gearjax.dynamics.watchdog import STALL_EXIT_CODE
+
+
+def _run(code: str, timeout: float = 120.0):
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True,
+                       text=True, timeout=timeout)
+    return p, time.perf_counter() - t0
+
+
+def test_stall_in_python_ends_with_message_and_hook():
+    p, _ = _run("""
+        import time
+        from gearjax.dynamics import watchdog
+        with watchdog.stall_guard(1.0, what="fake sweep"):
+            watchdog.add_stall_hook(lambda: "results so far are in out/results.csv")
+            watchdog.progress("chunk 1/3")
+            time.sleep(60)
+        print("not reached")
+    """)
+    assert p.returncode == STALL_EXIT_CODE, (p.returncode, p.stderr)
+    assert "not reached" not in p.stdout
+    err = p.stderr.strip().splitlines()
+    assert err[0].startswith("gearjax: stalled: no progress for 1 s in fake sweep "
+                             "(last progress: chunk 1/3)"), err
+    assert err[1] == "gearjax: results so far are in out/results.csv"
+    assert "Traceback" not in p.stderr
+
+
+def test_stall_inside_xla_execution():
+    """The main thread waits in the XLA runtime (as in the hang) for a callback that
+    never returns in time: the watchdog still ends the process promptly."""
+    p, wall = _run("""
+        import time, jax, jax.numpy as jnp
+        from gearjax.dynamics import watchdog
+        def slow(x):
+            time.sleep(60)
+            return x
+        f = jax.jit(lambda x: jax.pure_callback(slow, jax.ShapeDtypeStruct((), jnp.float32), x))
+        with watchdog.stall_guard(1.0, what="fake XLA computation"):
+            f(jnp.float32(1.0)).block_until_ready()
+    """)
+    assert p.returncode == STALL_EXIT_CODE, (p.returncode, p.stderr)
+    assert "no progress for 1 s in fake XLA computation" in p.stderr
+    assert wall < 50
+
+
+def test_progress_keeps_it_alive_and_zero_disables():
+    p, _ = _run("""
+        import time
+        from gearjax.dynamics import watchdog
+        with watchdog.stall_guard(1.0, what="steady work"):
+            for i in range(6):
+                time.sleep(0.4)
+                watchdog.progress(f"step {i}")
+        with watchdog.stall_guard(0, what="disabled") as g:
+            assert g is None
+            time.sleep(1.5)
+        watchdog.progress("no guard: no-op")
+        print("done")
+    """)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.strip() == "done"
