@@ -75,3 +75,21 @@ def test_progress_keeps_it_alive_and_zero_disables():
     """)
     assert p.returncode == 0, p.stderr
     assert p.stdout.strip() == "done"
+
+
+def test_cli_stall_timeout(tmp_path):
+    """``gearjax optimise --stall-timeout 1`` with an optimiser that never finishes a step
+    (patched to sleep) ends with the stall line and exit 3; a negative value is refused."""
+    p, wall = _run(f"""
+        import sys, time
+        import gearjax.design
+        from gearjax.cli.main import main
+        gearjax.design.multi_start = lambda *a, **k: time.sleep(60)
+        sys.exit(main(["optimise", "--stall-timeout", "1", "--out", {str(tmp_path / "o")!r}]))
+    """)
+    assert p.returncode == STALL_EXIT_CODE, (p.returncode, p.stderr)
+    assert "gearjax: stalled: no progress for 1 s in gearjax optimise" in p.stderr, p.stderr
+    assert "Traceback" not in p.stderr
+    from gearjax.cli.main import main
+
+    assert main(["optimise", "--stall-timeout", "-1", "--out", str(tmp_path / "o")]) == 2

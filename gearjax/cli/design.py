@@ -10,8 +10,11 @@ import json
 import math
 import os
 import sys
+import time
 
 import numpy as np
+
+from ..dynamics import watchdog
 
 __all__ = ["register"]
 
@@ -170,8 +173,18 @@ def _cmd_optimise(args) -> int:
     except _Bad as exc:
         return _fail(str(exc))
     starts = coarse_starts(obj.space, args.starts)
+    steps = [time.monotonic()]
+
+    def _step(_record):  # one optimiser step done: feed the stall watchdog
+        steps.append(time.monotonic())
+        watchdog.progress(f"optimiser step {len(steps) - 1}")
+
     best, runs = multi_start(obj, starts, max_iter=args.max_iter,
-                             learning_rate=args.learning_rate)
+                             learning_rate=args.learning_rate, callback=_step)
+    # the map is one vmapped call over the grid: allow it 3x the forward cost estimated
+    # from the slowest optimiser step (value and gradient)
+    slowest = max(np.diff(steps[1:]), default=steps[-1] - steps[0])
+    watchdog.progress("optimiser done, Harris map next", expect_s=3.0 * amps.size * exts.size * slowest)
     os.makedirs(args.out, exist_ok=True)
     out = {"rig": rig.name, "model": args.model, "objective": args.objective,
            "shape": args.shape, "shared": not args.separate}

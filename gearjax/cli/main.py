@@ -68,7 +68,21 @@ def _parser() -> argparse.ArgumentParser:
     qs.add_argument("--plot", metavar="FILE", help="write a PNG of TE_S, NLTE and load sharing")
     for name in _EXTENSIONS:
         importlib.import_module(name).register(sub, _add_rig, _add_scenario)
+    for name, default in _STALL_TIMEOUTS.items():
+        if name in sub.choices:
+            what = ("one vmapped call: default 0 (off); a value is a time limit" if default == 0
+                    else f"default {default:g} s; the first includes compiling; 0 disables")
+            sub.choices[name].add_argument(
+                "--stall-timeout", type=float, default=default, metavar="SECONDS",
+                help="end with a one-line message (exit 3) when no sweep chunk / optimiser "
+                     f"step completes for this long ({what})")
     return ap
+
+
+# Default --stall-timeout (s) of the long commands (gearjax.dynamics.watchdog): sweep and
+# optimise report progress per chunk / step; stability and harris-map are one vmapped call
+# each, whose length depends on the model and grid, so their watchdog is opt-in.
+_STALL_TIMEOUTS = {"sweep": 600.0, "optimise": 600.0, "stability": 0.0, "harris-map": 0.0}
 
 
 # Modules adding sub-commands: each defines ``register(subparsers, add_rig, add_scenario)``
@@ -252,8 +266,19 @@ def _check_positions_memory(positions: int, n_periods: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the ``gearjax`` command line; returns the exit status (0 done, 2 bad input,
-    130 interrupted by Ctrl-C)."""
+    3 stalled: no progress for ``--stall-timeout`` seconds, 130 interrupted by Ctrl-C)."""
     args = _parser().parse_args(argv)
+    stall = getattr(args, "stall_timeout", None)
+    if stall is not None and not (stall >= 0 and math.isfinite(stall)):
+        return _fail(f"--stall-timeout={stall}: must be a finite number of seconds >= 0 "
+                     "(0 disables the watchdog)")
+    from ..dynamics.watchdog import stall_guard
+
+    with stall_guard(stall, what=f"gearjax {args.command}"):
+        return _dispatch(args)
+
+
+def _dispatch(args) -> int:
     try:
         if args.command == "info":
             return _cmd_info(args)

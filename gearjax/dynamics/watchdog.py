@@ -52,12 +52,14 @@ class StallGuard:
         self._exit = os._exit if exit is None else exit
         self._hooks: list[Callable[[], str | None]] = []
         self._last = time.monotonic()
+        self._allow = self.timeout_s
         self._where = "start"
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
-    def progress(self, where: str | None = None) -> None:
+    def progress(self, where: str | None = None, expect_s: float | None = None) -> None:
         self._last = time.monotonic()
+        self._allow = self.timeout_s if expect_s is None else max(self.timeout_s, float(expect_s))
         if where is not None:
             self._where = where
 
@@ -76,7 +78,7 @@ class StallGuard:
 
     def _run(self) -> None:
         while not self._stop.is_set():
-            left = self._last + self.timeout_s - time.monotonic()
+            left = self._last + self._allow - time.monotonic()
             if left <= 0:
                 self._stalled()
                 return
@@ -121,10 +123,12 @@ def stall_guard(timeout_s: float | None = DEFAULT_STALL_TIMEOUT_S, what: str = "
             _active.remove(guard)
 
 
-def progress(where: str | None = None) -> None:
-    """Report progress (``where``: what just finished) to every active guard."""
+def progress(where: str | None = None, expect_s: float | None = None) -> None:
+    """Report progress (``where``: what just finished) to every active guard;
+    ``expect_s``: the next unit is known to be long (one big vmapped call), allow it
+    ``max(timeout, expect_s)`` seconds."""
     for g in tuple(_active):
-        g.progress(where)
+        g.progress(where, expect_s)
 
 
 def add_stall_hook(fn: Callable[[], str | None]) -> None:
