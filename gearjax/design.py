@@ -514,6 +514,7 @@ class DynamicObjective:
             m = TorsionalModel.build(self.mesh, mods, **self.model_kwargs)
             if frozen:
                 m = dataclasses.replace(m, jump_kinds=(0,) * len(m.jump_kinds))
+                m = m.with_modifications(m.mods)  # re-assembled without the angle map
         else:
             from .models.geared3d import Geared3DModel
 
@@ -586,7 +587,7 @@ def _dyn_values_impl(model, x, speeds, static, adjoint=None):
     from .dynamics.simulate import simulate
 
     space, scales, sharpness, sim_kw, method = static
-    m = eqx.tree_at(lambda mm: mm.mods, model, space.mods(x)).prepare()
+    m = model.with_modifications(space.mods(x))
     kw = dict(sim_kw)
     if method == "steady":
         from .dynamics.steady import steady_state
@@ -598,7 +599,7 @@ def _dyn_values_impl(model, x, speeds, static, adjoint=None):
         res = jax.vmap(lambda w: simulate(m, w, **kw))(speeds)
     per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])
     sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
-    ok = (jnp.asarray(True) if m.structure_ok is None else m.structure_ok) & jnp.all(res.solver_ok)
+    ok = m.structure_ok & jnp.all(res.solver_ok)
     return sm, (jnp.max(per, axis=1), per, ok)
 
 

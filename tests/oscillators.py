@@ -7,10 +7,10 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
-from gearjax.models.torsional import ModelOutputs
+from gearjax.models.base import AbstractGearModel, ModelOutputs
 
 
-class HarmonicOscillator(eqx.Module):
+class HarmonicOscillator(AbstractGearModel):
     """m x_tt + c x_t + k x = k a cos(n theta), theta = Omega t: a 'mesh' whose TE_S is a
     pure harmonic and whose stiffness is constant. State (x, x') with ' = d/dtheta,
     starting at x = a. ``forced=False`` drops the right-hand side: with damping_ratio 0
@@ -21,15 +21,23 @@ class HarmonicOscillator(eqx.Module):
     damping_ratio: float
     amplitude: float
     order: int = eqx.field(static=True)
-    formulation: str = eqx.field(static=True, default="perturbation")
-    jump_thetas: tuple = eqx.field(static=True, default=())
-    forced: bool = eqx.field(static=True, default=True)
+    formulation: str = eqx.field(static=True)
+    jump_thetas: tuple = eqx.field(static=True)
+    forced: bool = eqx.field(static=True)
+    structure_ok: bool = eqx.field(static=True)
+    period_rad: float = eqx.field(static=True)
+
+    def __init__(self, mass, stiffness, damping_ratio, amplitude, order,
+                 formulation="perturbation", jump_thetas=(), forced=True):
+        self.mass, self.stiffness = mass, stiffness
+        self.damping_ratio, self.amplitude, self.order = damping_ratio, amplitude, order
+        self.formulation, self.jump_thetas, self.forced = formulation, jump_thetas, forced
+        self.structure_ok = True
+        self.period_rad = 2 * math.pi / order
 
     @property
-    def period_rad(self):
-        return 2 * math.pi / self.order
-
-    mesh_period_rad = period_rad
+    def mesh_period_rad(self):
+        return self.period_rad
 
     @property
     def static_force_N(self):
@@ -42,7 +50,24 @@ class HarmonicOscillator(eqx.Module):
     def _te_s(self, theta):
         return self.amplitude * jnp.cos(self.order * theta) if self.forced else 0.0
 
-    def initial_state(self, omega):
+    @property
+    def state_size(self):
+        return 2
+
+    def with_modifications(self, mods):
+        return self
+
+    def angle(self, s):
+        return s, None
+
+    def natural_frequency_rad_s(self):
+        return self.omega_n
+
+    def homogeneous_vector_field(self, theta, y, omega):
+        c = 2 * self.damping_ratio * math.sqrt(self.stiffness * self.mass)
+        return jnp.stack([y[1], (-self.stiffness * y[0] - omega * c * y[1]) / (omega**2 * self.mass)])
+
+    def initial_state(self, omega, theta0=0.0):
         return jnp.stack([jnp.asarray(self.amplitude), jnp.zeros(())])
 
     def vector_field(self, theta, y, omega):

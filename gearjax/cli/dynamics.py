@@ -267,7 +267,7 @@ def periodic_start_options(model) -> dict:
     """simulate() options for a model whose initial state is already the periodic steady
     state (:attr:`Geared3DModel.periodic_start`: Eq. (48a) solved harmonic by harmonic):
     no transient, start exactly there."""
-    if not getattr(model, "periodic_start", False):
+    if not model.periodic_start:
         return {}
     return {"n_transient_periods": 0, "start": "initial"}
 

@@ -112,7 +112,6 @@ __all__ = [
     "PeriodicJumpController",
     "jump_density",
     "transient_start",
-    "slowest_output_mode",
 ]
 
 
@@ -290,70 +289,10 @@ def _controller(rtol, atol, jumps=None, period=None):
                                   float(period))
 
 
-def transient_start(model, omega, n_average: int = 64):
-    """Start of the transient at theta = 0 (state of the model's layout).
-
-    Models without a modal state (no ``omega_r``, e.g. the sdof model) start on the
-    quasi-static state ``initial_state(omega)``. Models with a modal state -- ``omega_r``
-    (r,) modal frequencies (rad/s) and a state of r modal displacements followed by r
-    (scaled) modal velocities, as :class:`gearjax.models.geared3d.Geared3DModel` -- start
-    each mode between the quasi-static state at 0, right for modes far above the first
-    excitation frequency ``nu_1 = 2 pi Omega / P``, and its mean over one period (velocity
-    ~0), right for modes far below it (they cannot follow the excitation and respond to
-    its mean only)::
-
-        y_i = mean_i + g_i (y_qs,i(0) - mean_i),   g_i = w_i^4 / (w_i^4 + nu_1^4).
-
-    Why: the quasi-static start gives a mode far below the mesh frequency the velocity of
-    the static ripple (the 3D Baud-Velex rig's 61.8 rad/s mode, weakly coupled to the
-    mesh, decays by only 0.998 per mesh period at 700 rad/s and zeta 0.1), and that
-    transient outlived the automatic transient: dynamic factor off by 1.7e-3 with
-    ``converged`` True. Measured (spur te, zeta 0.1, distance of the start from the
-    periodic orbit of :mod:`gearjax.dynamics.steady`, dimensionless state): 3.5 / 8.1 / 16.2 from
-    the quasi-static start against 0.15 / 0.19 / 0.11 from the mean at 300 / 700 / 1400
-    rad/s; the 61.8 rad/s mode's amplitude falls ~200x.
-    """
-    y_qs = model.initial_state(omega)
-    omega_r = getattr(model, "omega_r", None)
-    if omega_r is None or y_qs.ndim != 1 or y_qs.shape[0] != 2 * omega_r.shape[0]:
-        return y_qs
-    period = float(model.period_rad)
-    thetas = (jnp.arange(n_average) + 0.5) * (period / n_average)
-    mean = jnp.mean(jax.vmap(lambda t: model.initial_state(omega, t))(thetas), axis=0)
-    nu1 = 2.0 * math.pi / period * omega
-    w4 = jnp.asarray(omega_r) ** 4
-    g = w4 / (w4 + nu1**4)
-    g = jnp.concatenate([g, g])
-    return mean + g * (y_qs - mean)
-
-
-def slowest_output_mode(model, share_tol: float = 1e-4):
-    """(omega_s, zeta) (traced scalars) of the slowest mode the outputs see, or None for
-    models without a modal state.
-
-    For modal models (``omega_r``, ``v_r``, ``w_r``, ``damping_ratio``; see
-    :func:`transient_start`): the slowest mode whose share of the static mesh compliance
-    ``v_i^2 / w_i^2`` or of the static DTE response to the mesh force ``|w_i v_i| / w_i^2``
-    is at least ``share_tol`` (the model's ``decay_rate_per_rad``, which sizes the
-    transient, looks only at the first share, with the coarser ``participation_tol``).
-    On the 3D Baud-Velex spur rig this is the 61.8 rad/s mode (shares 2e-4 and 7e-4).
-    """
-    needed = ("omega_r", "v_r", "w_r", "damping_ratio")
-    if not all(hasattr(model, n) for n in needed):
-        return None
-    om = jnp.asarray(model.omega_r)
-    v = jnp.asarray(model.v_r)
-    w = jnp.asarray(model.w_r)
-    if om.ndim != 1 or v.shape != om.shape or w.shape != om.shape:
-        return None
-    pos = om > 0
-    inv2 = jnp.where(pos, 1.0 / jnp.where(pos, om, 1.0) ** 2, 0.0)
-    sv = v**2 * inv2
-    sw = jnp.abs(w * v) * inv2
-    share = jnp.maximum(sv / jnp.maximum(sv.sum(), 1e-300), sw / jnp.maximum(sw.sum(), 1e-300))
-    sel = pos & (share >= share_tol)
-    w_s = jnp.min(jnp.where(sel, om, jnp.inf))
-    return w_s, jnp.asarray(model.damping_ratio)
+def transient_start(model, omega):
+    """Start of the transient at theta = 0: ``model.transient_start(omega)`` (see
+    :meth:`gearjax.models.base.AbstractGearModel.transient_start`)."""
+    return model.transient_start(omega)
 
 
 def simulate(
@@ -375,6 +314,7 @@ def simulate(
     adjoint=None,
     start: str = "auto",
     extrapolate: bool = True,
+    y0=None,
 ) -> SimulationResult:
     """Integrate ``model`` at pinion speed ``omega`` to steady state and measure it.
 
@@ -401,6 +341,7 @@ def simulate(
     start : ``"auto"`` (:func:`transient_start`: modal models start their slow modes on
         the period mean of the quasi-static state) or ``"initial"``
         (``model.initial_state(omega)``).
+    y0 : explicit start state at theta = 0 (overrides ``start``), e.g. a periodic orbit.
     extrapolate : for modal models, divide the convergence measure by ``|1 - mu|``, ``mu``
         the free-decay multiplier per period of the slowest mode the outputs see
         (:func:`slowest_output_mode`): an estimate of the distance to the steady state,
@@ -423,10 +364,8 @@ def simulate(
             raise SimulationError("omega", w.shape, "simulate takes one speed; use sweep()")
         if not (np.isfinite(w) and w > 0):
             raise SimulationError("omega", float(w), "pinion speed must be finite and > 0 (rad/s)")
-    if hasattr(model, "prepare"):
-        model = model.prepare()
     density = jump_density(model)
-    d_solver, d_rtol, d_atol = default_solver(getattr(model, "formulation", "reference"), density)
+    d_solver, d_rtol, d_atol = default_solver(model.formulation, density)
     solver = d_solver if solver is None else solver
     rtol = d_rtol if rtol is None else rtol
     atol = d_atol if atol is None else atol
@@ -440,7 +379,7 @@ def simulate(
     term = diffrax.ODETerm(lambda t, y, args: model.vector_field(t, y, args))
 
     # ---------------------------------------------------------------- one solve
-    rate = model.decay_rate_per_rad(omega) if hasattr(model, "decay_rate_per_rad") else None
+    rate = model.decay_rate_per_rad(omega)
     if n_transient_periods is None:
         n_min = int(math.ceil(min_transient_mesh_periods / n_mesh))
         n_max = max(n_min, int(math.ceil(max_transient_mesh_periods / n_mesh)))
@@ -454,12 +393,10 @@ def simulate(
     # samples at mid-cells: never exactly on an engagement angle (spur engagement is at 0)
     ts = t_tr + (jnp.arange(n_measured_periods * n_samples) + 0.5) * (period / n_samples)
     ctrl = _controller(rtol, atol, jumps, period)
-    if start == "auto":
-        y0 = transient_start(model, omega)
-    elif start == "initial":
-        y0 = model.initial_state(omega)
-    else:
+    if start not in ("auto", "initial"):
         raise SimulationError("start", start, 'must be "auto" or "initial"')
+    if y0 is None:
+        y0 = model.transient_start(omega) if start == "auto" else model.initial_state(omega)
     sol = diffrax.diffeqsolve(
         term, solver, t0=0.0, t1=t_end, dt0=None, y0=y0, args=omega,
         saveat=diffrax.SaveAt(ts=ts),
@@ -496,7 +433,7 @@ def simulate(
         # decaying like mu^k per period changes by |1 - mu| of what is left of it, so the
         # change between the last two periods divided by |1 - mu| bounds the distance to
         # the steady state (the change of faster components is over-counted: safe side)
-        slow = slowest_output_mode(model)
+        slow = model.slowest_output_mode()
         if slow is not None and extrapolate:
             w_s, z_s = slow
             arg = jnp.where(jnp.isfinite(w_s), w_s, 0.0) * period / omega
@@ -529,7 +466,7 @@ def simulate(
         convergence=jnp.where(ok, conv, jnp.inf),
         # undamped (decay rate 0): the free response of the start never dies, so no
         # transient reaches the steady state -- never "converged" (see the docstring)
-        converged=ok & (conv <= convergence_tol) & (True if rate is None else rate > 0),
+        converged=ok & (conv <= convergence_tol) & (rate > 0),
         solver_ok=ok,
         n_steps=steps,
         transient_periods=n_tr,

@@ -52,13 +52,6 @@ def monodromy(model, omega, *, solver=None, rtol: float = 1e-10, atol: float = 1
     (n, n) array ``Phi(P)`` in the model's (scaled) state coordinates; NaN if the
     integration failed.
     """
-    if not hasattr(model, "homogeneous_vector_field"):
-        raise SimulationError(
-            "model", type(model).__name__, "has no homogeneous_vector_field (linear "
-            "time-periodic part); Floquet analysis needs one",
-        )
-    if hasattr(model, "prepare"):
-        model = model.prepare()
     solver = diffrax.Dopri8() if solver is None else solver
     omega = jnp.asarray(omega, dtype=float)
     period = float(model.period_rad)

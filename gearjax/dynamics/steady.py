@@ -59,7 +59,6 @@ from __future__ import annotations
 import math
 import sys
 import time
-from typing import Any
 
 import diffrax
 import equinox as eqx
@@ -68,8 +67,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import watchdog
-from .simulate import (PeriodicJumpController, SimulationError, SimulationResult, simulate,
-                       transient_start)
+from .simulate import PeriodicJumpController, SimulationError, SimulationResult, simulate
 from .sweep import _FIELDS, SweepResult
 
 __all__ = [
@@ -123,35 +121,6 @@ class SteadyStateResult(eqx.Module):
 
     result: SimulationResult
     periodic: PeriodicState
-
-
-class _StartAt(eqx.Module):
-    """The wrapped model, with ``initial_state`` returning ``y0`` (everything else
-    delegated): lets :func:`simulate` measure from the periodic start."""
-
-    model: Any
-    y0: jax.Array
-
-    def prepare(self):
-        m = self.model.prepare() if hasattr(self.model, "prepare") else self.model
-        return _StartAt(m, self.y0)
-
-    def initial_state(self, omega, theta0=0.0):
-        return self.y0
-
-    def vector_field(self, theta, y, omega):
-        return self.model.vector_field(theta, y, omega)
-
-    def outputs(self, theta, y, omega):
-        return self.model.outputs(theta, y, omega)
-
-    def decay_rate_per_rad(self, omega):
-        return self.model.decay_rate_per_rad(omega)
-
-    def __getattr__(self, name):
-        if name.startswith("_") or name in ("model", "y0"):
-            raise AttributeError(name)
-        return getattr(self.model, name)
 
 
 def spectral_radius_of(phi, squarings: int = 40):
@@ -224,8 +193,6 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
         te/perturbation take exactly one step (exact for an affine vector field).
     max_steps : step limit of each period integration.
     """
-    if hasattr(model, "prepare"):
-        model = model.prepare()
     solver, rtol, atol = _solver_options(solver, rtol, atol)
     omega = jnp.asarray(omega, dtype=float)
     y_s = model.initial_state(omega)
@@ -239,7 +206,7 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
 
     y1, phi, ok, steps, res = step(y_s)
     it = jnp.ones((), dtype=jnp.int32)
-    linear = getattr(model, "formulation", "reference") in LINEAR_FORMULATIONS
+    linear = model.formulation in LINEAR_FORMULATIONS
     if not linear and max_newton > 1:
         def cond(c):
             y, phi, ok, steps, res, it = c
@@ -277,16 +244,14 @@ def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
     if n_measured_periods < 2:
         raise SimulationError("n_measured_periods", n_measured_periods,
                               "need >= 2 periods to measure periodicity")
-    if hasattr(model, "prepare"):
-        model = model.prepare()
     ps = periodic_state(model, omega, solver=solver, rtol=rtol, atol=atol,
                         max_newton=max_newton, newton_tol=newton_tol)
     y0 = jnp.where(ps.ok, ps.y0, model.initial_state(jnp.asarray(omega, dtype=float)))
-    res = simulate(_StartAt(model, y0), omega, n_transient_periods=0, start="initial",
+    res = simulate(model, omega, n_transient_periods=0, y0=y0,
                    n_measured_periods=n_measured_periods, solver=measure_solver,
                    rtol=measure_rtol, atol=measure_atol, convergence_tol=convergence_tol,
                    **simulate_kwargs)
-    linear = getattr(model, "formulation", "reference") in LINEAR_FORMULATIONS
+    linear = model.formulation in LINEAR_FORMULATIONS
     newton_ok = True if linear else ps.residual <= newton_tol * (1.0 + jnp.sqrt(jnp.sum(ps.y0**2)))
     good = ps.ok & res.solver_ok
     nan = jnp.asarray(jnp.nan)
@@ -326,7 +291,7 @@ def _steady_batch(model, speeds, kwargs):
 @eqx.filter_jit
 def _continue_batch(model, speeds, y0s, kwargs):
     def one(w, y0):
-        r = simulate(_StartAt(model, y0), w, **dict({"start": "initial", **dict(kwargs)}))
+        r = simulate(model, w, y0=y0, **dict(kwargs))
         return tuple(getattr(r, f) for f in _FIELDS)
     return jax.vmap(one)(speeds, y0s)
 
@@ -363,7 +328,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
         # the batched monodromy (chunk x n x n per stage) must stay cache-sized: measured on
         # the 3D spur rig (n = 182), 8 speeds in chunks of 2: 2.6 s/speed; 100 speeds in one
         # chunk: not finished after 20 min (the transient sweep: 3.3 s/speed)
-        n = int(getattr(model, "state_size", 2))
+        n = int(model.state_size)
         chunk = int(min(speeds.size, max(1, _CHUNK_ELEMENTS // (n * n))))
     else:
         chunk = int(chunk_size)
@@ -394,7 +359,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
                   f"in {time.perf_counter() - t0:.2f} s", file=sys.stderr, flush=True)
     out["transient_periods"][:] = 0.0
     continued = np.zeros(speeds.size, dtype=bool)
-    formulation = getattr(model, "formulation", "")
+    formulation = model.formulation
     if continuation and formulation not in LINEAR_FORMULATIONS:
         need = ((out["contact_loss"] > 0) | ~(rho < 1.0) | ~(out["converged"] > 0))
         idx = np.flatnonzero(need)
@@ -427,5 +392,4 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
 
 @eqx.filter_jit
 def _initial_states(model, speeds):
-    m = model.prepare() if hasattr(model, "prepare") else model
-    return jax.vmap(lambda w: transient_start(m, w))(speeds)
+    return jax.vmap(model.transient_start)(speeds)

@@ -241,7 +241,7 @@ def sweep(
     n_chunks = int(math.ceil(speeds.size / chunk))
     total = n_chunks * chunk
     sim_kwargs = tuple(sorted(simulate_kwargs.items()))
-    formulation = getattr(model, "formulation", "")
+    formulation = model.formulation
 
     # order: the whole sweep sorted by cost (speed), chunks of consecutive speeds, each chunk
     # dealt round-robin to the devices

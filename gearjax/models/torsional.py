@@ -38,8 +38,8 @@ Dynamic mesh force
 Excitations: a jump-aware periodic table (default) or inline solves
 ------------------------------------------------------------------
 ``TE_S``, ``NLTE`` and ``(sum k_i)^S`` do not depend on speed. With ``excitation="table"``
-(default) they are tabulated once per call (inside ``jit``, so they stay differentiable in
-the modifications) by the exact unilateral quasi-static solve at the knots of a
+(default) they are tabulated once per call (by the traceable assembly, so they stay differentiable
+in the modifications) by the exact unilateral quasi-static solve at the knots of a
 :class:`PeriodicHermiteTable` -- ``n_table`` uniform knots per mesh period plus, for every
 angle where the quasi-static active set or the cell realising NLTE changes, the two
 adjacent floating-point angles that bracket it (found by bisection at build time) -- with
@@ -48,9 +48,6 @@ exact at the jumps of ``(sum k_i)^S`` and at the kinks of ``TE_S`` and NLTE (no 
 exact for the piecewise linear/quadratic NLTE of linear/parabolic reliefs, and O(h^4)
 elsewhere. A lookup costs a few flops, against an O(n^2) (sort-free) unilateral solve over
 the cells at every right-hand side with ``excitation="inline"`` (kept to check the table).
-Measured per right-hand side for a batch of 200 speeds on this 2-core CPU: table 3 us
-(spur or helical); inline 4 us (spur, 3 merged cells), 430 us (spur, 30 cells), 8 ms
-(helical, 160 cells).
 
 NLTE' and NLTE'' (no-load transmission error derivatives)
 --------------------------------------------------------
@@ -75,10 +72,7 @@ integrator as ``jump_thetas``. The same substitution applies to the 3D model (Eq
 ``X = Z - NLTE M^-1 E`` while ``E`` is constant. ``nlte_method="spectral"`` keeps the
 original variable and evaluates NLTE'' from the truncated Fourier series of NLTE sampled
 over one period (``nlte_harmonics`` harmonics of the mesh frequency); it exists to check
-the substitution. Measured (perturbation, long relief, default inertias, 300 rad/s, against
-the closed-form steady state): peak-force error 1.1e-2, 3.9e-3, 5.0e-4, 2.5e-4, 2.3e-5 for
-H = 8, 16, 32, 64, 127 at 1.4, 2.4, 4.3, 8.2, 16 times the steps of the substitution,
-whose error is 5e-7.
+the substitution.
 
 ``nlte_terms=False`` sets NLTE = 0 in the equations of motion, as the paper's Fig. 10
 "TE-based formulation (with NLTE = 0)": the NLTE'' inertial term is dropped and, in the
@@ -98,15 +92,8 @@ scaling (``f`` the elastic mesh force over F_t)::
 
     du/dtheta = r v,    dv/dtheta = -r [ f(theta, x) - 1 + 2 zeta (v - kappa NLTE' / (r x_ref)) ]
 
-Default inertias
-----------------
-Without better data, ``J1, J2`` are solid steel cylinders (rho = 7800 kg/m^3) of the pitch
-radii and the face widths of pinion and gear, ``J = rho pi b r^4 / 2``
-(:func:`solid_cylinder_inertias`; 4.48e-3 and 4.76 kg m^2 for the spur Baud-Velex pair,
-m_eq = 1.81 kg). The 3D rig will supply the real shaft-line values. With them
-``kappa = J2 / (Rb2^2 m_eq)`` is about 30: the whole (heavy) gear line is rigidly coupled to
-the mesh, so NLTE'' forcing is strong (long relief: dynamic factor about 12 already at
-300 rad/s, teeth separating); use realistic shaft-line inertias for NLTE studies.
+Default inertias: solid steel cylinders of the pitch radii and face widths
+(:func:`solid_cylinder_inertias`) when nothing better is known.
 
 Where the NLTE'' reaction torque acts (``nlte_reaction``)
 -------------------------------------------------------
@@ -116,16 +103,7 @@ NLTE''`` with ``kappa = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (about 30 with the bodies' i
 In the 3D model that torque goes to the torque node (the motor rotor), behind the pinion
 shaft and the flexible coupling (torsional natural frequency of the hub and shaft about
 500 Hz, far below the 3.4 kHz mesh modes), so at mesh frequencies the pinion does not feel
-it and only the gear term remains: ``kappa = 1`` (``nlte_reaction="drive"``). Measured,
-spur Baud-Velex pair, Table 1 long relief, zeta 0.03, perturbation, 600/700/800/900 rad/s:
-3D rig dynamic factors 1.33/1.24/1.99/1.52 (reference 1.32/1.21/2.37/1.45); sdof with
-the bodies' inertias 21.7/36/227/32 with ``"pinion"`` (the linear model with kappa = 30)
-and the values of :mod:`gearjax.design` with ``"drive"``.
-
-Critical speed: with the mean loaded stiffness of the spur pair with short relief
-(k_m = 7.39e8 N/m) ``omega_n = 2.02e4 rad/s`` and the main critical pinion speed
-(mesh frequency = omega_n) is ``omega_n / z1 = 777 rad/s`` (806 rad/s with the geometric
-mean stiffness 7.96e8 N/m of the unmodified pair).
+it and only the gear term remains: ``kappa = 1`` (``nlte_reaction="drive"``).
 
 Derivatives with respect to the design (moving switching angles)
 ----------------------------------------------------------------
@@ -138,11 +116,10 @@ Eq. (17)), where two removed materials are equal (NLTE, Eq. (9)), where a cell c
 the start of a relief zone (``xi = xi_e - L_c1 g_alpha`` or ``xi_start + L_c2 g_alpha``).
 For an integral ``int f(theta, P) dtheta`` with a jump at ``theta_j(P)`` the derivative
 contains the boundary term ``(f^- - f^+) dtheta_j/dP``, which AD through a solver whose
-steps end at *fixed* angles never produces (it gave d(max F_D)/dP_c = 0.94e8 N/m against
-1.66e8 N/m by central differences of rebuilt models, default inertias, 300 rad/s).
+steps end at *fixed* angles never produces.
 
 The fix is a change of the independent variable. The build records, for every jump
-angle ``s_j``, the kind of event and the cells involved (:func:`_event_kinds`);
+angle ``s_j``, the kind of event and the cells involved (:func:`gearjax.excitation.events.event_kinds`);
 :meth:`TorsionalModel.jump_angles_rad` recomputes ``theta_j(P)`` by Newton iterations on
 the switching function from ``s_j`` (implicit differentiation:
 ``dtheta_j/dP = -g_P / g_theta``), and the model integrates in the simulation angle
@@ -152,18 +129,14 @@ the fixed ``s_j`` given to the step-size controller, the table is built in ``s``
 fixed, values ``q(phi(s))``, the mean stiffness ``k_m`` taken over theta with the factor
 ``phi'``), the vector field is ``dy/ds = phi'(s) dy/dtheta`` and outputs are evaluated at
 ``phi(s)``: everything is smooth in the design between jumps, and AD differentiates the
-correct function. Measured (te, long relief, J = (1.8e-2, 4.80) kg m^2, 300 rad/s):
-d(max F_D)/dP_c = 3.3051e9 N/m by AD, 3.3049e9 by central differences of the same model
-(h = 10 nm), 3.3103e9 by central differences of rebuilt models (the remaining 0.16 % is
-the sampling of the maximum on a grid that moves with phi), against 2.26e9 before.
+correct function.
 
 The map is valid while the discrete structure of the quasi-static solution (the codes at
-every table knot) is the build one; ``prepare()`` checks it and stores
-``derived.structure_ok``. A design far from the build design (a relief that no longer
+every table knot) is the build one; the assembly checks it and stores
+:attr:`TorsionalModel.structure_ok`. A design far from the build design (a relief that no longer
 lifts a tooth off, an event that appears or vanishes) needs a rebuilt model;
 :mod:`gearjax.design` does that. The reference contact law is continuous in the gaps
-(only NLTE' jumps), and its AD derivative matched central differences (0.6 %) before the
-map already.
+(only NLTE' jumps), so the map is not needed for its derivative.
 """
 
 from __future__ import annotations
@@ -195,6 +168,7 @@ from ..excitation.events import (
     switch_value,
 )
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
+from .base import FORMULATIONS, AbstractGearModel, ModelOutputs
 from ..errors import ModelError
 
 __all__ = [
@@ -209,7 +183,6 @@ __all__ = [
 ]
 
 Formulation = Literal["reference", "te", "perturbation"]
-FORMULATIONS = ("reference", "te", "perturbation")
 NLTE_METHODS = ("substitution", "spectral")
 EXCITATIONS = ("table", "inline")
 NLTE_REACTIONS = ("pinion", "drive")
@@ -229,22 +202,6 @@ def solid_cylinder_inertias(pair: GearPair, density_kg_m3: float = STEEL_DENSITY
     )
 
 
-class ModelOutputs(eqx.Module):
-    """Observables at one angle (all scalars).
-
-    Attributes
-    ----------
-    mesh_force_N : dynamic normal mesh force F_D (N), Eqs. (22)/(24).
-    dte_m : dynamic transmission error DTE = x + NLTE (m, transverse on the base plane).
-    accel_m_s2 : acceleration observable (m/s^2), or None when the model has none
-        (torsional model).
-    """
-
-    mesh_force_N: jax.Array
-    dte_m: jax.Array
-    accel_m_s2: jax.Array | None = None
-
-
 def _sdof_switch(mesh, mods, force, kind, a, b, theta):
     """:meth:`TorsionalModel._switch_function` from its inputs (also used at build, before
     the model exists)."""
@@ -253,33 +210,190 @@ def _sdof_switch(mesh, mods, force, kind, a, b, theta):
     return switch_value(mesh, mods, cells, theta, y - delta_e[a], kind, a, b)
 
 
-class _Derived(eqx.Module):
-    """Quantities derived from the model data inside ``jit`` (see :meth:`prepare`)."""
-
-    angle_map: AngleMap | None  # simulation angle s -> pinion angle theta (moving jumps)
-    structure_ok: jax.Array  # the discrete quasi-static state at every knot is the build one
-
-    table: PeriodicHermiteTable  # columns: x_S (m), (sum k)^S (N/m), NLTE (m)
-    k_m: jax.Array  # mean loaded quasi-static stiffness (N/m)
-    x_ref: jax.Array  # F_S / (k_m cos b_b) (m)
-    omega_n: jax.Array  # sqrt(k_m cos^2 b_b / m_eq) (rad/s)
-    kappa: jax.Array  # J2 / (Rb2^2 m_eq) with the substitution, else 0
-    nlte_dd_coeffs: jax.Array | None  # complex Fourier coefficients of NLTE'' (spectral)
-
-
 _X_S, _K_S, _NLTE = 0, 1, 2
 
 
-class TorsionalModel(eqx.Module):
+class _TorsionalInputs(eqx.Module):
+    """Inputs and build-time layout of the sdof model, with the quasi-static helpers that
+    the derived arrays are computed from (abstract: see :class:`TorsionalModel`)."""
+
+    mesh: Mesh
+    mods: ToothModifications
+    inertias_kg_m2: jax.Array
+    pinion_torque_Nm: jax.Array
+    damping_ratio: jax.Array
+    table_knots: jax.Array
+    table_cell_first: jax.Array
+    table_side: jax.Array
+    formulation: str = eqx.field(static=True)
+    nlte_terms: bool = eqx.field(static=True)
+    nlte_method: str = eqx.field(static=True)
+    nlte_harmonics: int = eqx.field(static=True)
+    excitation: str = eqx.field(static=True)
+    period_rad: float = eqx.field(static=True)
+    jump_thetas: tuple = eqx.field(static=True)
+    n_table: int = eqx.field(static=True)
+    table_origin: float = eqx.field(static=True)
+    table_max_extra: int = eqx.field(static=True)
+    jump_kinds: tuple = eqx.field(static=True, default=())
+    jump_cells: tuple = eqx.field(static=True, default=())
+    nlte_reaction: str = eqx.field(static=True, default="pinion")
+    table_codes: jax.Array | None = None
+
+    @property
+    def pair(self) -> GearPair:
+        return self.mesh.pair
+
+    @property
+    def cos_bb(self) -> float:
+        return math.cos(self.mesh.pair.base_helix_angle_rad)
+
+    @property
+    def mesh_period_rad(self) -> float:
+        """One mesh period in theta, 2 pi / z1 (rad)."""
+        return self.mesh.pair.mesh_period_rad
+
+    @property
+    def static_force_N(self):
+        """F_S = C_m0 / (Rb1 cos b_b) (N) (Section 3)."""
+        return self.pinion_torque_Nm / (self.pair.base_radii_m[0] * self.cos_bb)
+
+    @property
+    def equivalent_mass_kg(self):
+        """m_eq = J1 J2 / (J1 Rb2^2 + J2 Rb1^2) (kg), Eq. (16)."""
+        j1, j2 = self.inertias_kg_m2[0], self.inertias_kg_m2[1]
+        rb1, rb2 = self.pair.base_radii_m
+        return j1 * j2 / (j1 * rb2**2 + j2 * rb1**2)
+
+    @property
+    def nlte_inertia_ratio(self):
+        """kappa: NLTE'' coefficient over m_eq (dimensionless). ``nlte_reaction="pinion"``
+        (Eq. (16)): ``J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)``; ``"drive"``: 1 (see
+        the module docstring, "Where the NLTE'' reaction torque acts")."""
+        rb2 = self.pair.base_radii_m[1]
+        if self.nlte_reaction == "drive":
+            return jnp.ones_like(self.inertias_kg_m2[1])
+        return self.inertias_kg_m2[1] / (rb2**2 * self.equivalent_mass_kg)
+
+    # ------------------------------------------------------------------ quasi-static
+    def _qs(self, theta):
+        """(x_S, k_S, NLTE) at theta: exact unilateral quasi-static solve (Eq. (17))."""
+        cells, delta_e, nlte = contact_gaps(self.mesh, self.mods, theta)
+        k = cells.stiffness_N_per_m
+        if self.excitation == "inline":  # inside the vector field: no sort
+            y, k_s = unilateral_solve_pairwise(k, delta_e, self.static_force_N)
+        else:  # table knots: sort-based root, O(n log n) for the 160 helical cells
+            y, _ = solve_unilateral(k, delta_e, self.static_force_N)
+            k_s = jnp.sum(jnp.where((k > 0) & (delta_e < y), k, 0.0))
+        return jnp.stack([y / self.cos_bb, k_s, nlte])
+
+    def _qs_with_slope(self, theta):
+        theta = jnp.asarray(theta, dtype=float)
+        return jax.jvp(self._qs, (theta,), (jnp.ones((), dtype=float),))
+
+    @property
+    def moving_jumps(self) -> bool:
+        """Some switching angles depend on the design (module docstring)."""
+        return any(k != EV_FIXED for k in self.jump_kinds)
+
+    def _switch_function(self, kind, a, b, theta):
+        """g(theta) whose root is the switching angle of an event of ``kind`` (m):
+        loaded set (cell a): ``y - delta_e_a`` (approach = gap, Eq. (17)); NLTE cell
+        (a -> b): ``r_a - r_b``; relief start of the pinion / gear (cell a):
+        ``xi_a - (xi_e - L_c1 g_alpha)`` / ``xi_a - (xi_start + L_c2 g_alpha)``."""
+        return _sdof_switch(self.mesh, self.mods, self.static_force_N, kind, a, b, theta)
+
+    def jump_angles_rad(self, newton_steps: int = 4):
+        """The switching angles ``theta_j`` (rad) of the current design, one per entry of
+        :attr:`jump_thetas`: Newton iterations on :meth:`_switch_function` from the
+        build-time angle (geometric ones stay fixed). Differentiable in the modifications:
+        at the root, ``d theta_j = -(dg/d design) / (dg/d theta)`` (implicit function
+        theorem) is what the unrolled iterations return."""
+        return moved_event_angles(self._switch_function, self.jump_thetas, self.jump_kinds,
+                                  self.jump_cells, newton_steps)
+
+    def _angle_map(self) -> AngleMap:
+        return AngleMap.through(self.jump_thetas, self.jump_angles_rad(), self.period_rad)
+
+    @property
+    def _substitution(self) -> bool:
+        return self.nlte_terms and self.nlte_method == "substitution"
+
+    def _assemble(self) -> dict:
+        """The derived arrays of :class:`TorsionalModel` from these inputs (traceable, so
+        they stay differentiable functions of the modifications): the excitation table
+        of (x_S, (sum k)^S, NLTE) with exact slopes, ``k_m``, ``x_ref``, ``omega_n``,
+        ``kappa``, the angle map of the moving switching angles and its validity flag,
+        and the spectral NLTE'' coefficients."""
+        delta = 1e-9 * self.period_rad
+        amap = self._angle_map() if self.moving_jumps else None
+        n_mesh = int(round(self.period_rad / self.mesh_period_rad))
+        layout = dict(knots=self.table_knots, cell_first=self.table_cell_first,
+                      origin=self.table_origin, period=self.period_rad,
+                      n_cells=self.n_table * n_mesh, max_extra=self.table_max_extra)
+        if amap is None:
+            structure_ok = jnp.asarray(True)
+            at = self.table_knots + self.table_side * delta
+            vals, slopes = jax.vmap(self._qs_with_slope)(at)
+            vals = vals - (self.table_side * delta)[:, None] * slopes  # back to the knot
+            table = PeriodicHermiteTable(values=vals, slopes=slopes, **layout)
+            k_m = table.mean()[_K_S]
+        else:
+            # tabulate q(phi(s)) and, for the mean over theta, (sum k)^S(phi(s)) phi'(s)
+            def one(s, side):
+                def f(s):
+                    th, dth = amap(s)
+                    q = self._qs(th + side * delta)
+                    return jnp.concatenate([q, q[_K_S:_K_S + 1] * dth])
+                v, d = jax.jvp(f, (s,), (jnp.ones((), dtype=float),))
+                return v - side * delta * d / amap(s)[1], d  # back to the knot
+
+            vals, slopes = jax.vmap(one)(self.table_knots, self.table_side)
+            table = PeriodicHermiteTable(values=vals[:, :3], slopes=slopes[:, :3], **layout)
+            k_m = PeriodicHermiteTable(values=vals[:, 3:], slopes=slopes[:, 3:], **layout).mean()[0]
+            th = jax.vmap(amap)(self.table_knots)[0] + self.table_side * delta
+            sig = jax.vmap(lambda t: code_jnp(_signature_one(
+                self.mesh, self.mods, self.static_force_N, t)))(th)
+            structure_ok = jnp.all(sig == self.table_codes)
+        m_eq = self.equivalent_mass_kg
+        omega_n = jnp.sqrt(k_m * self.cos_bb**2 / m_eq)
+        x_ref = self.static_force_N / (k_m * self.cos_bb)
+        kappa = self.nlte_inertia_ratio if self._substitution else jnp.zeros(())
+        coeffs = None
+        if self.nlte_method == "spectral" and self.nlte_terms:
+            n = self.n_table * n_mesh
+            th = jnp.arange(n) * (self.period_rad / n)
+            nlte = jax.vmap(lambda t: contact_gaps(self.mesh, self.mods, t)[2])(th)
+            c = jnp.fft.rfft(nlte) / n
+            n_keep = self.nlte_harmonics * n_mesh
+            h = jnp.arange(n_keep + 1)
+            w = 2.0 * jnp.pi * h / self.period_rad
+            coeffs = jnp.where(h > 0, -(w**2) * 2.0 * c[: n_keep + 1], 0.0)
+        return dict(angle_map=amap, structure_ok=structure_ok, table=table, k_m=k_m,
+                    x_ref=x_ref, omega_n=omega_n, kappa=kappa, nlte_dd_coeffs=coeffs)
+
+
+class _TorsionalData(_TorsionalInputs):
+    """The inputs alone (final): what :meth:`TorsionalModel.with_modifications` assembles
+    the derived arrays from."""
+
+
+@eqx.filter_jit
+def _assemble(data: _TorsionalData) -> dict:
+    """:meth:`_TorsionalInputs._assemble`, compiled (inlined when traced inside ``jit``)."""
+    return data._assemble()
+
+
+class TorsionalModel(_TorsionalInputs, AbstractGearModel):
     """Sdof torsional model of a gear pair (paper Section 3, Eqs. (16), (20), (47a)).
 
     Build with :meth:`build`. Array fields are differentiable data; the configuration
     (formulation, which terms exist, period, jump angles, table layout) is static.
 
-    The simulation interface (used by :func:`gearjax.dynamics.simulate.simulate`) is
-    :meth:`prepare`, :meth:`initial_state`, :meth:`vector_field`, :meth:`outputs`,
-    :meth:`decay_rate_per_rad`, :attr:`period_rad`, :attr:`mesh_period_rad`,
-    :attr:`jump_thetas`, :attr:`static_force_N`, :attr:`formulation`.
+    Complete when built: :meth:`build` scans the quasi-static solution once (NumPy, static
+    layout) and assembles the derived arrays (traceable); :meth:`with_modifications`
+    re-assembles them for new modifications. The solver interface is
+    :class:`gearjax.models.base.AbstractGearModel`.
 
     Attributes
     ----------
@@ -305,33 +419,53 @@ class TorsionalModel(eqx.Module):
     table_side : (K,) -1 / +1 for the knots just left / right of a jump, 0 elsewhere: the
         one-sided values there are extrapolated from ``1e-9`` periods inside the branch, so
         that they do not depend on on which side round-off puts the knot itself.
+    angle_map : :class:`AngleMap` from the simulation angle to the pinion angle, None when
+        no switching angle depends on the design.
+    structure_ok : traced bool, the discrete quasi-static state at every knot is the
+        build one (the angle map and table are valid).
+    table : :class:`PeriodicHermiteTable` of (x_S (m), (sum k)^S (N/m), NLTE (m)).
+    k_m : mean loaded quasi-static stiffness (N/m).
+    x_ref : ``F_S / (k_m cos b_b)`` (m).
+    omega_n : ``sqrt(k_m cos^2 b_b / m_eq)`` (rad/s).
+    kappa : ``J2 / (Rb2^2 m_eq)`` (pinion reaction) or 1 (drive) with the substitution,
+        else 0.
+    nlte_dd_coeffs : complex Fourier coefficients of NLTE'' (spectral method), else None.
     """
 
-    mesh: Mesh
-    mods: ToothModifications
-    inertias_kg_m2: jax.Array
-    pinion_torque_Nm: jax.Array
-    damping_ratio: jax.Array
-    table_knots: jax.Array
-    table_cell_first: jax.Array
-    table_side: jax.Array
-    formulation: str = eqx.field(static=True)
-    nlte_terms: bool = eqx.field(static=True)
-    nlte_method: str = eqx.field(static=True)
-    nlte_harmonics: int = eqx.field(static=True)
-    excitation: str = eqx.field(static=True)
-    period_rad: float = eqx.field(static=True)
-    jump_thetas: tuple = eqx.field(static=True)
-    n_table: int = eqx.field(static=True)
-    table_origin: float = eqx.field(static=True)
-    table_max_extra: int = eqx.field(static=True)
-    jump_kinds: tuple = eqx.field(static=True, default=())
-    jump_cells: tuple = eqx.field(static=True, default=())
-    nlte_reaction: str = eqx.field(static=True, default="pinion")
-    table_codes: jax.Array | None = None
-    derived: _Derived | None = None
+
+    angle_map: AngleMap | None = eqx.field(kw_only=True)
+    structure_ok: jax.Array = eqx.field(kw_only=True)
+    table: PeriodicHermiteTable = eqx.field(kw_only=True)
+    k_m: jax.Array = eqx.field(kw_only=True)
+    x_ref: jax.Array = eqx.field(kw_only=True)
+    omega_n: jax.Array = eqx.field(kw_only=True)
+    kappa: jax.Array = eqx.field(kw_only=True)
+    nlte_dd_coeffs: jax.Array | None = eqx.field(kw_only=True)
+
+    def __check_init__(self):
+        if self.formulation not in FORMULATIONS:
+            raise ModelError("formulation", self.formulation, f"must be one of {FORMULATIONS}")
+        if self.inertias_kg_m2.shape != (2,):
+            raise ModelError("inertias_kg_m2", self.inertias_kg_m2.shape, "must have shape (2,)")
+        if self.table.values.shape != (self.table_knots.shape[0], 3):
+            raise ModelError("table", self.table.values.shape,
+                             "must hold (x_S, (sum k)^S, NLTE) at every table knot")
 
     # ------------------------------------------------------------------ construction
+    @classmethod
+    def _complete(cls, **inputs) -> "TorsionalModel":
+        """The complete model of these inputs (derived arrays assembled, traceable)."""
+        return cls(**inputs, **_assemble(_TorsionalData(**inputs)))
+
+    def with_modifications(self, mods: ToothModifications) -> "TorsionalModel":
+        """The model with tooth modifications ``mods`` (same shapes as the build ones) and
+        every derived array recomputed from them: traceable (jit / vmap / jacfwd), the
+        switching angles follow the design through the angle map while
+        :attr:`structure_ok` holds (module docstring)."""
+        inputs = {f.name: getattr(self, f.name) for f in dataclasses.fields(_TorsionalData)}
+        inputs["mods"] = mods
+        return TorsionalModel._complete(**inputs)
+
     @classmethod
     def build(
         cls,
@@ -453,7 +587,7 @@ class TorsionalModel(eqx.Module):
         side[np.isin(knots, lo_u)] = -1.0
         side[np.isin(knots, hi_u)] = 1.0
         # design-dependent switching angles: kind and cells of the event at every jump, so
-        # that prepare() can move them with the modifications (module docstring,
+        # that the assembly can move them with the modifications (module docstring,
         # "Derivatives with respect to the design")
         n_cells = mesh.n_cells
         kinds, cells_ab = [0] * jumps.size, [(0, 0)] * jumps.size
@@ -477,7 +611,7 @@ class TorsionalModel(eqx.Module):
         if moving:
             delta = 1e-9 * period
             codes = jnp.asarray(code(sig(jnp.asarray(knots + side * delta))), dtype=jnp.int32)
-        return cls(
+        return cls._complete(
             mesh=mesh,
             mods=mods,
             inertias_kg_m2=jnp.asarray(inert),
@@ -502,190 +636,38 @@ class TorsionalModel(eqx.Module):
             table_codes=codes,
         )
 
-    # ------------------------------------------------------------------ constants
-    @property
-    def pair(self) -> GearPair:
-        return self.mesh.pair
-
-    @property
-    def cos_bb(self) -> float:
-        return math.cos(self.mesh.pair.base_helix_angle_rad)
-
-    @property
-    def mesh_period_rad(self) -> float:
-        """One mesh period in theta, 2 pi / z1 (rad)."""
-        return self.mesh.pair.mesh_period_rad
-
-    @property
-    def static_force_N(self):
-        """F_S = C_m0 / (Rb1 cos b_b) (N) (Section 3)."""
-        return self.pinion_torque_Nm / (self.pair.base_radii_m[0] * self.cos_bb)
-
-    @property
-    def equivalent_mass_kg(self):
-        """m_eq = J1 J2 / (J1 Rb2^2 + J2 Rb1^2) (kg), Eq. (16)."""
-        j1, j2 = self.inertias_kg_m2[0], self.inertias_kg_m2[1]
-        rb1, rb2 = self.pair.base_radii_m
-        return j1 * j2 / (j1 * rb2**2 + j2 * rb1**2)
-
-    @property
-    def nlte_inertia_ratio(self):
-        """kappa: NLTE'' coefficient over m_eq (dimensionless). ``nlte_reaction="pinion"``
-        (Eq. (16)): ``J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)``; ``"drive"``: 1 (see
-        the module docstring, "Where the NLTE'' reaction torque acts")."""
-        rb2 = self.pair.base_radii_m[1]
-        if self.nlte_reaction == "drive":
-            return jnp.ones_like(self.inertias_kg_m2[1])
-        return self.inertias_kg_m2[1] / (rb2**2 * self.equivalent_mass_kg)
-
-    # ------------------------------------------------------------------ quasi-static
-    def _qs(self, theta):
-        """(x_S, k_S, NLTE) at theta: exact unilateral quasi-static solve (Eq. (17))."""
-        cells, delta_e, nlte = contact_gaps(self.mesh, self.mods, theta)
-        k = cells.stiffness_N_per_m
-        if self.excitation == "inline":  # inside the vector field: no sort
-            y, k_s = unilateral_solve_pairwise(k, delta_e, self.static_force_N)
-        else:  # table knots: sort-based root, O(n log n) for the 160 helical cells
-            y, _ = solve_unilateral(k, delta_e, self.static_force_N)
-            k_s = jnp.sum(jnp.where((k > 0) & (delta_e < y), k, 0.0))
-        return jnp.stack([y / self.cos_bb, k_s, nlte])
-
-    def _qs_with_slope(self, theta):
-        theta = jnp.asarray(theta, dtype=float)
-        return jax.jvp(self._qs, (theta,), (jnp.ones((), dtype=float),))
-
-    @property
-    def moving_jumps(self) -> bool:
-        """Some switching angles depend on the design (module docstring)."""
-        return any(k != EV_FIXED for k in self.jump_kinds)
-
-    def _switch_function(self, kind, a, b, theta):
-        """g(theta) whose root is the switching angle of an event of ``kind`` (m):
-        loaded set (cell a): ``y - delta_e_a`` (approach = gap, Eq. (17)); NLTE cell
-        (a -> b): ``r_a - r_b``; relief start of the pinion / gear (cell a):
-        ``xi_a - (xi_e - L_c1 g_alpha)`` / ``xi_a - (xi_start + L_c2 g_alpha)``."""
-        return _sdof_switch(self.mesh, self.mods, self.static_force_N, kind, a, b, theta)
-
-    def jump_angles_rad(self, newton_steps: int = 4):
-        """The switching angles ``theta_j`` (rad) of the current design, one per entry of
-        :attr:`jump_thetas`: Newton iterations on :meth:`_switch_function` from the
-        build-time angle (geometric ones stay fixed). Differentiable in the modifications:
-        at the root, ``d theta_j = -(dg/d design) / (dg/d theta)`` (implicit function
-        theorem) is what the unrolled iterations return."""
-        return moved_event_angles(self._switch_function, self.jump_thetas, self.jump_kinds,
-                                  self.jump_cells, newton_steps)
-
-    def _angle_map(self) -> AngleMap:
-        return AngleMap.through(self.jump_thetas, self.jump_angles_rad(), self.period_rad)
-
     def angle(self, s):
         """(theta, dtheta/ds): the pinion angle (rad) at the simulation angle ``s`` (rad).
-        Identity at the build-time design; see the module docstring. Requires
-        :meth:`prepare`."""
-        amap = self._d().angle_map
+        Identity at the build-time design; see the module docstring."""
+        amap = self.angle_map
         if amap is None:
             return s, None
         return amap(s)
 
-    def prepare(self) -> "TorsionalModel":
-        """Fill the derived quantities (excitation table, k_m, x_ref, omega_n, kappa and the
-        spectral NLTE''). Call inside ``jit`` so that they stay differentiable functions of
-        the model data; idempotent."""
-        if self.derived is not None:
-            return self
-        delta = 1e-9 * self.period_rad
-        amap = self._angle_map() if self.moving_jumps else None
-        n_mesh = int(round(self.period_rad / self.mesh_period_rad))
-        layout = dict(knots=self.table_knots, cell_first=self.table_cell_first,
-                      origin=self.table_origin, period=self.period_rad,
-                      n_cells=self.n_table * n_mesh, max_extra=self.table_max_extra)
-        if amap is None:
-            structure_ok = jnp.asarray(True)
-            at = self.table_knots + self.table_side * delta
-            vals, slopes = jax.vmap(self._qs_with_slope)(at)
-            vals = vals - (self.table_side * delta)[:, None] * slopes  # back to the knot
-            table = PeriodicHermiteTable(values=vals, slopes=slopes, **layout)
-            k_m = table.mean()[_K_S]
-        else:
-            # tabulate q(phi(s)) and, for the mean over theta, (sum k)^S(phi(s)) phi'(s)
-            def one(s, side):
-                def f(s):
-                    th, dth = amap(s)
-                    q = self._qs(th + side * delta)
-                    return jnp.concatenate([q, q[_K_S:_K_S + 1] * dth])
-                v, d = jax.jvp(f, (s,), (jnp.ones((), dtype=float),))
-                return v - side * delta * d / amap(s)[1], d  # back to the knot
-
-            vals, slopes = jax.vmap(one)(self.table_knots, self.table_side)
-            table = PeriodicHermiteTable(values=vals[:, :3], slopes=slopes[:, :3], **layout)
-            k_m = PeriodicHermiteTable(values=vals[:, 3:], slopes=slopes[:, 3:], **layout).mean()[0]
-            th = jax.vmap(amap)(self.table_knots)[0] + self.table_side * delta
-            sig = jax.vmap(lambda t: code_jnp(_signature_one(
-                self.mesh, self.mods, self.static_force_N, t)))(th)
-            structure_ok = jnp.all(sig == self.table_codes)
-        m_eq = self.equivalent_mass_kg
-        omega_n = jnp.sqrt(k_m * self.cos_bb**2 / m_eq)
-        x_ref = self.static_force_N / (k_m * self.cos_bb)
-        kappa = self.nlte_inertia_ratio if self._substitution else jnp.zeros(())
-        coeffs = None
-        if self.nlte_method == "spectral" and self.nlte_terms:
-            n = self.n_table * n_mesh
-            th = jnp.arange(n) * (self.period_rad / n)
-            nlte = jax.vmap(lambda t: contact_gaps(self.mesh, self.mods, t)[2])(th)
-            c = jnp.fft.rfft(nlte) / n
-            n_keep = self.nlte_harmonics * n_mesh
-            h = jnp.arange(n_keep + 1)
-            w = 2.0 * jnp.pi * h / self.period_rad
-            coeffs = jnp.where(h > 0, -(w**2) * 2.0 * c[: n_keep + 1], 0.0)
-        d = _Derived(angle_map=amap, structure_ok=structure_ok, table=table, k_m=k_m,
-                     x_ref=x_ref, omega_n=omega_n, kappa=kappa, nlte_dd_coeffs=coeffs)
-        return eqx.tree_at(lambda m: m.derived, self, d, is_leaf=lambda x: x is None)
-
-    @property
-    def structure_ok(self):
-        """Traced bool: the design keeps the discrete structure of the build (see
-        :meth:`prepare`); the same attribute as on the 3D model. Requires :meth:`prepare`."""
-        return self._d().structure_ok
-
-    def _d(self) -> _Derived:
-        if self.derived is None:
-            raise RuntimeError("call model.prepare() first (simulate() does it for you)")
-        return self.derived
-
-    @property
-    def _substitution(self) -> bool:
-        return self.nlte_terms and self.nlte_method == "substitution"
-
     def _table(self, s):
         """Tabulated (x_S, (sum k)^S, NLTE) at the simulation angle ``s`` and their
         derivatives with respect to theta (the table holds d/ds)."""
-        val, der = self._d().table(s)
+        val, der = self.table(s)
         dth = self.angle(s)[1]
         return (val, der) if dth is None else (val, der / dth)
 
     def excitations(self, theta):
         """Tabulated (x_S, (sum k)^S, NLTE) at ``theta`` and their theta-derivatives:
         two (3,) arrays (m, N/m, m and per rad). ``theta`` is the simulation angle (equal
-        to the pinion angle at the build-time design, see :meth:`angle`). Requires
-        :meth:`prepare`."""
+        to the pinion angle at the build-time design, see :meth:`angle`)."""
         return self._table(theta)
-
-    def _prepared(self) -> "TorsionalModel":
-        if self.derived is not None:
-            return self
-        return _jit_prepare(self)
 
     def natural_frequency_rad_s(self):
         """omega_n = sqrt(k_m cos^2 b_b / m_eq) (rad/s) with the mean loaded stiffness."""
-        return self._prepared()._d().omega_n
+        return self.omega_n
 
     def mean_stiffness_N_per_m(self):
         """k_m: mean of the loaded quasi-static stiffness (sum k_i)^S over one period (N/m)."""
-        return self._prepared()._d().k_m
+        return self.k_m
 
     def _nlte_dd(self, theta):
         """NLTE'' (m/rad^2) from the truncated Fourier series (spectral method)."""
-        c = self._d().nlte_dd_coeffs
+        c = self.nlte_dd_coeffs
         h = jnp.arange(c.shape[0])
         ph = 2.0 * jnp.pi * h * theta / self.period_rad
         return jnp.sum(jnp.real(c) * jnp.cos(ph) - jnp.imag(c) * jnp.sin(ph))
@@ -693,13 +675,12 @@ class TorsionalModel(eqx.Module):
     # ------------------------------------------------------------------ dynamics
     def _x_and_slope(self, theta, y, omega, exc):
         """Physical approach x (m) and x' (m/rad) from the scaled state."""
-        d = self._d()
-        r = d.omega_n / omega
-        z = y[0] * d.x_ref
-        zp = y[1] * r * d.x_ref
+        r = self.omega_n / omega
+        z = y[0] * self.x_ref
+        zp = y[1] * r * self.x_ref
         if self._substitution:
             val, der = exc
-            return z - d.kappa * val[_NLTE], zp - d.kappa * der[_NLTE]
+            return z - self.kappa * val[_NLTE], zp - self.kappa * der[_NLTE]
         return z, zp
 
     def _static_part(self, theta, exc):
@@ -713,7 +694,6 @@ class TorsionalModel(eqx.Module):
 
     def _mesh_terms(self, theta, x, exc):
         """((F_elastic - F_t) / F_t, F_D (N)) at theta for the transverse approach x."""
-        d = self._d()
         f_s = self.static_force_N
         if self.formulation == "reference":
             cells, delta_e, _ = contact_gaps(self.mesh, self.mods, theta)
@@ -722,7 +702,7 @@ class TorsionalModel(eqx.Module):
             return f_d / f_s - 1.0, f_d
         x_static, k_s = self._static_part(theta, exc)
         x_d = x - x_static
-        stiff = k_s if self.formulation == "te" else d.k_m
+        stiff = k_s if self.formulation == "te" else self.k_m
         f_d = f_s + k_s * self.cos_bb * x_d  # Eq. (24), loaded stiffness for both
         return stiff * self.cos_bb * x_d / f_s, f_d
 
@@ -740,28 +720,26 @@ class TorsionalModel(eqx.Module):
         return dydth if dth is None else dydth * dth
 
     def _vector_field_theta(self, theta, y, omega, exc):
-        d = self._d()
-        r = d.omega_n / omega
+        r = self.omega_n / omega
         x, xp = self._x_and_slope(theta, y, omega, exc)
         resid, _ = self._mesh_terms(theta, x, exc)
-        acc = -r * (resid + 2.0 * self.damping_ratio * xp / (r * d.x_ref))
+        acc = -r * (resid + 2.0 * self.damping_ratio * xp / (r * self.x_ref))
         if self.nlte_terms and self.nlte_method == "spectral":
-            acc = acc - self.nlte_inertia_ratio * self._nlte_dd(theta) / (r * d.x_ref)
+            acc = acc - self.nlte_inertia_ratio * self._nlte_dd(theta) / (r * self.x_ref)
         return jnp.stack([r * y[1], acc])
 
     def initial_state(self, omega, theta0=0.0):
         """Scaled state at ``theta0`` on the quasi-static solution: x = x_S, x' = x_S'
         (dynamic part x_D = x_D' = 0)."""
-        d = self._d()
-        r = d.omega_n / omega
+        r = self.omega_n / omega
         val, der = self._table(jnp.asarray(theta0, dtype=float))
         x_s, x_s_p = val[_X_S], der[_X_S]
         if self.formulation != "reference" and not self.nlte_terms:
             x_s, x_s_p = x_s + val[_NLTE], x_s_p + der[_NLTE]
         if self._substitution:
-            x_s = x_s + d.kappa * val[_NLTE]
-            x_s_p = x_s_p + d.kappa * der[_NLTE]
-        return jnp.stack([x_s / d.x_ref, x_s_p / (r * d.x_ref)])
+            x_s = x_s + self.kappa * val[_NLTE]
+            x_s_p = x_s_p + self.kappa * der[_NLTE]
+        return jnp.stack([x_s / self.x_ref, x_s_p / (r * self.x_ref)])
 
     def outputs(self, theta, y, omega) -> ModelOutputs:
         """Mesh force F_D (N, Eq. (22) or (24)) and DTE = x + NLTE (m) at one angle."""
@@ -786,12 +764,11 @@ class TorsionalModel(eqx.Module):
         cos^2(b_b) x_D = 0`` with ``k = (sum k_i)^S`` (te; the reference formulation
         linearised about the quasi-static contact) or ``k_m`` (perturbation). Used by
         :mod:`gearjax.dynamics.stability`."""
-        d = self._d()
-        r = d.omega_n / omega
+        r = self.omega_n / omega
         if self.formulation == "perturbation":
             ratio = jnp.ones(())
         else:
-            ratio = d.table(theta)[0][_K_S] / d.k_m
+            ratio = self.table(theta)[0][_K_S] / self.k_m
         dydth = jnp.stack([r * y[1], -r * (ratio * y[0] + 2.0 * self.damping_ratio * y[1])])
         dth = self.angle(theta)[1]
         return dydth if dth is None else dydth * dth
@@ -799,12 +776,9 @@ class TorsionalModel(eqx.Module):
     def decay_rate_per_rad(self, omega):
         """Free-decay rate of the linearised model per radian of theta,
         ``zeta omega_n / Omega`` (sizes the automatic transient)."""
-        return self.damping_ratio * self._d().omega_n / omega
+        return self.damping_ratio * self.omega_n / omega
 
 
-@eqx.filter_jit
-def _jit_prepare(model):
-    return model.prepare()
 
 
 # ---------------------------------------------------------------------- build helpers

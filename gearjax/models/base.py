@@ -1,0 +1,203 @@
+"""What every solver may ask of a gear model: :class:`AbstractGearModel`.
+
+A model is a complete pytree (born complete: every derived array is computed by its
+builder or by :meth:`AbstractGearModel.with_modifications`, never patched afterwards), and
+the solvers of :mod:`gearjax.dynamics` and :mod:`gearjax.design` use only what this class
+declares. Concrete models (:class:`gearjax.models.torsional.TorsionalModel`, the 3D model)
+are final subclasses.
+
+Conventions (paper: Velex & Ajmi): the independent variable is the pinion angle
+``theta = Omega1 t`` (rad), ``' = d/dtheta``; the *simulation angle* ``s`` equals ``theta``
+at the build-time design and is mapped to it by :meth:`AbstractGearModel.angle` when the
+switching angles move with the modifications. The state ``y`` is dimensionless (scaled by
+the model). Speeds are the pinion speed ``Omega1`` (rad/s). SI units throughout.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ..errors import ModelError
+
+__all__ = ["AbstractGearModel", "ModelOutputs", "FORMULATIONS", "modal_transient_start",
+           "modal_slowest_output_mode"]
+
+# the three dynamic formulations of the paper: reference Eq. (14)/(16), transmission-error
+# based Eq. (42)/(20), main-order perturbation Eq. (48a)/(47a)
+FORMULATIONS = ("reference", "te", "perturbation")
+
+
+class ModelOutputs(eqx.Module):
+    """Observables at one angle (all scalars).
+
+    Attributes
+    ----------
+    mesh_force_N : dynamic normal mesh force F_D (N), Eqs. (22)/(24).
+    dte_m : dynamic transmission error DTE = x + NLTE (m, transverse on the base plane).
+    accel_m_s2 : acceleration observable (m/s^2), or None when the model has none
+        (torsional model).
+    """
+
+    mesh_force_N: jax.Array
+    dte_m: jax.Array
+    accel_m_s2: jax.Array | None = None
+
+
+class AbstractGearModel(eqx.Module):
+    """The interface of a gear model to the solvers (transient, shooting, Floquet, sweep,
+    design).
+
+    Attributes
+    ----------
+    formulation : one of :data:`FORMULATIONS`: ``"reference"`` (Eq. (14), sdof Eq. (16):
+        unilateral contact on every cell, nonlinear), ``"te"`` (Eq. (42), sdof Eq. (20):
+        affine in the state with the loaded quasi-static stiffness) or ``"perturbation"``
+        (Eq. (48a), sdof Eq. (47a): affine with the mean stiffness ``k_m``).
+    period_rad : excitation period in theta (rad): one mesh period ``2 pi / z1`` or a
+        multiple (pitch errors, eccentricity).
+    jump_thetas : sorted simulation angles in ``[0, period_rad)`` where the right-hand side
+        jumps or kinks independently of speed (passed to the step-size controller).
+    damping_ratio : modal / mesh viscous damping ratio zeta (dimensionless).
+    structure_ok : traced bool, the discrete structure of the quasi-static solution
+        (active sets, NLTE cell, relief zones at every table knot) is the build one, so
+        the angle map and the tables are valid for the current modifications.
+    """
+
+    formulation: eqx.AbstractVar[str]
+    period_rad: eqx.AbstractVar[float]
+    jump_thetas: eqx.AbstractVar[tuple]
+    damping_ratio: eqx.AbstractVar[jax.Array]
+    structure_ok: eqx.AbstractVar[jax.Array]
+
+    # ------------------------------------------------------------------ constants
+    @property
+    @abc.abstractmethod
+    def mesh_period_rad(self) -> float:
+        """One mesh period in theta, ``2 pi / z1`` (rad)."""
+
+    @property
+    @abc.abstractmethod
+    def static_force_N(self):
+        """Static normal mesh force ``F_S = C_m0 / (Rb1 cos b_b)`` (N), Section 3."""
+
+    @property
+    @abc.abstractmethod
+    def state_size(self) -> int:
+        """Number of components of the (scaled) state ``y``."""
+
+    @abc.abstractmethod
+    def with_modifications(self, mods) -> "AbstractGearModel":
+        """A complete model with the tooth modifications ``mods``
+        (:class:`gearjax.gears.modifications.ToothModifications`) and every derived array
+        (tables, mean stiffness, scalings, angle map) recomputed from them. Traceable:
+        jit/vmap/jacfwd through it differentiate the model in the design."""
+
+    # ------------------------------------------------------------------ dynamics
+    @abc.abstractmethod
+    def angle(self, s):
+        """``(theta, dtheta/ds)`` at the simulation angle ``s`` (rad); ``dtheta/ds`` is None
+        when the map is the identity (no design-dependent switching angle)."""
+
+    @abc.abstractmethod
+    def initial_state(self, omega, theta0=0.0):
+        """Scaled state at ``theta0`` on the quasi-static solution (dynamic part zero)."""
+
+    @abc.abstractmethod
+    def vector_field(self, s, y, omega):
+        """``dy/ds`` of the equation of motion (Eq. (14)/(42)/(48a) or their sdof forms
+        (16)/(20)/(47a)) at the simulation angle ``s`` for pinion speed ``omega`` (rad/s)."""
+
+    @abc.abstractmethod
+    def homogeneous_vector_field(self, theta, y, omega):
+        """Linear homogeneous part of the equation of motion for the dynamic part of the
+        state (for the Floquet analysis of :mod:`gearjax.dynamics.stability`)."""
+
+    @abc.abstractmethod
+    def outputs(self, theta, y, omega) -> ModelOutputs:
+        """Mesh force F_D (N, Eqs. (22)/(24)), DTE (m) and, where the model has one, an
+        acceleration (m/s^2) at the simulation angle ``theta``."""
+
+    @abc.abstractmethod
+    def decay_rate_per_rad(self, omega):
+        """Free-decay rate of the slowest relevant mode per radian of theta (sizes the
+        automatic transient): ``zeta omega / Omega``."""
+
+    @abc.abstractmethod
+    def natural_frequency_rad_s(self):
+        """Natural frequency (rad/s) of the mode that dominates the mesh deflection
+        (sdof: ``omega_n = sqrt(k_m cos^2 b_b / m_eq)``)."""
+
+    # ------------------------------------------------------------------ starts
+    def transient_start(self, omega):
+        """State at theta = 0 that a transient starts from. Default: the quasi-static
+        state :meth:`initial_state`; modal models start their slow modes on the period
+        mean (:func:`modal_transient_start`)."""
+        return self.initial_state(omega)
+
+    def slowest_output_mode(self):
+        """``(omega_s (rad/s), zeta)`` of the slowest mode the outputs see, used to
+        extrapolate the convergence measure of a transient; None (default) when the model
+        has no modal state (see :func:`modal_slowest_output_mode`)."""
+        return None
+
+    @property
+    def periodic_start(self) -> bool:
+        """True when :meth:`initial_state` is already the periodic steady state (then no
+        transient needs integrating). Default False."""
+        return False
+
+    def harmonic_state(self, omega, theta0=0.0):
+        """Periodic steady state at ``theta0`` solved in the frequency domain, for models
+        whose :attr:`periodic_start` is True; the default has none."""
+        raise ModelError("harmonic_state", type(self).__name__,
+                         "this model has no frequency-domain periodic state")
+
+
+def modal_transient_start(model: AbstractGearModel, omega, omega_r, n_average: int = 64):
+    """Transient start of a modal model (state: r modal displacements then r scaled modal
+    velocities; ``omega_r`` (r,) modal frequencies, rad/s).
+
+    Each mode starts between the quasi-static state at 0, right for modes far above the
+    first excitation frequency ``nu_1 = 2 pi Omega / P``, and its mean over one period
+    (velocity ~0), right for modes far below it (they respond to the mean only)::
+
+        y_i = mean_i + g_i (y_qs,i(0) - mean_i),   g_i = w_i^4 / (w_i^4 + nu_1^4).
+
+    Measurements: ``benchmarks/results/model_notes.md`` (dynamics/simulate.py).
+    """
+    y_qs = model.initial_state(omega)
+    if y_qs.ndim != 1 or y_qs.shape[0] != 2 * omega_r.shape[0]:
+        return y_qs
+    period = float(model.period_rad)
+    thetas = (jnp.arange(n_average) + 0.5) * (period / n_average)
+    mean = jnp.mean(jax.vmap(lambda t: model.initial_state(omega, t))(thetas), axis=0)
+    nu1 = 2.0 * math.pi / period * omega
+    w4 = jnp.asarray(omega_r) ** 4
+    g = w4 / (w4 + nu1**4)
+    g = jnp.concatenate([g, g])
+    return mean + g * (y_qs - mean)
+
+
+def modal_slowest_output_mode(omega_r, v_r, w_r, damping_ratio, share_tol: float = 1e-4):
+    """(omega_s, zeta) of the slowest mode whose share of the static mesh compliance
+    ``v_i^2 / w_i^2`` or of the static DTE response to the mesh force ``|w_i v_i| / w_i^2``
+    is at least ``share_tol`` (``omega_r`` modal frequencies (rad/s), ``v_r`` / ``w_r`` the
+    modal mesh / DTE vectors); None for inconsistent shapes."""
+    om = jnp.asarray(omega_r)
+    v = jnp.asarray(v_r)
+    w = jnp.asarray(w_r)
+    if om.ndim != 1 or v.shape != om.shape or w.shape != om.shape:
+        return None
+    pos = om > 0
+    inv2 = jnp.where(pos, 1.0 / jnp.where(pos, om, 1.0) ** 2, 0.0)
+    sv = v**2 * inv2
+    sw = jnp.abs(w * v) * inv2
+    share = jnp.maximum(sv / jnp.maximum(sv.sum(), 1e-300), sw / jnp.maximum(sw.sum(), 1e-300))
+    sel = pos & (share >= share_tol)
+    w_s = jnp.min(jnp.where(sel, om, jnp.inf))
+    return w_s, jnp.asarray(damping_ratio)
