@@ -168,9 +168,11 @@ class _Built(Exception):
      ("hz", 7000.0)),
     (["stability", "--speeds", "100:1500:3", "--max-frequency", "0"], ("hz", None)),
 ])
-def test_cli_passes_the_cutoff_to_the_3d_model(monkeypatch, argv, expected):
+def test_cli_passes_the_cutoff_to_the_3d_model(monkeypatch, tmp_path, argv, expected):
     """The cut-off the 3D model is built with (the build is stopped right there)."""
     import gearjax.cli.dynamics as cd
+
+    monkeypatch.chdir(tmp_path)  # the sweep's default output folder is created first
 
     seen = {}
 

@@ -91,8 +91,11 @@ def _setup(args, separate=False):
     from ..gears.mesh import Mesh
     from ..rigs.registry import get_rig
 
+    from .outputs import prepare_output_dir
+
     if not (0.0 <= args.damping < 1.0):
         raise _Bad(f"--damping={args.damping!r}: must lie in [0, 1)")
+    prepare_output_dir("--out", args.out)  # before any computing: created and writable
     speeds = _range(args.speeds, "--speeds", 1e-6, 1e6)
     amps = _range(args.amplitudes, "--amplitudes", 0.0, 40e-6)
     if args.max_frequency is not None and not (math.isfinite(args.max_frequency)

@@ -49,6 +49,9 @@ __all__ = ["register", "build_dynamic_model", "case_name", "summarise_sweep",
            "default_max_frequency_hz", "modal_cutoff"]
 
 FORMULATIONS = ("reference", "te", "perturbation")
+# undamped stability: |spectral radius - 1| below this is round-off of the monodromy matrix
+# (neutral), above it a parametric instability
+NEUTRAL_TOLERANCE = 1e-6
 _SAMPLES_PER_MESH_PERIOD = 128
 
 
@@ -85,7 +88,13 @@ def register(sub, add_rig, add_scenario):
                     help="comma-separated pinion speeds (rad/s) whose mesh force over the last "
                          "mesh period is also written and plotted (Fig. 11), e.g. 100,400,800")
     sw.add_argument("--out", default=None, metavar="DIR",
-                    help="output folder (default ./gearjax-out/<case>/)")
+                    help="output folder (default ./gearjax-out/<case>/); a folder holding an "
+                         "earlier run is refused unless --resume or --overwrite")
+    sw.add_argument("--resume", action="store_true",
+                    help="continue an interrupted sweep in its --out folder: same options "
+                         "(checked against its case.json), speeds already in results.csv skipped")
+    sw.add_argument("--overwrite", action="store_true",
+                    help="replace the results of an earlier run in the --out folder")
     sw.add_argument("--chunk", type=int, default=None,
                     help="speeds per compiled call (progress and CSV rows per chunk; default "
                          "about a tenth of the speeds)")
@@ -186,14 +195,15 @@ def build_dynamic_model(rig, mods, *, model: str, formulation: str, law: str = "
     )
 
 
-def case_name(args) -> str:
-    """Folder name of a sweep case, e.g. ``baud-velex-spur-3d-short-zeta0.1-enc1``."""
+def case_name(args, scenario=None) -> str:
+    """Folder name of a sweep case, e.g. ``baud-velex-spur-3d-short-zeta0.1-enc1``
+    (``scenario``: the :class:`gearjax.cli.scenario.Scenario` used, naming its relief)."""
     rig = os.path.splitext(os.path.basename(args.rig))[0]
-    relief = args.relief
-    if args.relief_amplitude is not None or args.relief_extent is not None:
+    relief = scenario.key if scenario is not None else (args.relief or "short")
+    if scenario is None and (args.relief_amplitude is not None or args.relief_extent is not None):
         relief = f"relief{args.relief_amplitude or 'T1'}x{args.relief_extent or 'T1'}"
     parts = [rig, args.model, relief]
-    if args.pitch_errors:
+    if scenario.pitch_errors if scenario is not None else args.pitch_errors:
         parts.append("pitch")
     parts.append(f"zeta{args.damping:g}")
     if args.no_nlte_terms:
@@ -251,12 +261,14 @@ def predicted_critical_speeds(model, speeds_rad_s=None) -> dict:
 def summarise_sweep(res, speeds) -> dict:
     """Per-formulation summary of a :class:`gearjax.dynamics.sweep.SweepResult`."""
     df = np.asarray(res.dynamic_factor, dtype=float)
-    ok = np.isfinite(df)
-    i = int(np.nanargmax(df)) if ok.any() else 0
+    ok = np.isfinite(df) & np.asarray(res.converged, bool)  # peaks of converged speeds only
+    i = int(np.argmax(np.where(ok, df, -np.inf))) if ok.any() else 0
     return {
         "peak_dynamic_factor": float(df[i]) if ok.any() else float("nan"),
-        "critical_speed_rad_s": float(speeds[i]),
-        "max_mesh_force_N": float(np.nanmax(res.max_mesh_force_N)) if ok.any() else float("nan"),
+        "critical_speed_rad_s": float(speeds[i]) if ok.any() else float("nan"),
+        "peak_over": "converged speeds only",
+        "max_mesh_force_N": (float(np.max(np.asarray(res.max_mesh_force_N)[ok])) if ok.any()
+                             else float("nan")),
         "contact_loss_speeds": [float(w) for w in speeds[np.asarray(res.contact_loss, bool)]],
         "unconverged_speeds": [float(w) for w in speeds[~np.asarray(res.converged, bool)]],
         "failed_speeds": [float(w) for w in speeds[~np.asarray(res.solver_ok, bool)]],
@@ -293,94 +305,161 @@ def _init_distributed(args) -> bool:
     return jax.process_index() == 0
 
 
+def _check_cutoff(args, rig, cutoff_hz) -> None:
+    """Refuse a 3D ``--max-frequency`` below the lowest natural frequency (it would keep no
+    vibration mode), from the rig's modal analysis alone, before the model is built."""
+    if args.model != "3d" or not cutoff_hz or args.max_frequency is None:
+        return
+    from ..rigs.figures import three_d_figures
+
+    f1 = three_d_figures(rig, args.stiffness, args.encoders, n_frequencies=1)["natural_frequencies_hz"][0]
+    if cutoff_hz < f1:
+        raise ValueError(f"--max-frequency={args.max_frequency!r}: keeps no vibration mode (the "
+                         f"lowest natural frequency of the 3D model is {f1:.1f} Hz); give a "
+                         "cut-off above it, or 0 for all modes")
+
+
+def _check_modes(args, model, cutoff_hz) -> None:
+    """Refuse a 3D cut-off that keeps no vibration mode (before any speed is computed)."""
+    if args.model == "3d" and int(model.n_modes) == 0:
+        raise ValueError(f"--max-frequency={args.max_frequency!r}: keeps no vibration mode "
+                         f"(none below {cutoff_hz:g} Hz); raise the cut-off above the lowest "
+                         "natural frequency (gearjax info lists them) or give 0 for all modes")
+
+
 def cmd_sweep(args) -> int:
     from ..rigs.registry import get_rig
     from ..dynamics.sweep import sweep
+    from .outputs import prepare_output_dir
+    from .results import (RESULT_FILES, check_resume, done_speeds, max_force_by_speed,
+                          read_rows, summarise_rows, write_case)
+    from .scenario import scenario_modifications
 
     lead = _init_distributed(args)
-    rig = get_rig(args.rig)
     speeds = _parse_speeds(args.speeds)
     forms = _forms(args.formulations)
     sig_speeds = _parse_signal_speeds(args.signals)
     _check_damping(args.damping)
     if args.model == "torsional" and args.encoders != 1:
         raise ValueError("--encoders: the torsional model has no encoder positions (3d only)")
-    mods = rig.modifications(
-        args.relief, args.relief_amplitude, args.relief_extent, args.relief_shape, args.pitch_errors
-    )
-    out = args.out or os.path.join("gearjax-out", case_name(args))
+    if args.resume and args.overwrite:
+        raise ValueError("--resume --overwrite: choose one (continue the run, or replace it)")
+    if args.chunk is not None and args.chunk < 1:
+        raise ValueError(f"--chunk={args.chunk}: must be >= 1")
+    rig = get_rig(args.rig)
+    scen = scenario_modifications(rig, args)
+    mods = scen.mods
+    case = case_name(args, scen)
+    out = args.out or os.path.join("gearjax-out", case)
     csv_path = os.path.join(out, "results.csv")
-    if lead:
-        os.makedirs(out, exist_ok=True)
-        if os.path.exists(csv_path):
-            os.remove(csv_path)
-    chunk = args.chunk or max(1, math.ceil(speeds.size / 10))
-    nlte = False if args.no_nlte_terms else None
     cutoff_hz, cutoff_source = (modal_cutoff(args, rig, np.concatenate([speeds, sig_speeds]))
                                 if args.model == "3d" else (None, None))
+    _check_cutoff(args, rig, cutoff_hz)
+    record = {
+        "case": case, "rig": rig.name, "model": args.model, "stiffness_law": args.stiffness,
+        **scen.summary(), "damping": args.damping,
+        "nlte_terms": not args.no_nlte_terms, "encoders": args.encoders,
+        "max_frequency_hz": cutoff_hz, "formulations": forms,
+        "speeds_rad_s": [float(w) for w in speeds],
+    }
+    done: dict = {}
+    if lead:  # every output problem is reported now, before any computing
+        prepare_output_dir("--out", out, results=RESULT_FILES, resume=args.resume,
+                           overwrite=args.overwrite)
+        if args.resume:
+            check_resume(out, record)
+            done = done_speeds(read_rows(csv_path, repair=True))
+        write_case(out, record)
+    chunk = args.chunk or max(1, math.ceil(speeds.size / 10))
+    nlte = False if args.no_nlte_terms else None
     summary = {
-        "case": case_name(args), "rig": rig.name, "model": args.model,
-        "stiffness_law": args.stiffness, "relief": args.relief,
-        "relief_amplitude_m": [float(v) for v in np.asarray(mods.relief_amplitude_m)],
-        "relief_extent": [float(v) for v in np.asarray(mods.relief_extent)],
-        "pitch_errors": bool(args.pitch_errors), "damping": args.damping,
+        "case": case, "rig": rig.name, "model": args.model,
+        "stiffness_law": args.stiffness, "relief": args.relief or scen.key, **scen.summary(),
+        "damping": args.damping,
         "nlte_terms": not args.no_nlte_terms, "encoders": args.encoders,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
         "formulations": {},
     }
-    results, signals = {}, {}
+    if done:
+        summary["resumed"] = {f: len(v) for f, v in done.items()}
+    times, signals = {}, {}
     t_all = time.perf_counter()
+    interrupted = False
+    try:
+        for form in forms:
+            t0 = time.perf_counter()
+            model = build_dynamic_model(rig, mods, model=args.model, formulation=form,
+                                        law=args.stiffness, damping=args.damping,
+                                        encoders=args.encoders, nlte_terms=nlte,
+                                        max_frequency_hz=cutoff_hz)
+            _check_modes(args, model, cutoff_hz)
+            t_build = time.perf_counter() - t0
+            if "predicted" not in summary:
+                summary["predicted"] = predicted_critical_speeds(model)
+                if args.model == "3d":
+                    summary["n_modes"] = int(model.n_modes)
+                    summary["w_x0_m"] = float(model.w_x0)
+            todo = np.array([w for w in speeds if float(w) not in done.get(form, ())])
+            if lead and not args.json:
+                left = f", {todo.size} left to compute" if todo.size < speeds.size else ""
+                print(f"  {form}: {speeds.size} speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rad/s{left} "
+                      f"({args.model} model built in {t_build:.1f} s)", file=sys.stderr, flush=True)
+            t0 = time.perf_counter()
+            if todo.size:
+                sweep(model, todo, chunk_size=min(chunk, todo.size), progress=not args.json,
+                      out_csv=csv_path, **periodic_start_options(model))
+            times[form] = (t_build, time.perf_counter() - t0)
+            if sig_speeds and lead:
+                signals[form] = _signals(model, sig_speeds)
+    except KeyboardInterrupt:
+        interrupted = True
+    if not lead:
+        return 130 if interrupted else 0  # process 0 writes the outputs
+    rows = read_rows(csv_path)
     for form in forms:
-        t0 = time.perf_counter()
-        model = build_dynamic_model(rig, mods, model=args.model, formulation=form,
-                                    law=args.stiffness, damping=args.damping,
-                                    encoders=args.encoders, nlte_terms=nlte,
-                                    max_frequency_hz=cutoff_hz)
-        t_build = time.perf_counter() - t0
-        if "predicted" not in summary:
-            summary["predicted"] = predicted_critical_speeds(model)
-            if args.model == "3d":
-                summary["n_modes"] = int(model.n_modes)
-                summary["w_x0_m"] = float(model.w_x0)
-        if lead and not args.json:
-            print(f"  {form}: {speeds.size} speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rad/s "
-                  f"({args.model} model built in {t_build:.1f} s)", file=sys.stderr, flush=True)
-        t0 = time.perf_counter()
-        res = sweep(model, speeds, chunk_size=chunk, progress=not args.json, out_csv=csv_path,
-                    **periodic_start_options(model))
-        elapsed = time.perf_counter() - t0
-        results[form] = res
-        s = summarise_sweep(res, speeds)
+        if not any(r["formulation"] == form for r in rows):
+            continue
+        s = summarise_rows(rows, form, speeds)
+        t_build, elapsed = times.get(form, (float("nan"), float("nan")))
         s.update(build_time_s=t_build, wall_time_s=elapsed)
         summary["formulations"][form] = s
-        if sig_speeds and lead:
-            signals[form] = _signals(model, sig_speeds)
-    if not lead:
-        return 0  # process 0 writes the outputs
-    if "reference" in results:
-        ref = np.asarray(results["reference"].max_mesh_force_N)
-        summary["agreement_with_reference"] = {
-            f: {
-                "max_rel_diff_max_mesh_force": float(np.nanmax(np.abs(np.asarray(r.max_mesh_force_N) - ref) / ref)),
-                "median_rel_diff_max_mesh_force": float(np.nanmedian(np.abs(np.asarray(r.max_mesh_force_N) - ref) / ref)),
-            }
-            for f, r in results.items() if f != "reference"
-        }
+    if "reference" in summary["formulations"]:
+        ref = max_force_by_speed(rows, "reference")
+        agree = {}
+        for f in summary["formulations"]:
+            if f == "reference":
+                continue
+            mine = max_force_by_speed(rows, f)
+            rel = [abs(mine[w] - ref[w]) / ref[w] for w in mine if w in ref]
+            if rel:
+                agree[f] = {"max_rel_diff_max_mesh_force": float(np.nanmax(rel)),
+                            "median_rel_diff_max_mesh_force": float(np.nanmedian(rel))}
+        summary["agreement_with_reference"] = agree
     summary["results_csv"] = csv_path
-    from ..plotting import plot_response_curves
+    title = (f"{rig.name}, {args.model}, {scen.label}"
+             f"{', pitch errors' if scen.pitch_errors else ''}, damping {args.damping}"
+             f"{', NLTE terms off' if args.no_nlte_terms else ''}"
+             f"{' (interrupted)' if interrupted else ''}")
+    if rows:
+        from ..plotting import plot_response_curves
 
-    fig_path = os.path.join(out, "response_curves.png")
-    title = (f"{rig.name}, {args.model}, relief {args.relief}"
-             f"{', pitch errors' if args.pitch_errors else ''}, damping {args.damping}"
-             f"{', NLTE terms off' if args.no_nlte_terms else ''}")
-    plot_response_curves(csv_path, fig_path, title=title)
-    summary["response_curves_png"] = fig_path
-    if signals:
+        fig_path = os.path.join(out, "response_curves.png")
+        plot_response_curves(csv_path, fig_path, title=title)
+        summary["response_curves_png"] = fig_path
+    if signals and not interrupted:
         summary.update(_write_signals(signals, out, title))
     summary["total_time_s"] = time.perf_counter() - t_all
+    if interrupted:
+        summary["interrupted"] = True
     with open(os.path.join(out, "summary.json"), "w") as fh:
         json.dump(summary, fh, indent=2)
+    if interrupted:
+        n = len(rows)
+        print(f"gearjax: interrupted (Ctrl-C); kept {n} result row{'s' * (n != 1)} in {out} "
+              f"(summary.json{', response_curves.png' if rows else ''}); continue with the same "
+              "command and --resume", file=sys.stderr)
+        return 130
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
@@ -432,7 +511,8 @@ def _write_signals(signals, out, title) -> dict:
 def _print_summary(rig, summary, out):
     pred = summary["predicted"]
     print(f"\n  {rig.description}")
-    print(f"  {summary['model']} model, relief {summary['relief']}, damping {summary['damping']}, "
+    print(f"  {summary['model']} model, {summary['relief_label']} [{summary['relief_source']}], "
+          f"damping {summary['damping']}, "
           f"speeds {summary['speeds_rad_s'][0]:.0f}-{summary['speeds_rad_s'][1]:.0f} rad/s "
           f"({summary['speeds_rad_s'][2]})")
     if summary["model"] == "3d":
@@ -453,10 +533,13 @@ def _print_summary(rig, summary, out):
               f"{r['build_time_s'] + r['wall_time_s']:9.1f}")
     for form, r in summary["formulations"].items():
         if r["unconverged_speeds"]:
+            more = len(r["unconverged_speeds"]) - 8
             print(f"  note: {form} not converged to steady state at "
-                  f"{', '.join(f'{w:.0f}' for w in r['unconverged_speeds'][:8])} rad/s "
-                  "(flagged converged=0 in results.csv)")
-    files = [summary["results_csv"], summary["response_curves_png"], os.path.join(out, "summary.json")]
+                  f"{', '.join(f'{w:.0f}' for w in r['unconverged_speeds'][:8])}"
+                  f"{f' (+{more} more)' if more > 0 else ''} rad/s (converged=False in "
+                  "results.csv); the peak K_v is over the converged speeds only")
+    files = [summary["results_csv"]] + [summary[k] for k in ("response_curves_png",) if k in summary]
+    files += [os.path.join(out, "summary.json")]
     files += [summary[k] for k in ("signals_csv", "mesh_force_signals_png") if k in summary]
     print(f"  wrote {', '.join(files)}  ({summary['total_time_s']:.0f} s in all)")
 
@@ -465,35 +548,50 @@ def cmd_stability(args) -> int:
     from ..rigs.registry import get_rig
     from ..dynamics.stability import spectral_radius
 
-    rig = get_rig(args.rig)
+    from .scenario import scenario_modifications
+
     speeds = _parse_speeds(args.speeds)
     _check_damping(args.damping)
-    mods = rig.modifications(
-        args.relief, args.relief_amplitude, args.relief_extent, args.relief_shape, args.pitch_errors
-    )
+    rig = get_rig(args.rig)
+    scen = scenario_modifications(rig, args)
+    mods = scen.mods
     cutoff_hz, cutoff_source = modal_cutoff(args, rig, speeds) if args.model == "3d" else (None, None)
+    _check_cutoff(args, rig, cutoff_hz)
     model = build_dynamic_model(rig, mods, model=args.model, formulation=args.formulation,
                                 law=args.stiffness, damping=args.damping, encoders=args.encoders,
                                 nlte_terms=False if args.no_nlte_terms else None,
                                 max_frequency_hz=cutoff_hz)
+    _check_modes(args, model, cutoff_hz)
     t0 = time.perf_counter()
-    rho = spectral_radius(model, speeds)
+    rho = np.asarray(spectral_radius(model, speeds), dtype=float)
+    # Undamped, a stable linear time-periodic system has all Floquet multipliers on the unit
+    # circle: radius 1 up to the round-off of the monodromy matrix is neutral, not unstable.
+    tol = NEUTRAL_TOLERANCE if args.damping == 0 else 0.0
+    state = np.where(rho > 1.0 + tol, "unstable",
+                     np.where(rho >= 1.0 - tol, "neutral", "stable"))
     out = {
         "rig": rig.name, "model": args.model, "formulation": args.formulation,
-        "relief": args.relief, "damping": args.damping, "stiffness_law": args.stiffness,
+        "relief": args.relief or scen.key, **scen.summary(), "damping": args.damping,
+        "stiffness_law": args.stiffness,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "wall_time_s": time.perf_counter() - t0,
-        "results": [{"speed_rad_s": float(w), "spectral_radius": float(r)} for w, r in zip(speeds, rho)],
-        "unstable_speeds_rad_s": [float(w) for w, r in zip(speeds, rho) if r > 1.0],
+        "neutral_tolerance": tol,
+        "results": [{"speed_rad_s": float(w), "spectral_radius": float(r), "state": str(st)}
+                    for w, r, st in zip(speeds, rho, state)],
+        "unstable_speeds_rad_s": [float(w) for w, st in zip(speeds, state) if st == "unstable"],
     }
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
-    print(f"  {rig.description}; {args.model} {args.formulation}, relief {args.relief}, "
+    print(f"  {rig.description}; {args.model} {args.formulation}, {scen.label}, "
           f"damping {args.damping}")
     if args.model == "3d":
         print(f"  modes {'below %.0f Hz' % cutoff_hz if cutoff_hz else 'all'} ({cutoff_source})")
+    if tol:
+        print(f"  undamped: a spectral radius within {tol:g} of 1 is neutral (Floquet "
+              "multipliers on the unit circle), not unstable")
     print(f"  {'speed [rad/s]':>14s} {'spectral radius':>16s}")
-    for w, r in zip(speeds, rho):
-        print(f"  {w:14.1f} {r:16.6f}{'   UNSTABLE (parametric)' if r > 1 else ''}")
+    flag = {"unstable": "   UNSTABLE (parametric)", "neutral": "   neutral", "stable": ""}
+    for w, r, st in zip(speeds, rho, state):
+        print(f"  {w:14.1f} {r:16.6f}{flag[str(st)]}")
     return 0

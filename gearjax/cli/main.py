@@ -186,10 +186,10 @@ def _cmd_quasistatic(args) -> int:
     if args.plot:
         check_output_file("--plot", args.plot, figure=True)
     rig = get_rig(args.rig)
-    n_periods = rig.pair.z1 if args.pitch_errors else 1
-    _check_positions_memory(args.positions, n_periods)
     scen = scenario_modifications(rig, args)
     mods = scen.mods
+    n_periods = rig.pair.z1 if scen.pitch_errors else 1  # a pinion revolution
+    _check_positions_memory(args.positions, n_periods)
     mesh = Mesh.build(rig.pair, args.stiffness)
     theta = mesh.theta_grid(args.positions, n_periods)
     f_s = static_mesh_force(rig.pair, rig.pinion_torque_Nm)
@@ -201,7 +201,7 @@ def _cmd_quasistatic(args) -> int:
         "stiffness_law": args.stiffness,
         "relief": args.relief or scen.key,
         **scen.summary(),
-        "pitch_errors": bool(args.pitch_errors),
+        "pitch_errors": scen.pitch_errors,
         "positions": int(theta.shape[0]),
         "span_rad": float(n_periods * rig.pair.mesh_period_rad),
         "static_mesh_force_N": f_s,
@@ -222,7 +222,7 @@ def _cmd_quasistatic(args) -> int:
         from ..plotting import plot_quasistatic
 
         plot_quasistatic(res, mesh, args.plot, title=f"{rig.name}, {scen.label}"
-                                                    f"{', pitch errors' if args.pitch_errors else ''}")
+                                                    f"{', pitch errors' if scen.pitch_errors else ''}")
         summary["plot"] = args.plot
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -231,7 +231,7 @@ def _cmd_quasistatic(args) -> int:
         print(f"  {rig.description}")
         print(f"  {scen.label} [{scen.source}], amplitude "
               f"{summary['relief_amplitude_m'][0] * um:.2f} um, extent {summary['relief_extent'][0]:.3f}"
-              f"{', pinion pitch errors' if args.pitch_errors else ''}; law {args.stiffness}")
+              f"{', pitch errors' if scen.pitch_errors else ''}; law {args.stiffness}")
         print(f"  TE_S  mean {summary['te_s_mean_m'] * um:8.3f} um   peak-to-peak "
               f"{summary['te_s_ptp_m'] * um:8.3f} um")
         print(f"  NLTE  mean {summary['nlte_mean_m'] * um:8.3f} um   peak-to-peak "

@@ -50,8 +50,13 @@ def check_resume(out: str, record: dict) -> None:
     if diff:
         k = diff[0]
         raise GearjaxError("--resume", out, f"the folder holds another case: {k} was "
-                                            f"{old.get(k)!r}, now {record.get(k)!r}; resume with "
+                                            f"{_short(old.get(k))}, now {_short(record.get(k))}; resume with "
                                             "the same options, or use --overwrite or another --out")
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _float(text: str) -> float:

@@ -37,8 +37,13 @@ class Scenario:
             "relief_amplitude_m": [float(v) for v in np.asarray(m.relief_amplitude_m)],
             "relief_extent": [float(v) for v in np.asarray(m.relief_extent)],
             "relief_shape": m.relief_shape,
-            "pitch_errors_in_mods": m.pitch_errors_m is not None,
+            "pitch_errors": self.pitch_errors,
         }
+
+    @property
+    def pitch_errors(self) -> bool:
+        """Pitch errors in the modifications (``--pitch-errors`` or the rig file's)."""
+        return self.mods.pitch_errors_m is not None
 
 
 def _overridden(args) -> bool:

@@ -141,6 +141,7 @@ from ..structure.beams import DOF_NAMES, STEEL, ElementInputError, Material, dis
 __all__ = ["load_rig", "parse_rig"]
 
 _REQUIRED = object()
+MIN_ELEMENT_LENGTH_M = 1e-4  # shortest shaft element accepted (0.1 mm)
 
 
 class _Reader:
@@ -192,6 +193,39 @@ def _is_real(x: Any) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
+# Physical ranges of the numbers of a rig file (by key), checked at load: values beyond
+# them are typos or unit slips (mm for m), and values far beyond them make the structure's
+# modal analysis meaningless (a 1e15 N/m bearing next to a 1e5 N m/rad torsional spring
+# turns soft modes into apparent rigid-body modes).
+_N_PER_M = (0.0, 1e13, "N/m")
+_NM_PER_RAD = (0.0, 1e9, "N m/rad")
+_RANGES: dict[str, tuple[float, float, str]] = {
+    "k_S_N_per_m": _N_PER_M, "k_T_N_per_m": _N_PER_M, "k_axial_N_per_m": _N_PER_M,
+    "k_radial_N_per_m": _N_PER_M,
+    "k_phi_Nm_per_rad": _NM_PER_RAD, "k_psi_Nm_per_rad": _NM_PER_RAD,
+    "k_torsion_Nm_per_rad": _NM_PER_RAD, "k_tilt_Nm_per_rad": _NM_PER_RAD,
+    "k_Nm_per_rad": _NM_PER_RAD,
+    "outer_diameter_m": (1e-3, 10.0, "m"), "inner_diameter_m": (0.0, 10.0, "m"),
+    "width_m": (1e-4, 10.0, "m"), "lengths_m": (MIN_ELEMENT_LENGTH_M, 100.0, "m"),
+    "z_m": (-100.0, 100.0, "m"), "start_z_m": (-100.0, 100.0, "m"),
+    "axis_st_m": (-100.0, 100.0, "m"),
+    "E_Pa": (1e6, 1e13, "Pa"), "rho_kg_per_m3": (1.0, 1e5, "kg/m^3"),
+    "mass_kg": (0.0, 1e6, "kg"), "transverse_inertia_kg_m2": (0.0, 1e6, "kg m^2"),
+    "polar_inertia_kg_m2": (0.0, 1e6, "kg m^2"), "pinion_torque_Nm": (0.0, 1e8, "N m"),
+    "crowning_m": (0.0, 1e-3, "m"), "eccentricity_m": (0.0, 1e-3, "m"),
+    "pitch_errors_m": (-1e-3, 1e-3, "m"),
+}
+
+
+def _check_range(r: _Reader, path: str, v: Any, x: float, what: str) -> None:
+    key = path.rsplit(".", 1)[-1].split("[", 1)[0]
+    if key in _RANGES:
+        lo, hi, unit = _RANGES[key]
+        if not lo <= x <= hi:
+            r.fail(path, v, f"outside the physical range [{lo:g}, {hi:g}] {unit} ({what}); "
+                            "check the value and its unit")
+
+
 def _check(r: _Reader, path: str, v: Any, kind: str, what: str) -> Any:
     if kind in ("real", "nonneg", "positive"):
         if not _is_real(v):
@@ -203,6 +237,7 @@ def _check(r: _Reader, path: str, v: Any, kind: str, what: str) -> Any:
             r.fail(path, v, f"must be >= 0 ({what})")
         if kind == "positive" and x <= 0.0:
             r.fail(path, v, f"must be > 0 ({what})")
+        _check_range(r, path, v, x, what)
         return x
     if kind == "int":
         if isinstance(v, bool) or not isinstance(v, int):
@@ -426,6 +461,10 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
             if not z[i + 1] > z[i]:
                 r.fail(f"{r.sub('z_m')}[{i + 1}]", z[i + 1],
                        f"positions must increase strictly (previous {z[i]!r})")
+            if z[i + 1] - z[i] < MIN_ELEMENT_LENGTH_M:
+                r.fail(f"{r.sub('z_m')}[{i + 1}]", z[i + 1],
+                       f"element {i} would be {z[i + 1] - z[i]:.3g} m long, below "
+                       f"{MIN_ELEMENT_LENGTH_M:g} m (0.1 mm); positions are in metres")
         do = _per_element(r, "outer_diameter_m", n_el, "positive", "outer diameter, m", _REQUIRED)
         di = _per_element(r, "inner_diameter_m", n_el, "nonneg", "bore diameter, m", 0.0)
         for i in range(n_el):
@@ -440,6 +479,19 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
             inner_diameters_m=np.asarray(di), material=_material(r, mats),
             line=r.get("line", "str", "shaft line", shaft_name), shear_coeff=k_shear, name=shaft_name,
         ), _axis(r)))
+
+    # a node turns with one shaft line: a node listed on two lines (e.g. on the pinion and
+    # the gear shafts) would join them rigidly, and the mesh relations would be meaningless
+    line_of: dict[int, tuple[str, str]] = {}
+    for (path, spec, _), numbers in zip(shaft_specs, shaft_nodes):
+        line = spec["line"] if spec["line"] is not None else path
+        for n in numbers:
+            prev = line_of.setdefault(n, (line, path))
+            if prev[0] != line:
+                root.fail(f"{path}.nodes", n, f"node {n} is on shaft line {prev[0]!r} "
+                                              f"({prev[1]}) and on shaft line {line!r} ({path}); "
+                                              "a node belongs to one line (join lines with a "
+                                              "[[coupling]] between two nodes)")
 
     node_specs = []
     for path, r in node_tabs:
@@ -671,7 +723,20 @@ def _check_structure(root: _Reader, s: Structure, nodes: _Nodes, special: dict) 
         root.fail("gear_node", nodes.number(gn),
                   f"the pinion and gear nodes are both on shaft line {lines[pn]!r}; give the "
                   "pinion line and the gear line different `line` names")
-    basis = modal_basis(M, np.asarray(s.K), warn=False)
+    K = np.asarray(s.K)
+    basis = modal_basis(M, K, warn=False)
+    if basis.n_rigid > 1 and _null_dimension(K) <= 1:
+        # K itself has at most one free motion: the extra "rigid-body" modes are soft modes
+        # lost in the round-off of a too wide stiffness range, not missing supports
+        d = np.diag(K)
+        hi = int(np.argmax(d))
+        f_max = float(np.max(basis.omegas_rad_s)) / (2 * math.pi)
+        root.fail("structure", f"{basis.n_rigid} apparent rigid-body modes",
+                  f"K has at most one free motion, but the stiffest dof (node "
+                  f"{nodes.number(hi // 6)} {DOF_NAMES[hi % 6]!r}, K = {d[hi]:.3g}) puts the "
+                  f"highest natural frequency at {f_max:.3g} Hz, too far above the soft modes "
+                  "for the modal analysis to resolve them; bring the extreme bearing, coupling "
+                  "or spring stiffnesses into a physical range")
     if basis.n_rigid > 1:
         # kinetic-energy share of each (shaft line, dof name) in the rigid-body modes
         rigid = np.asarray(basis.modes)[:, : basis.n_rigid]
@@ -685,6 +750,16 @@ def _check_structure(root: _Reader, s: Structure, nodes: _Nodes, special: dict) 
                   "the structure without the mesh may have at most one rigid-body mode (the "
                   "free rotation of the driving line); missing bearings, couplings or a "
                   f"resisting torsional_spring? Free motions: {free}")
+
+
+def _null_dimension(K: np.ndarray, tol: float = 1e-10) -> int:
+    """Number of free motions of the stiffness matrix ``K`` (dimension of its null space),
+    after Jacobi scaling ``D^-1/2 K D^-1/2``: a stiffness contrast between dofs no longer
+    drowns the soft directions in round-off."""
+    d = np.diag(K).copy()
+    scale = 1.0 / np.sqrt(np.where(d > 0, d, 1.0))
+    lam = np.linalg.eigvalsh(K * scale[:, None] * scale[None, :])
+    return int(np.sum(lam <= tol * max(float(lam[-1]), 1e-300)))
 
 
 def load_rig(path: str | os.PathLike) -> Rig:

@@ -1,0 +1,300 @@
+"""Bad and edge inputs of the command line (issue 16): every case ends with a clear one-line
+error naming the option or field, the value and the reason, exit status 2, no traceback,
+and (where it matters) before any computing; plus the behaviours that replaced silent wrong
+results: rig-file modifications applied, labels from the values used, undamped stability
+neutral, peaks over converged speeds only, no results deleted, Ctrl-C kept and resumed.
+
+Kept fast: errors fire before computing, dynamic runs use the torsional model and a few
+speeds; one subprocess for Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gearjax.cli.main import main
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "rigs" / "baud_velex_spur.toml"
+EXAMPLE_TEXT = EXAMPLE.read_text()
+
+
+def _run(capsys, argv):
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exc:  # argparse errors
+        code = exc.code
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def _rig(tmp_path, old=None, new=None, every=False, extra="", name="rig.toml"):
+    text = EXAMPLE_TEXT
+    if old is not None:
+        assert old in text, old
+        text = text.replace(old, new, -1 if every else 1)
+    p = tmp_path / name
+    p.write_text(text + extra)
+    return p
+
+
+# ------------------------------------------------------------------ clean one-line errors
+# (argv with {tmp} for the test's folder, {file} for an existing plain file; words expected
+# in the message)
+CASES = [
+    # unknown / malformed inputs that already gave clean errors
+    (["info", "--rig", "nope"], ["rig='nope'", "unknown rig"]),
+    (["info", "--rig", "{tmp}/missing.toml"], ["missing.toml", "cannot read"]),
+    (["sweep", "--damping", "-0.1"], ["--damping=-0.1", "[0, 1)"]),
+    (["sweep", "--damping", "nan"], ["--damping=nan", "[0, 1)"]),
+    (["sweep", "--damping", "inf"], ["--damping=inf", "[0, 1)"]),
+    (["stability", "--damping", "1.5"], ["--damping=1.5"]),
+    (["sweep", "--speeds", "900:20:5"], ["--speeds='900:20:5'"]),
+    (["sweep", "--speeds", "abc"], ["--speeds='abc'", "A:B:N"]),
+    (["sweep", "--speeds", "0:10:3"], ["--speeds='0:10:3'", "0 < A"]),
+    (["sweep", "--speeds", "1:inf:3"], ["--speeds='1:inf:3'"]),
+    (["sweep", "--speeds=-5:10:3"], ["--speeds='-5:10:3'"]),
+    (["sweep", "--speeds", "-5:10:3"], ["--speeds", "expected one argument"]),  # argparse
+    (["stability", "--speeds", "1:2"], ["--speeds='1:2'"]),
+    (["sweep", "--formulations", "reference,tee"], ["--formulations", "tee"]),
+    (["sweep", "--signals", "100,abc"], ["--signals", "100,abc"]),
+    (["sweep", "--signals", "-5"], ["--signals", "> 0"]),
+    (["sweep", "--model", "torsional", "--encoders", "2"], ["--encoders", "3d only"]),
+    (["sweep", "--max-frequency", "-1"], ["--max-frequency", ">= 0 Hz"]),
+    (["stability", "--max-frequency", "nan"], ["--max-frequency", ">= 0 Hz"]),
+    (["sweep", "--chunk", "0", "--model", "torsional"], ["--chunk=0"]),
+    (["sweep", "--resume", "--overwrite", "--model", "torsional"], ["--resume", "--overwrite"]),
+    (["quasistatic", "--relief-extent", "1.5"], ["relief_extent"]),
+    (["quasistatic", "--relief-amplitude=-1e-6"], ["relief_amplitude_m"]),
+    (["quasistatic", "--positions", "2"], ["--positions=2"]),
+    (["harris-map", "--speeds", "5:1:3"], ["--speeds='5:1:3'"]),
+    (["harris-map", "--inertias", "1,-2"], ["--inertias='1,-2'"]),
+    # issue 16: array sizes against memory, before computing
+    (["quasistatic", "--positions", "100000000"], ["--positions=100000000", "GiB", "at most"]),
+    # issue 16: output paths, checked first
+    (["quasistatic", "--plot", "{tmp}"], ["--plot=", "is a folder"]),
+    (["quasistatic", "--plot", "{tmp}/te"], ["--plot=", "figure file name", ".png"]),
+    (["quasistatic", "--csv", "{tmp}"], ["--csv=", "is a folder"]),
+    (["quasistatic", "--csv", "{file}/te.csv"], ["--csv=", "is a file, not a folder"]),
+    (["quasistatic", "--csv", "/proc/gearjax-x/te.csv"], ["--csv=", "/proc"]),
+    (["sweep", "--model", "torsional", "--out", "{file}"], ["--out=", "is a file"]),
+    (["sweep", "--model", "torsional", "--out", "{file}/sub"], ["--out=", "is a file, not a folder"]),
+    (["sweep", "--model", "torsional", "--out", "/proc/gearjax-x"], ["--out='/proc/gearjax-x'", "cannot"]),
+    (["harris-map", "--out", "{file}/sub"], ["--out=", "is a file, not a folder"]),
+    # issue 16: a 3D cut-off keeping no mode (checked from the rig's modes, before building)
+    (["stability", "--max-frequency", "1", "--speeds", "100:100:1"],
+     ["--max-frequency=1.0", "keeps no vibration mode", "lowest natural frequency"]),
+    (["sweep", "--max-frequency", "1", "--speeds", "100:100:1", "--out", "{tmp}/mf"],
+     ["--max-frequency=1.0", "keeps no vibration mode"]),
+]
+
+
+@pytest.mark.parametrize("argv, words", CASES, ids=[" ".join(c[0])[:60] for c in CASES])
+def test_bad_input_one_line_error(capsys, tmp_path, argv, words):
+    plain = tmp_path / "plain.txt"
+    plain.write_text("not a folder")
+    argv = [a.format(tmp=tmp_path, file=plain) for a in argv]
+    code, out, err = _run(capsys, argv)
+    assert code == 2, (code, err)
+    assert "Traceback" not in err + out
+    line = [ln for ln in err.splitlines() if ln.startswith("gearjax") and " error: " in ln]
+    assert len(line) == 1, err
+    for w in words:
+        assert w in line[0], (w, line[0])
+    assert not Path(str(tmp_path) + ".png").exists()  # --plot DIR never writes DIR.png
+
+
+def test_unwritable_output_folder(capsys, tmp_path):
+    if os.geteuid() == 0:
+        pytest.skip("root writes into read-only folders")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        code, _, err = _run(capsys, ["quasistatic", "--csv", ro / "te.csv"])
+        assert code == 2 and "cannot write" in err and "Traceback" not in err
+        code, _, err = _run(capsys, ["sweep", "--model", "torsional", "--out", ro / "x"])
+        assert code == 2 and "--out=" in err and "Traceback" not in err
+    finally:
+        ro.chmod(0o755)
+
+
+# ----------------------------------------------------------------------- rig files
+RIG_CASES = [
+    # already clean: unknown keys, bad types, non-finite and negative values
+    (("pinion_torque_Nm = 254.8", "pinion_torque_Nm = -5.0"), ["operating.pinion_torque_Nm=-5.0", "> 0"]),
+    (("pinion_torque_Nm = 254.8", "pinion_torque_Nm = nan"), ["pinion_torque_Nm=nan", "finite"]),
+    (("pinion_torque_Nm = 254.8", "pinion_torque_Nm = inf"), ["pinion_torque_Nm=inf", "finite"]),
+    (("pinion_torque_Nm = 254.8", "pinion_torque_Nm = \"big\""), ["pinion_torque_Nm='big'", "number"]),
+    (("pinion_torque_Nm = 254.8", "pinion_torq_Nm = 254.8"), ["pinion_torq_Nm", "did you mean"]),
+    (("k_S_N_per_m = 1e9", "k_S_N_per_m = -1e9"), ["k_S_N_per_m=-1000000000.0", ">= 0"]),
+    # issue 16: gear data ranges
+    (("z1 = 26", "z1 = 1000000000"), ["gear_pair.z1=1000000000", "above 2000"]),
+    # issue 16: values range-checked before the rigid-body analysis
+    (("k_S_N_per_m = 1e9", "k_S_N_per_m = 1e14"), ["bearing[0].k_S_N_per_m=", "physical range"]),
+    (("k_S_N_per_m = 1e9", "k_S_N_per_m = 1e15"), ["bearing[0].k_S_N_per_m=", "physical range"]),
+    (("k_torsion_Nm_per_rad = 5e4", "k_torsion_Nm_per_rad = 1e300"),
+     ["coupling[0].k_torsion_Nm_per_rad=1e+300", "physical range"]),
+    (("outer_diameter_m = 0.060\naxis", "outer_diameter_m = 1e6\naxis"),
+     ["outer_diameter_m=1000000.0", "physical range"]),
+    (("z_m = [-1.100, -1.000", "z_m = [-1.100, -1.0999999999"), ["z_m[1]", "below 0.0001 m"]),
+    # tilting stiffness of every Table 2 bearing: once read as "2 rigid-body modes ...
+    # missing bearings?" (soft modes lost in round-off); now out of range, named
+    (("[[bearing]]\n", "[[bearing]]\nk_phi_Nm_per_rad = 1e10\nk_psi_Nm_per_rad = 1e10\n", True),
+     ["bearing[1].k_phi_Nm_per_rad=10000000000.0", "physical range"]),
+]
+
+
+@pytest.mark.parametrize("edit, words", RIG_CASES, ids=[c[0][1].strip()[:40] for c in RIG_CASES])
+def test_bad_rig_file(capsys, tmp_path, edit, words):
+    path = _rig(tmp_path, *edit)
+    code, out, err = _run(capsys, ["info", "--model", "torsional", "--rig", path])
+    assert code == 2, err
+    assert "Traceback" not in err + out and "missing bearings" not in err
+    for w in words:
+        assert w in err, (w, err)
+
+
+def test_node_on_two_shaft_lines_is_refused(capsys, tmp_path):
+    bridge = ('\n[[shaft]]\nname = "bridge"\nline = "gear"\nnodes = [20, 28]\n'
+              'z_m = [0.0, 0.1]\nouter_diameter_m = 0.05\naxis = "gear"\n')
+    path = _rig(tmp_path, extra=bridge)
+    code, _, err = _run(capsys, ["info", "--rig", path])
+    assert code == 2 and "Traceback" not in err
+    assert "shaft[3].nodes=20" in err and "'pinion'" in err and "'gear'" in err
+
+
+# ------------------------------------------------- modifications, labels, summaries
+def test_rig_file_modifications_are_applied_and_overridden(capsys, tmp_path):
+    # the example's [modifications]: Table 1 short relief and pinion pitch errors; made
+    # 20 um over 0.3 here so that they differ from the CLI default
+    path = _rig(tmp_path, "relief_amplitude_m = 13.3e-6\nrelief_extent = 0.2",
+                "relief_amplitude_m = 20e-6\nrelief_extent = 0.3", every=True)
+    code, out, err = _run(capsys, ["quasistatic", "--rig", path, "--positions", "8", "--json"])
+    assert code == 0, err
+    s = json.loads(out)
+    assert s["relief_source"] == "rig file [modifications]" and s["pitch_errors"]
+    assert s["positions"] == 8 * 26  # pitch errors: a pinion revolution
+    assert s["relief_amplitude_m"] == pytest.approx([20e-6, 20e-6])
+    assert s["relief_extent"] == pytest.approx([0.3, 0.3])
+    code, out, _ = _run(capsys, ["quasistatic", "--rig", path, "--positions", "8", "--json",
+                                 "--relief-amplitude", "5e-6"])
+    s = json.loads(out)
+    assert "--relief-amplitude" in s["relief_source"] and "rig file" in s["relief_source"]
+    assert s["relief_amplitude_m"] == pytest.approx([5e-6, 5e-6])
+    assert s["relief_extent"] == pytest.approx([0.3, 0.3])  # the file's extent kept
+    code, out, _ = _run(capsys, ["quasistatic", "--rig", path, "--positions", "8", "--json",
+                                 "--relief", "long"])
+    s = json.loads(out)
+    assert s["relief_source"] == "--relief long" and s["relief_extent"] == pytest.approx([0.5, 0.5])
+
+
+def test_labels_from_the_values_used(capsys, tmp_path):
+    csv_path = tmp_path / "new" / "deeper" / "te.csv"  # missing folders are created
+    code, out, _ = _run(capsys, ["quasistatic", "--positions", "64", "--json",
+                                 "--relief-amplitude", "10e-6", "--csv", csv_path])
+    s = json.loads(out)
+    assert code == 0 and csv_path.exists()
+    assert "short" not in s["relief_label"] and "10 um" in s["relief_label"]
+    assert "--relief-amplitude" in s["relief_source"]
+
+
+def test_undamped_stability_is_neutral_not_unstable(capsys):
+    code, out, err = _run(capsys, ["stability", "--model", "torsional", "--damping", "0",
+                                   "--speeds", "300:700:2"])
+    assert code == 0 and "Traceback" not in err
+    assert "UNSTABLE" not in out and "neutral" in out
+
+
+def test_peak_dynamic_factor_over_converged_speeds_only():
+    from gearjax.cli.results import summarise_rows
+
+    def row(w, df, conv):
+        return {"speed_rad_s": repr(w), "formulation": "te", "max_mesh_force_N": repr(df * 1e4),
+                "dynamic_factor": repr(df), "contact_loss": "False", "converged": str(conv)}
+
+    rows = [row(100.0, 1.2, True), row(200.0, 3.5e22, False), row(300.0, 1.6, True)]
+    s = summarise_rows(rows, "te", np.array([100.0, 200.0, 300.0, 400.0]))
+    assert s["peak_dynamic_factor"] == 1.6 and s["critical_speed_rad_s"] == 300.0
+    assert s["unconverged_speeds"] == [200.0] and s["missing_speeds"] == [400.0]
+    none = summarise_rows([row(200.0, 3.5e22, False)], "te", np.array([200.0]))
+    assert math.isnan(none["peak_dynamic_factor"])
+
+
+def test_version_help_and_rig_help(capsys):
+    code, out, _ = _run(capsys, ["--version"])
+    assert code == 0 and out.startswith("gearjax ")
+    code, out, _ = _run(capsys, ["--help"])
+    assert code == 0 and out.count("\n  gearjax ") >= 3
+    code, out, _ = _run(capsys, ["sweep", "--help"])
+    assert code == 0 and "FILE.toml" in out and "--resume" in out and "--overwrite" in out
+
+
+# ----------------------------------------------------- no lost work: overwrite, Ctrl-C, resume
+SWEEP = ["sweep", "--model", "torsional", "--formulations", "te"]
+
+
+def test_rerun_refuses_then_overwrite(capsys, tmp_path):
+    out = tmp_path / "sw"
+    argv = SWEEP + ["--speeds", "300:500:2", "--out", out, "--json"]
+    assert _run(capsys, argv)[0] == 0
+    (out / "notes.txt").write_text("mine")
+    before = (out / "results.csv").read_text()
+    code, _, err = _run(capsys, argv)
+    assert code == 2 and "earlier run" in err and "--overwrite" in err and "--resume" in err
+    assert (out / "results.csv").read_text() == before  # nothing deleted
+    code, _, _ = _run(capsys, argv + ["--overwrite"])
+    assert code == 0 and (out / "notes.txt").read_text() == "mine"
+    assert len((out / "results.csv").read_text().splitlines()) == 3
+    # --resume of a finished run computes nothing; another case is refused
+    code, _, err = _run(capsys, argv + ["--resume"])
+    assert code == 0 and json.loads((out / "summary.json").read_text())["resumed"] == {"te": 2}
+    code, _, err = _run(capsys, SWEEP + ["--speeds", "300:500:3", "--out", out, "--resume"])
+    assert code == 2 and "another case" in err and "speeds_rad_s" in err
+
+
+def test_ctrl_c_keeps_results_and_resume_finishes(tmp_path):
+    out = tmp_path / "int"
+    argv = [sys.executable, "-m", "gearjax.cli.main"] + SWEEP + [
+        "--speeds", "100:900:40", "--chunk", "1", "--out", str(out)]
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    csv_path = out / "results.csv"
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 240 and p.poll() is None:
+        if csv_path.exists() and len(csv_path.read_text().splitlines()) >= 3:
+            break
+        time.sleep(0.1)
+    assert p.poll() is None, p.communicate()
+    p.send_signal(signal.SIGINT)
+    stdout, stderr = p.communicate(timeout=240)
+    assert p.returncode == 130, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr
+    msg = [ln for ln in stderr.splitlines() if ln.startswith("gearjax: interrupted")]
+    assert len(msg) == 1 and "--resume" in msg[0]
+    summary = json.loads((out / "summary.json").read_text())
+    done = summary["formulations"]["te"]["speeds_done"]
+    assert summary["interrupted"] and 2 <= done < 40
+    assert (out / "response_curves.png").exists()
+    rows = len(csv_path.read_text().splitlines()) - 1
+    assert rows == done
+    # resume: only the missing speeds are computed, every speed once
+    r = subprocess.run(argv[:-2] + ["--chunk", "20", "--out", str(out), "--resume"],
+                       capture_output=True, text=True, timeout=600, env=env)
+    assert r.returncode == 0, r.stderr
+    assert f"{40 - done} left to compute" in r.stderr
+    import csv
+
+    got = [float(x["speed_rad_s"]) for x in csv.DictReader(open(csv_path))]
+    assert sorted(got) == pytest.approx(np.linspace(100, 900, 40))
+    summary = json.loads((out / "summary.json").read_text())
+    assert "interrupted" not in summary and summary["formulations"]["te"]["speeds_done"] == 40
