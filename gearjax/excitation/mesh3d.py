@@ -1,0 +1,287 @@
+"""Speed-independent excitation of the 3D model: the quasi-static mesh at one design.
+
+For the te and perturbation formulations (Eqs. (42), (48a)) the excitations
+``d(theta) = TE_S - NLTE - w_x0`` (m; ``TE_S - w_x0`` without NLTE terms), the loaded
+quasi-static stiffness ``k(theta)`` (N/m) and NLTE (m) do not depend on speed. They come
+from the exact 3D quasi-static solution with unilateral contact (Eq. (25),
+:func:`gearjax.structure.condensation.quasi_static_3d`): ``d = g_w^T (x_S - x_0)`` from the
+condensation at the encoder dofs (Eq. (36)), or with the averaged vector for every cell
+(``"mean"``, Eq. (27)) the exact shortcut ``d = (y - v_x0) C_wv / C_vv`` with ``y`` the
+torsional root (Eq. (17)) -- the pinion line is torsionally free, so the total mesh force
+is ``F_S``.
+
+:class:`QuasiStaticMesh3D` holds that solution at one design and everything the events
+need from it: the discrete state code of an angle (layout of
+:func:`gearjax.excitation.events.code`), the switching functions, the moved event angles.
+:func:`scan_brackets` brackets the state changes at build time; :func:`tabulate` fills the
+jump-aware Hermite table (exact values at the knots, slopes by forward-mode AD), the angle
+map through the moved events and the structure flag, traceable in the design.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..gears.contact import unilateral_solve_pairwise
+from ..gears.mesh import Mesh
+from ..gears.modifications import ToothModifications
+from ..gears.quasistatic import contact_gaps
+from ..structure.condensation import Condensation, QuasiStatic3D, quasi_static_3d
+from ..structure.element import PinionGearElement
+from .events import (
+    check_event_roots,
+    classify_events,
+    distinct_angles,
+    find_brackets,
+    moved_event_angles,
+    quiet_origin,
+    switch_value,
+)
+from .tables import AngleMap, PeriodicHermiteTable
+
+__all__ = ["QuasiStaticMesh3D", "TableLayout", "scan_brackets", "jump_angles", "table_layout",
+           "tabulate"]
+
+
+class QuasiStaticMesh3D(eqx.Module):
+    """The 3D quasi-static mesh at one design (Eqs. (25), (27), (36)).
+
+    Attributes
+    ----------
+    mesh, mods, element : mesh model, tooth modifications, pinion-gear element.
+    cond : condensation of the structure on the 12 element dofs.
+    v_local : (12,) averaged structure vector V at the element dofs (Eq. (A.1)).
+    free12 : (12,) 1 for free element dofs, 0 for clamped ones.
+    static_force_N : F_S (N).
+    v_x0, c_vv, c_wv : ``V^T X_0`` (m), ``C_vv``, ``C_wv`` (m/N) of the model's K_bar
+        (Eqs. (33)-(35)), for the ``"mean"`` shortcut.
+    mesh_vectors : ``"cells"`` or ``"mean"`` (static).
+    qs_max_iter : active-set iterations (static).
+    nlte_terms : NLTE kept in the equations (static): ``d`` is ``TE_S - NLTE - w_x0``,
+        else ``TE_S - w_x0``.
+    loaded_codes : the state code holds the loaded set (te, perturbation; static).
+    """
+
+    mesh: Mesh
+    mods: ToothModifications
+    element: PinionGearElement
+    cond: Condensation
+    v_local: jax.Array
+    free12: jax.Array
+    static_force_N: jax.Array
+    v_x0: jax.Array
+    c_vv: jax.Array
+    c_wv: jax.Array
+    mesh_vectors: str = eqx.field(static=True)
+    qs_max_iter: int = eqx.field(static=True)
+    nlte_terms: bool = eqx.field(static=True)
+    loaded_codes: bool = eqx.field(static=True)
+
+    def solve(self, theta) -> QuasiStatic3D:
+        """Quasi-static 3D solution (Eq. (25)) at ``theta`` (rad, scalar)."""
+        return quasi_static_3d(self.cond, self.element, self.mods, theta, self.static_force_N,
+                               self.v_local, self.mesh_vectors, self.qs_max_iter, self.free12)
+
+    def vectors(self, cells):
+        """(cells, 12) structure vectors of the cells on the free element dofs."""
+        if self.mesh_vectors == "cells":
+            return self.element.cell_vectors(cells) * self.free12[None, :]
+        return jnp.broadcast_to(self.v_local, (cells.xi_m.shape[0], 12))
+
+    def excitation(self, theta):
+        """(3,) stacked ``(d (m), k(theta) (N/m), NLTE (m))`` from the exact solve."""
+        if self.mesh_vectors == "mean":
+            # exact shortcut: V^T X_S is the torsional root (total mesh force F_S), and
+            # X_S = X_0 + phi C_v (Eq. (29)) gives TE_S - NLTE = w_x0 + phi C_wv.
+            cells, de, nlte = contact_gaps(self.mesh, self.mods, theta)
+            y, k = unilateral_solve_pairwise(cells.stiffness_N_per_m, de, self.static_force_N)
+            d = (y - self.v_x0) / self.c_vv * self.c_wv
+            if not self.nlte_terms:
+                d = d + nlte
+        else:
+            qs = self.solve(theta)
+            d = self.cond.g_w @ (qs.x_local - self.cond.x0_local)  # W^T (X_S - X_0)
+            if not self.nlte_terms:
+                d = d + qs.nlte_m
+            k = qs.loaded_stiffness_N_per_m
+        nlte = contact_gaps(self.mesh, self.mods, theta)[2]
+        return jnp.stack([d, k, nlte])
+
+    def state_code(self, theta, kinks: bool):
+        """Discrete state at ``theta`` in the layout of
+        :func:`gearjax.excitation.events.code`: the cell realising NLTE, the loaded cells
+        (zeros unless :attr:`loaded_codes`), the cells inside the path of contact and
+        their relief zone (Fig. 4; 1 pinion, 2 gear, -1 outside the path; zeros inside
+        unless ``kinks``). Traceable in the design."""
+        mesh, mods = self.mesh, self.mods
+        cells, _, _ = contact_gaps(mesh, mods, theta)
+        inside = cells.inside
+        r = mesh.removed_material(mods, cells, theta)
+        arg = jnp.argmin(jnp.where(inside, r, jnp.inf))
+        zone = jnp.zeros(inside.shape, jnp.int32)
+        if kinks:
+            xi_a, xi_e = mesh.pair.contact_limits_m
+            ext = mods.relief_extent * mesh.pair.path_of_contact_m
+            zone = ((cells.xi_m > xi_e - ext[0]).astype(jnp.int32)
+                    + 2 * (cells.xi_m < xi_a + ext[1]).astype(jnp.int32))
+        loaded = (self.solve(theta).cell_load_N > 0 if self.loaded_codes
+                  else jnp.zeros(inside.shape, bool))
+        return jnp.concatenate([arg[None].astype(jnp.int32), loaded.astype(jnp.int32),
+                                inside.astype(jnp.int32), jnp.where(inside, zone, -1)])
+
+    def switch_function(self, kind, a, b, theta):
+        """g(theta) (m) whose root is the angle of an event of ``kind``
+        (:func:`gearjax.excitation.events.switch_value`); loaded set (cell a):
+        ``V_a^T x_S - de_a``, the approach minus the gap in the 3D solution (Eq. (25))."""
+        cells, de, _ = contact_gaps(self.mesh, self.mods, theta)
+        x = self.solve(theta).x_local
+        return switch_value(self.mesh, self.mods, cells, theta,
+                            self.vectors(cells)[a] @ x - de[a], kind, a, b)
+
+    def event_angles(self, event_thetas, event_kinds, event_cells, newton_steps: int = 4):
+        """Event angles (rad) of this design: Newton on :meth:`switch_function` from the
+        build angles (geometric events stay); differentiable in the design."""
+        return moved_event_angles(self.switch_function, event_thetas, event_kinds,
+                                  event_cells, newton_steps)
+
+
+@eqx.filter_jit
+def _state_codes(qsm: QuasiStaticMesh3D, ts, kinks: bool):
+    """:meth:`QuasiStaticMesh3D.state_code` at the angles ``ts`` (compiled once per
+    model shape: the design-dependent layout is not part of ``qsm``)."""
+    return jax.vmap(lambda t: qsm.state_code(t, kinks))(ts)
+
+
+def state_codes(qsm: QuasiStaticMesh3D, theta, kinks: bool) -> np.ndarray:
+    """Codes (n, 1 + 3 cells) at the angles ``theta`` (NumPy, build time), evaluated in
+    fixed chunks of 32 angles (a single compilation)."""
+    t = np.asarray(theta, dtype=float)
+    n = t.shape[0]
+    size = -(-n // 32) * 32
+    tp = np.concatenate([t, np.full(size - n, t[0] if n else 0.0)])
+    out = [np.asarray(_state_codes(qsm, jnp.asarray(tp[i:i + 32]), kinks))
+           for i in range(0, size, 32)]
+    return np.concatenate(out)[:n] if out else np.zeros((0, 1 + 3 * qsm.mesh.n_cells), int)
+
+
+def scan_brackets(qsm: QuasiStaticMesh3D, theta, period: float, kinks: bool = False):
+    """Brackets ``(lo, hi)`` (adjacent floats, sorted by ``lo``) of the angles where the
+    right-hand side jumps or kinks independently of speed: cell engagement/exit,
+    quasi-static active-set changes (te, perturbation), changes of the cell realising
+    NLTE, and with ``kinks`` cells entering or leaving a relief zone (kinks of TE_S:
+    table knots, not integrator jumps); from the uniform scan ``theta`` (one period, any
+    origin) by bisection. Returns ``(lo, hi, codes at lo, codes at hi)``."""
+    theta = np.asarray(theta, dtype=float)
+
+    def code(t):
+        return state_codes(qsm, t, kinks)
+
+    lo, hi = find_brackets(code, theta, code(theta), period)
+    order = np.argsort(lo)
+    lo, hi = lo[order], hi[order]
+    return lo, hi, code(lo), code(hi)
+
+
+def jump_angles(qsm: QuasiStaticMesh3D, theta, period: float) -> np.ndarray:
+    """Sorted distinct angles in [0, period) (rad) where the right-hand side jumps or kinks
+    independently of speed (integrator jumps), from the uniform scan ``theta``."""
+    lo, hi, _, _ = scan_brackets(qsm, theta, period)
+    return distinct_angles(0.5 * (lo + hi), period)
+
+
+class TableLayout(NamedTuple):
+    """Build layout of the excitation table (see :func:`table_layout`)."""
+
+    knots: jax.Array
+    side: jax.Array
+    cell_first: jax.Array
+    origin: float
+    n_cells: int
+    max_extra: int
+    event_thetas: tuple
+    event_kinds: tuple
+    event_cells: tuple
+    codes: jax.Array | None
+
+
+def table_layout(qsm: QuasiStaticMesh3D, theta, period: float, jumps) -> TableLayout:
+    """Knots of the excitation table: the ``len(theta)`` uniform cells from an origin far
+    from the ``jumps`` plus the two adjacent floats of every state change (relief-zone
+    kinks included), bisected *in table coordinates* ``[origin, origin + P)`` (folding
+    adjacent floats near 0 into the table would merge them), with the side (-1, +1) each
+    is evaluated on; the events of those brackets (:func:`classify_events`, checked by
+    :func:`check_event_roots`) and, with moving events, the state codes on each side of
+    every knot (for the structure flag of :func:`tabulate`)."""
+    n_cells = len(theta)
+    origin = quiet_origin(jumps, period)
+    lo, hi, c_lo, c_hi = scan_brackets(qsm, origin + np.asarray(theta), period, kinks=True)
+    knots, cell_first, max_extra = PeriodicHermiteTable.layout(
+        origin, period, n_cells, np.concatenate([lo, hi]))
+    side = np.zeros(knots.shape)
+    side[np.isin(knots, lo)] = -1.0
+    side[np.isin(knots, hi)] = 1.0
+    events = distinct_angles(0.5 * (lo + hi), period)
+    kinds, cells = classify_events(events, lo, hi, c_lo, c_hi, qsm.mesh.n_cells, period)
+    kinds, cells = check_event_roots(qsm.switch_function, events, kinds, cells,
+                                     qsm.mesh.pair.mesh_period_rad)
+    codes = None
+    if events.size:  # discrete state on each side of every knot
+        codes = jnp.asarray(state_codes(qsm, knots + side * (1e-9 * period), True))
+    return TableLayout(
+        knots=jnp.asarray(knots), side=jnp.asarray(side),
+        cell_first=jnp.asarray(cell_first, dtype=jnp.int32), origin=float(origin),
+        n_cells=n_cells, max_extra=int(max_extra),
+        event_thetas=tuple(float(t) for t in events), event_kinds=tuple(int(k) for k in kinds),
+        event_cells=tuple((int(a), int(b)) for a, b in cells), codes=codes)
+
+
+def tabulate(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, origin: float, period: float,
+             n_cells: int, max_extra: int, event_thetas: tuple, event_kinds: tuple,
+             event_cells: tuple, table_codes=None):
+    """The excitation table ``(d, k, NLTE)`` of this design, the angle map and the
+    structure flag (traceable: call inside ``jit`` to differentiate in the design).
+
+    The table holds ``q(phi(s))`` in the simulation angle ``s`` at the build knots (the
+    knots bracketing a jump evaluated on their own side, ``side`` -1/+1), slopes by
+    forward-mode AD; ``phi`` (:class:`AngleMap`) sends the build event angles to those
+    of this design (None without moving events). The flag is True when the design keeps
+    the discrete state of the build on each side of every mapped knot (``table_codes``),
+    else the map is not valid and the model must be rebuilt.
+
+    Returns
+    -------
+    (table, angle_map, structure_ok)
+    """
+    delta = 1e-9 * period
+    amap = None
+    if event_thetas:
+        amap = AngleMap.through(event_thetas,
+                                qsm.event_angles(event_thetas, event_kinds, event_cells), period)
+
+    if amap is None:
+        def one(t, sd):
+            v, d = jax.jvp(qsm.excitation, (t + sd * delta,), (jnp.ones_like(t),))
+            return v - sd * delta * d, d  # back to the knot
+    else:
+        def one(t, sd):
+            def f(s):
+                return qsm.excitation(amap(s)[0] + sd * delta)
+
+            v, d = jax.jvp(f, (t,), (jnp.ones_like(t),))
+            return v - sd * delta * d / amap(t)[1], d
+
+    vals, slopes = jax.vmap(one)(knots, side)
+    table = PeriodicHermiteTable(knots=knots, values=vals, slopes=slopes, cell_first=cell_first,
+                                 origin=origin, period=period, n_cells=n_cells,
+                                 max_extra=max_extra)
+    ok = jnp.asarray(True)
+    if table_codes is not None:
+        at = (jax.vmap(amap)(knots)[0] if amap is not None else knots) + side * delta
+        codes = jax.vmap(lambda t: qsm.state_code(t, True))(at)
+        ok = jnp.all(codes == table_codes)
+    return table, amap, ok
