@@ -1,6 +1,6 @@
 """Modal cut-off of the 3D model against the full 258-dof model (issue #7, "Modes").
 
-Scenario: ``Geared3DModel.baud_velex(False, table1_relief("short"), formulation="te",
+Scenario: ``build_model(baud_velex_rig(False), table1_relief("short"), formulation="te",
 damping_ratio=0.1, max_frequency_hz=f_c)`` (the paper's spur rig of Section 6.1, cell
 structure vectors), steady state by shooting (:func:`gearjax.dynamics.steady.steady_sweep`, default
 tolerances: exact to ~1e-9, so every difference below is the cut-off's).
@@ -40,6 +40,7 @@ import time
 import numpy as np
 
 from gearjax import table1_relief
+from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.cli.dynamics import default_max_frequency_hz
 from gearjax.models.geared3d import Geared3DModel
 from gearjax.dynamics.steady import steady_sweep
@@ -58,7 +59,7 @@ def mesh_frequency_hz(speed_rad_s: float, z1: int = Z1) -> float:
 
 
 def build(max_frequency_hz):
-    return Geared3DModel.baud_velex(False, table1_relief("short"), formulation="te",
+    return build_model(baud_velex_rig(False), table1_relief("short"), formulation="te",
                                     damping_ratio=0.1, max_frequency_hz=max_frequency_hz)
 
 

@@ -153,14 +153,14 @@ def run_geared(speed=900.0, steps_per_period=(128, 256, 512), periods=120, zeta=
 
     import equinox as eqx
     from gearjax import ToothModifications, quasi_static
-    from gearjax.models.geared3d import Geared3DModel
+    from gearjax.rigs import build_model
     from gearjax.rigs.ross_bridge import (periodic_mesh_force, ross_geared_rotor, ross_mesh_modes,
                                      ross_shear_coefficient)
     from gearjax.dynamics.simulate import simulate
 
     kappa = ross_shear_coefficient(0.05, method="cowper")
     data, rig = _geared_rig(kappa)
-    model = Geared3DModel.from_rig(rig, None, formulation="reference", damping_ratio=zeta,
+    model = build_model(rig, None, formulation="reference", damping_ratio=zeta,
                                    mesh_vectors="mean")
     k_m, f_s = float(model.k_m), float(model.static_force_N)
     period = rig.pair.mesh_period_rad

@@ -1,7 +1,7 @@
 """100-speed 3D sweep (issue #4): compile time, run time, the ratio to SciPy's solve_ivp,
 and transient (``sweep``) against shooting (``steady_sweep``) with their accuracy.
 
-Scenario: ``Geared3DModel.baud_velex(helical, short relief, formulation, damping_ratio=0.1,
+Scenario: ``build_model(baud_velex_rig(helical), short relief, formulation, damping_ratio=0.1,
 max_frequency_hz=6000)`` (the paper's 3D rig, cell structure vectors, modes to 6 kHz plus
 static corrections), speeds linearly spaced in ``--range``.
 
@@ -42,6 +42,7 @@ import gearjax  # noqa: F401
 import gearjax.dynamics.steady  # noqa: F401
 import gearjax.dynamics.sweep  # noqa: F401
 from gearjax.models.geared3d import Geared3DModel
+from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.rigs.registry import get_rig
 from gearjax.dynamics.simulate import default_solver, jump_density, transient_start
 from gearjax.dynamics.steady import steady_sweep
@@ -97,7 +98,7 @@ def main():
         f"{args.speeds} speeds {lo:.0f}-{hi:.0f} rad/s, zeta 0.1, modes to 6 kHz")
     say(f"machine: {machine()}; load average at start {os.getloadavg()[0]:.1f}")
     t0 = time.perf_counter()
-    model = Geared3DModel.baud_velex(args.helical, rig.modifications("short"),
+    model = build_model(baud_velex_rig(args.helical), rig.modifications("short"),
                                      formulation=args.formulation, damping_ratio=0.1,
                                      max_frequency_hz=6000.0)
     say(f"build {time.perf_counter() - t0:.1f} s, {model.n_reduced} modal coordinates, "

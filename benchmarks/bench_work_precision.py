@@ -2,7 +2,7 @@
 
 Scenario (sdof): Baud & Velex spur pair (Table 1), short tip relief, 254.8 N m, damping
 ratio 0.03, default inertias; the three formulations (reference Eq. (16), te Eq. (20),
-perturbation Eq. (47a)). 3D: ``Geared3DModel.baud_velex(False, short relief,
+perturbation Eq. (47a)). 3D: ``build_model(baud_velex_rig(False), short relief,
 formulation="te", damping_ratio=0.1, max_frequency_hz=6000, mesh_vectors="mean")``.
 
 Error = max over the speeds of ``|max F_D - max F_D,ref| / F_S`` (dynamic mesh force) and
@@ -48,6 +48,7 @@ import numpy as np
 
 import gearjax  # noqa: F401
 from gearjax import Mesh, baud_velex_pair, table1_relief
+from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import simulate
 from gearjax.dynamics.steady import steady_sweep
@@ -412,7 +413,7 @@ def study_3d(args):
 
     say("\n## 3D te model (spur rig, reduced to 6 kHz, mesh_vectors='mean', zeta 0.1)")
     t0 = time.perf_counter()
-    model = Geared3DModel.baud_velex(False, table1_relief("short"), formulation="te",
+    model = build_model(baud_velex_rig(False), table1_relief("short"), formulation="te",
                                      damping_ratio=0.1, max_frequency_hz=6000.0,
                                      mesh_vectors="mean")
     say(f"build {time.perf_counter() - t0:.1f} s, {model.n_reduced} modal coordinates")
@@ -472,12 +473,12 @@ def scaling(args):
     say("| model | states | steady run s | compile s | transient (simulate) run s | compile s |")
     say("|---|---|---|---|---|---|")
     cases = [("sdof", model)]
-    cases.append(("3D reduced 6 kHz", Geared3DModel.baud_velex(
-        False, table1_relief("short"), formulation="te", damping_ratio=0.1,
+    cases.append(("3D reduced 6 kHz", build_model(
+        baud_velex_rig(False), table1_relief("short"), formulation="te", damping_ratio=0.1,
         max_frequency_hz=6000.0, mesh_vectors="mean")))
     if not args.quick:
-        cases.append(("3D full (all modes)", Geared3DModel.baud_velex(
-            False, table1_relief("short"), formulation="te", damping_ratio=0.1,
+        cases.append(("3D full (all modes)", build_model(
+            baud_velex_rig(False), table1_relief("short"), formulation="te", damping_ratio=0.1,
             max_frequency_hz=None, mesh_vectors="mean")))
     for name, m in cases:
         n_state = int(2 * m.n_reduced) if hasattr(m, "n_reduced") else 2

@@ -358,9 +358,9 @@ class QuasiStaticObjective:
         self.scale_m = float(self.forces_N[0] / (float(mesh.mean_stiffness()) * cos_bb))
         self.model_type, self.model3d = model, None
         if model == "3d":
-            from .models.geared3d import Geared3DModel
+            from .rigs.factory import build_model
 
-            self.model3d = Geared3DModel.from_rig(
+            self.model3d = build_model(
                 rig, None, mesh=mesh, pinion_torque_Nm=float(torques[0]),
                 formulation="reference", max_frequency_hz=1000.0)  # quasi-static: no modes used
         self._value = eqx.filter_jit(self._values)
@@ -516,9 +516,9 @@ class DynamicObjective:
                 m = dataclasses.replace(m, jump_kinds=(0,) * len(m.jump_kinds))
                 m = m.with_modifications(m.mods)  # re-assembled without the angle map
         else:
-            from .models.geared3d import Geared3DModel
+            from .rigs.factory import build_model
 
-            m = Geared3DModel.from_rig(self.rig, mods, mesh=self.mesh, **self.model_kwargs)
+            m = build_model(self.rig, mods, mesh=self.mesh, **self.model_kwargs)
             if frozen:
                 m = dataclasses.replace(m, event_thetas=(), event_kinds=(), event_cells=(),
                                         table_codes=None)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from gearjax.cli.main import main
-from gearjax.gears.geometry import baud_velex_pair
+from gearjax.rigs.baud_velex import baud_velex_pair
 
 
 def _json(capsys, argv):

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from gearjax.cli.main import main
-from gearjax.gears.geometry import baud_velex_pair
+from gearjax.rigs import build_model
+from gearjax.rigs.baud_velex import baud_velex_pair
 from gearjax.gears.mesh import Mesh
 from gearjax.models.torsional import TorsionalModel
 from gearjax.rigs.registry import get_rig
@@ -180,7 +181,7 @@ def test_cli_passes_the_cutoff_to_the_3d_model(monkeypatch, tmp_path, argv, expe
         seen.update(kw)
         raise _Built
 
-    monkeypatch.setattr(cd, "build_dynamic_model", fake_build)
+    monkeypatch.setattr(cd, "build_model", fake_build)
     with pytest.raises(_Built):
         main(argv + ["--model", "3d", "--json"])
     kind, value = expected
@@ -203,7 +204,7 @@ def test_3d_sweep_reports_its_cutoff(capsys, tmp_path):
     fc = summary["max_frequency_hz"]
     assert fc == pytest.approx(4.5 * 26 * 400 / (2 * math.pi), rel=1e-12)
     assert summary["max_frequency_source"].startswith("default")
-    full = Geared3DModel.from_rig(get_rig("baud-velex-spur"),
+    full = build_model(get_rig("baud-velex-spur"),
                                   get_rig("baud-velex-spur").modifications("short"),
                                   formulation="te", damping_ratio=0.1, max_frequency_hz=None)
     f_full = np.asarray(full.omega_r) / (2 * math.pi)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from gearjax.cli.main import main
+from gearjax.rigs import build_model
 from gearjax.design import (
     DesignError,
     DynamicObjective,
@@ -124,7 +125,7 @@ def test_dynamic_force_gradient_sees_moving_jumps(mesh_iso):
 def _build_3d(amp, ext, formulation="te", mean_stiffness=None):
     from gearjax.models.geared3d import Geared3DModel
 
-    return Geared3DModel.from_rig(RIG, ToothModifications.tip_relief(amp, ext),
+    return build_model(RIG, ToothModifications.tip_relief(amp, ext),
                                   formulation=formulation, damping_ratio=0.1,
                                   max_frequency_hz=3000.0, mean_stiffness_N_per_m=mean_stiffness)
 

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gearjax.gears.geometry import baud_velex_pair
+from gearjax.rigs.baud_velex import baud_velex_pair
 from gearjax.gears.mesh import Mesh
 from gearjax.structure.element import PinionGearElement
 

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from gearjax import Mesh, ToothModifications, baud_velex_pair, quasi_static, table1_relief
+from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.structure.analytic import analytic_relations
 from gearjax.structure.element import PinionGearElement
 from gearjax.models.geared3d import Geared3DModel
@@ -135,7 +136,7 @@ def test_relations_on_random_rigs(seed):
 @pytest.fixture(scope="module")
 def rig_te():
     """Baud-Velex spur rig, long relief (NLTE != 0), reduced (6 kHz), coarse cells: te."""
-    return Geared3DModel.baud_velex(False, table1_relief("long"), cells_per_line=4,
+    return build_model(baud_velex_rig(False), table1_relief("long"), cells_per_line=4,
                                     formulation="te", max_frequency_hz=6000.0, n_table=32)
 
 
@@ -235,8 +236,8 @@ def test_te_formulation_equals_reference_without_contact_changes():
     """Perfect spur gears (all gaps zero) and the averaged V: the dynamic active set is the
     quasi-static one, so Eq. (42) is an exact rewriting of Eq. (14) at any speed."""
     common = dict(cells_per_line=2, mesh_vectors="mean", max_frequency_hz=5000.0, n_table=32)
-    ref = Geared3DModel.baud_velex(False, ToothModifications.none(), formulation="reference", **common)
-    te = Geared3DModel.baud_velex(False, ToothModifications.none(), formulation="te", **common)
+    ref = build_model(baud_velex_rig(False), ToothModifications.none(), formulation="reference", **common)
+    te = build_model(baud_velex_rig(False), ToothModifications.none(), formulation="te", **common)
     run = lambda m: simulate(m, 200.0, n_transient_periods=6, n_measured_periods=2)  # noqa: E731
     a, b = run(ref), run(te)
     assert not bool(a.contact_loss) and bool(a.solver_ok) and bool(b.solver_ok)
@@ -251,10 +252,10 @@ def test_te_formulation_at_low_speed_is_quasi_static():
     F_S (no dynamic part)."""
     mods = table1_relief("long")
     common = dict(cells_per_line=2, mesh_vectors="mean", max_frequency_hz=3000.0, n_table=16)
-    ref = Geared3DModel.baud_velex(False, mods, formulation="reference", **common)
+    ref = build_model(baud_velex_rig(False), mods, formulation="reference", **common)
     # exact quasi-static excitation (the table would add its Hermite interpolation error
     # between knots; models were evaluated unprepared, i.e. inline, before born-complete)
-    te = Geared3DModel.baud_velex(False, mods, formulation="te", excitation="inline", **common)
+    te = build_model(baud_velex_rig(False), mods, formulation="te", excitation="inline", **common)
     th = jnp.array([0.013, 0.1, 0.2])
     state = eqx.filter_jit(lambda m: jax.vmap(m._static_q)(th))
     qa, qb = state(ref), state(te)
@@ -275,7 +276,7 @@ def test_te_formulation_at_low_speed_is_quasi_static():
 def test_reduced_basis_reproduces_static_solution(rig_te):
     """Static correction makes the reduced basis exact for the quasi-static state: the
     pinion-gear dofs of X_S from 6 kHz modes + pseudo-modes equal the full-basis ones."""
-    full = Geared3DModel.baud_velex(False, table1_relief("long"), cells_per_line=4,
+    full = build_model(baud_velex_rig(False), table1_relief("long"), cells_per_line=4,
                                     formulation="te", n_table=32)
     assert rig_te.n_reduced < full.n_reduced and rig_te.n_static > 0
     th = jnp.array([0.0, 0.07])
@@ -286,8 +287,8 @@ def test_reduced_basis_reproduces_static_solution(rig_te):
 @pytest.mark.slow
 def test_reduced_model_close_to_full():
     common = dict(cells_per_line=2, formulation="reference", n_table=32)
-    full = Geared3DModel.baud_velex(False, table1_relief("short"), **common)
-    red = Geared3DModel.baud_velex(False, table1_relief("short"), max_frequency_hz=8000.0, **common)
+    full = build_model(baud_velex_rig(False), table1_relief("short"), **common)
+    red = build_model(baud_velex_rig(False), table1_relief("short"), max_frequency_hz=8000.0, **common)
     assert red.n_reduced < full.n_reduced
     run = lambda m: simulate(m, 300.0, n_transient_periods=6, n_measured_periods=2)  # noqa: E731
     a, b = run(full), run(red)

@@ -4,7 +4,8 @@ import math
 
 import pytest
 
-from gearjax.gears.geometry import GearPair, GeometryError, baud_velex_pair, inverse_involute
+from gearjax.gears.geometry import GearPair, GeometryError, inverse_involute
+from gearjax.rigs.baud_velex import baud_velex_pair
 
 
 def _iso21771(mn, z1, z2, an_deg, beta_deg, x1, x2, ha, b):

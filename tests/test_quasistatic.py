@@ -10,9 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
 
-from gearjax.gears.geometry import baud_velex_pair
+from gearjax.rigs.baud_velex import baud_velex_pair
 from gearjax.gears.mesh import Mesh
-from gearjax.gears.modifications import ModificationError, ToothModifications, table1_relief
+from gearjax.gears.modifications import ModificationError, ToothModifications
+from gearjax.rigs.baud_velex import table1_relief
 from gearjax.gears.quasistatic import quasi_static, solve_unilateral, static_mesh_force
 
 TORQUE = 254.8

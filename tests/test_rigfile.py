@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gearjax.gears.modifications import fig5_pitch_errors
+from gearjax.rigs.baud_velex import fig5_pitch_errors
+from gearjax.rigs import build_model
 from gearjax.rigs.rigfile import load_rig
 from gearjax.rigs.registry import RigError, get_rig
 from gearjax.structure import StructureBuilder, disc_properties
@@ -71,14 +72,14 @@ def test_get_rig_loads_toml_paths(example_rig):
 
 @pytest.mark.slow
 def test_example_file_3d_model_same_natural_frequencies(example_rig):
-    """Geared3DModel.from_rig on the file and on the built-in rig: same modes of (M, K_bar),
+    """build_model on the file and on the built-in rig: same modes of (M, K_bar),
     same static transmission-error constants at encoder position 3 (wiring of the motor
     node, torque and encoders)."""
     from gearjax.models.geared3d import Geared3DModel
 
     kw = dict(max_frequency_hz=10_000.0, n_table=32, encoder_position=3)
-    m_file = Geared3DModel.from_rig(example_rig, **kw)
-    m_ref = Geared3DModel.from_rig(get_rig("baud-velex-spur"), **kw)
+    m_file = build_model(example_rig, **kw)
+    m_ref = build_model(get_rig("baud-velex-spur"), **kw)
     assert m_file.n_modes == m_ref.n_modes > 50
     f_file = np.asarray(m_file.omega_r[: m_file.n_modes]) / (2 * np.pi)
     f_ref = np.asarray(m_ref.omega_r[: m_ref.n_modes]) / (2 * np.pi)
@@ -204,7 +205,7 @@ def test_small_custom_rig_equals_hand_assembly(tmp_path):
 @pytest.mark.slow
 def test_small_rig_3d_figures_satisfy_appendix_a(tmp_path):
     """The Appendix A relations (Eqs. (33)-(35)) hold on the rig-file structure too."""
-    from gearjax.rigs.registry import three_d_figures
+    from gearjax.rigs.figures import three_d_figures
 
     out = three_d_figures(load_rig(_write(tmp_path, SMALL)), n_frequencies=5)
     assert out["n_dof"] == 36

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from gearjax.cli.main import main
-from gearjax.cli.dynamics import build_dynamic_model, predicted_critical_speeds
+from gearjax.rigs.factory import build_model
+from gearjax.rigs.figures import predicted_critical_speeds
 from gearjax.rigs.registry import get_rig
 from gearjax.dynamics.sweep import sweep
 
@@ -51,7 +52,8 @@ def test_claim_5_encoder_positions_do_not_change_forces():
     mods = rig.modifications("short")
     res, w_x0 = {}, {}
     for enc in (1, 2, 3):
-        m = build_dynamic_model(rig, mods, model="3d", formulation="te", damping=0.1, encoders=enc)
+        m = build_model(rig, mods, model="3d", formulation="te", damping_ratio=0.1,
+                        encoder_position=enc, max_frequency_hz=6000.0)
         res[enc] = sweep(m, np.array([840.0]), progress=False)  # near the critical speed
         w_x0[enc] = float(m.w_x0)
     # position 3 (coupling hubs) sees a different static twist; 2 (free ends) the same as 1
@@ -66,8 +68,8 @@ def test_critical_speed_peak_at_mode_prediction():
     """The main tooth critical speed of the te sweep lies at the peak of the mesh
     receptance |k_m C_vv(z1 Omega) - 1| built from the modes (within a few percent)."""
     rig = get_rig("baud-velex-spur")
-    m = build_dynamic_model(rig, rig.modifications("short"), model="3d", formulation="te",
-                            damping=0.1)
+    m = build_model(rig, rig.modifications("short"), model="3d", formulation="te",
+                    damping_ratio=0.1, max_frequency_hz=6000.0)
     speeds = np.linspace(700.0, 1000.0, 16)
     r = sweep(m, speeds, progress=False)
     peak = speeds[int(np.argmax(r.dynamic_factor))]

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from gearjax import Mesh, baud_velex_pair, table1_relief
+from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import SimulationError, simulate
 from gearjax.dynamics.stability import spectral_radius
@@ -212,7 +213,7 @@ def _rig(helical):
 
     # mesh_vectors="mean": the fast te excitation until the tabulated cell-vector
     # quasi-static solve lands
-    return Geared3DModel.baud_velex(helical, table1_relief("short"), formulation="te",
+    return build_model(baud_velex_rig(helical), table1_relief("short"), formulation="te",
                                     damping_ratio=0.1, max_frequency_hz=6000.0,
                                     mesh_vectors="mean")
 

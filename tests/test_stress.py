@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from gearjax import Mesh, ModificationError, ToothModifications, baud_velex_pair, table1_relief
+from gearjax.rigs import build_model
 from gearjax.models.torsional import TorsionalModel, solid_cylinder_inertias
 from gearjax.dynamics.simulate import simulate
 from gearjax.dynamics.steady import steady_sweep
@@ -286,7 +287,7 @@ def test_very_stiff_and_soft_bearings_3d(k_bearing):
     from gearjax.models.geared3d import Geared3DModel
 
     rig = _stiff_bearing_rig(k_bearing)
-    model = Geared3DModel.from_rig(rig, rig.modifications("short"), formulation="te",
+    model = build_model(rig, rig.modifications("short"), formulation="te",
                                    damping_ratio=0.1, max_frequency_hz=6000.0)
     assert np.all(np.isfinite(np.asarray(model.omega_r)))
     speeds = np.array([300.0, 900.0])
@@ -344,7 +345,7 @@ def test_stiff_bearings_converge_to_rigid_limit_3d():
     f_rigid = frequencies_hz(np.asarray(s.M)[np.ix_(free, free)], np.asarray(s.K)[np.ix_(free, free)])
 
     def steady(rig, **kw):
-        model = Geared3DModel.from_rig(rig, rig.modifications("short"), formulation="te",
+        model = build_model(rig, rig.modifications("short"), formulation="te",
                                        damping_ratio=0.1, max_frequency_hz=6000.0, **kw)
         st = steady_sweep(model, [900.0], progress=False)
         _no_silent_nan(st)

@@ -655,7 +655,7 @@ def test_rig_with_pinion_gear_element_satisfies_appendix_a() -> None:
     V^T R = 0), and Eqs. (33)-(35) hold: C_vv k_m = 1, C_wv k_m cos(beta_b) = 1 for every
     encoder position, w_x0 equal at positions 1 and 2 (no torque beyond the mesh on the
     free-end side) and different at position 3 (on the torque path)."""
-    from gearjax.gears.geometry import baud_velex_pair
+    from gearjax.rigs.baud_velex import baud_velex_pair
     from gearjax.gears.mesh import Mesh
     from gearjax.structure.element import PinionGearElement
 

@@ -16,6 +16,7 @@ import pytest
 
 import gearjax.dynamics.sweep as sweep_mod
 from gearjax import Mesh, baud_velex_pair, table1_relief
+from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import SimulationError, simulate
 from gearjax.dynamics.sweep import CSV_COLUMNS, sweep
@@ -144,12 +145,12 @@ _MULTI_PROCESS = textwrap.dedent(
     assert rc == 0, rc
     assert jax.process_count() == 2 and len(jax.devices()) == 4, jax.devices()
     if pid == 0:
-        from gearjax.cli.dynamics import build_dynamic_model
+        from gearjax.rigs.factory import build_model
         from gearjax.rigs.registry import get_rig
         from gearjax.dynamics.sweep import sweep
         rig = get_rig("baud-velex-spur")
-        m = build_dynamic_model(rig, rig.modifications("short", None, None, "linear", False),
-                                model="torsional", formulation="te")
+        m = build_model(rig, rig.modifications("short", None, None, "linear", False),
+                        model="torsional", formulation="te", damping_ratio=0.1)
         # one speed per call, as each of the 4 devices ran (chunk 3 -> 4 over 4 devices);
         # other batch sizes agree only to the solver tolerance (vectorised arithmetic
         # rounds differently and the adaptive steps follow: 4e-9 in the force here)
@@ -210,7 +211,7 @@ def test_3d_slow_mode_transient_is_right_or_flagged():
     from gearjax.rigs.registry import get_rig
     from gearjax.dynamics.steady import steady_sweep
 
-    model = Geared3DModel.baud_velex(False, get_rig("baud-velex-spur").modifications("short"),
+    model = build_model(baud_velex_rig(False), get_rig("baud-velex-spur").modifications("short"),
                                      formulation="te", damping_ratio=0.1,
                                      max_frequency_hz=6000.0)
     speeds = np.array([700.0, 840.0])

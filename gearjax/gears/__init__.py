@@ -2,7 +2,6 @@
 base plane and the quasi-static contact (TE_S, NLTE). Velex & Ajmi Sections 2-3."""
 
 from .geometry import GearPair as GearPair
-from .geometry import baud_velex_pair as baud_velex_pair
 from .mesh import Cells as Cells
 from .mesh import Mesh as Mesh
 from .modifications import ToothModifications as ToothModifications

@@ -24,7 +24,7 @@ import math
 import numpy as np
 from ..errors import GeometryError
 
-__all__ = ["GearPair", "GeometryError", "involute", "inverse_involute", "baud_velex_pair"]
+__all__ = ["GearPair", "GeometryError", "involute", "inverse_involute"]
 
 
 MAX_TEETH = 2000  # tooth-number range checked by GearPair
@@ -331,27 +331,3 @@ class GearPair:
             "total_contact_ratio": self.total_contact_ratio,
             "mesh_period_rad": self.mesh_period_rad,
         }
-
-
-def baud_velex_pair(helical: bool = False) -> GearPair:
-    """Table 1 gear pair of the Baud & Velex test rig (Section 6.1).
-
-    Module 4 mm, 26/157 teeth, 20 deg pressure angle, helix 0 (spur) or 20 deg (helical),
-    addendum 1, dedendum 1.46, shifts +0.16/-0.16, face widths 50/40 mm. The module is
-    taken as the normal module for the helical variant.
-    """
-    return GearPair(
-        normal_module_m=4e-3,
-        z1=26,
-        z2=157,
-        normal_pressure_angle_rad=math.radians(20.0),
-        helix_angle_rad=math.radians(20.0) if helical else 0.0,
-        profile_shift1=0.16,
-        profile_shift2=-0.16,
-        addendum_coeff1=1.0,
-        addendum_coeff2=1.0,
-        dedendum_coeff1=1.46,
-        dedendum_coeff2=1.46,
-        face_width1_m=0.050,
-        face_width2_m=0.040,
-    )

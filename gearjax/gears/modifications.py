@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 from ..errors import ModificationError
 
-__all__ = ["ToothModifications", "ModificationError", "table1_relief", "fig5_pitch_errors"]
+__all__ = ["ToothModifications", "ModificationError"]
 
 ReliefShape = Literal["linear", "parabolic"]
 
@@ -270,28 +270,3 @@ def max_equal_slope_extent(pair) -> float:
     for a helical one, ``L_c <= 1/2``."""
     band = pair.base_pitch_m if pair.base_helix_angle_rad == 0.0 else 0.0
     return 0.5 * (1.0 + band / pair.path_of_contact_m)
-
-
-def table1_relief(kind: str = "short", shape: ReliefShape = "linear") -> ToothModifications:
-    """Table 1 tip reliefs: 13.3 um on both gears, extent 0.2 (short) or 0.5 (long)."""
-    extents = {"short": 0.2, "long": 0.5}
-    if kind == "none":
-        return ToothModifications.none()
-    if kind not in extents:
-        raise ModificationError(f"relief={kind!r}: expected 'none', 'short' or 'long'")
-    return ToothModifications.tip_relief(13.3e-6, extents[kind], shape)
-
-
-def fig5_pitch_errors(z1: int = 26, amplitude_m: float = 12e-6) -> np.ndarray:
-    """Cumulative pitch deviations of the pinion (m), standing in for the paper's Fig. 5.
-
-    The paper prints the distribution only as a figure. We use a realistic
-    cumulative pattern for a ground 26-tooth pinion: a once-per-revolution sinusoid of
-    ``amplitude_m`` (runout-like envelope) plus a fixed pattern of individual single-pitch
-    deviations of about 2 um (seeded, reproducible), with the first tooth as datum (0).
-    """
-    n = np.arange(z1)
-    rng = np.random.default_rng(1995)
-    single = rng.normal(0.0, 2e-6, z1)
-    cumulative = amplitude_m * np.sin(2 * np.pi * n / z1) + np.cumsum(single - single.mean())
-    return cumulative - cumulative[0]

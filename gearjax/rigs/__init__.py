@@ -1,6 +1,12 @@
-"""Test rigs: the registry of built-in rigs, the Baud & Velex rig of Section 6.1, TOML rig
-files, the ROSS bridge."""
+"""Test rigs: the :class:`Rig` record, the registry of built-in rigs, the Baud & Velex rig
+of Section 6.1 (all its data), TOML rig files, the one model factory, the rig figures of
+``gearjax info`` and the ROSS bridge."""
 
+from .baud_velex import baud_velex_pair as baud_velex_pair
+from .baud_velex import baud_velex_rig as baud_velex_rig
+from .baud_velex import fig5_pitch_errors as fig5_pitch_errors
+from .baud_velex import table1_relief as table1_relief
+from .factory import build_model as build_model
 from .registry import Rig as Rig
 from .registry import RigError as RigError
 from .registry import get_rig as get_rig

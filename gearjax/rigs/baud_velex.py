@@ -1,4 +1,16 @@
-"""Shaft-line structure of the Baud & Velex test rig (Velex & Ajmi, Section 6.1, Fig. 6).
+"""The Baud & Velex test rig of Velex & Ajmi, Section 6.1: every piece of its data.
+
+* :func:`baud_velex_pair`: the Table 1 gear pair (spur or helical);
+* :func:`table1_relief`: the Table 1 tip reliefs; :func:`fig5_pitch_errors`: the pinion
+  pitch errors standing in for Fig. 5;
+* :data:`PINION_TORQUE_NM`: the operating torque (254.8 N m on the pinion);
+* :func:`baud_velex_structure`: the shaft lines, bearings (Table 2), nodes and encoder
+  positions (Fig. 6, Fig. 7), described below;
+* :func:`baud_velex_rig`: all of it as a :class:`gearjax.rigs.rig.Rig` (the built-in rigs
+  ``baud-velex-spur`` and ``baud-velex-helical``).
+
+Shaft-line structure (Fig. 6)
+-----------------------------
 
 The paper's model has 43 nodes x 6 dof = 258 dof and "40 elements (including a
 pinion-gear element)"; only the bearing data (Table 2) and gear data (Table 1) are
@@ -88,10 +100,19 @@ import math
 
 import numpy as np
 
+from ..errors import ModificationError
+from ..gears.geometry import GearPair
+from ..gears.modifications import ReliefShape, ToothModifications
 from ..structure.assembly import Structure, StructureBuilder, StructureInputError
 from ..structure.beams import STEEL, Material, disc_properties
+from .rig import Rig
 
 __all__ = [
+    "PINION_TORQUE_NM",
+    "baud_velex_pair",
+    "table1_relief",
+    "fig5_pitch_errors",
+    "baud_velex_rig",
     "BAUD_VELEX_BEARINGS",
     "ENCODER_POSITIONS",
     "GEAR_NODE",
@@ -103,6 +124,59 @@ __all__ = [
     "encoder_nodes",
     "paper_node",
 ]
+
+PINION_TORQUE_NM: float = 254.8
+"""Operating torque on the pinion C_m0 (N m), Section 6.1."""
+
+
+def baud_velex_pair(helical: bool = False) -> GearPair:
+    """Table 1 gear pair of the Baud & Velex test rig (Section 6.1).
+
+    Module 4 mm, 26/157 teeth, 20 deg pressure angle, helix 0 (spur) or 20 deg (helical),
+    addendum 1, dedendum 1.46, shifts +0.16/-0.16, face widths 50/40 mm. The module is
+    taken as the normal module for the helical variant.
+    """
+    return GearPair(
+        normal_module_m=4e-3,
+        z1=26,
+        z2=157,
+        normal_pressure_angle_rad=math.radians(20.0),
+        helix_angle_rad=math.radians(20.0) if helical else 0.0,
+        profile_shift1=0.16,
+        profile_shift2=-0.16,
+        addendum_coeff1=1.0,
+        addendum_coeff2=1.0,
+        dedendum_coeff1=1.46,
+        dedendum_coeff2=1.46,
+        face_width1_m=0.050,
+        face_width2_m=0.040,
+    )
+
+
+def table1_relief(kind: str = "short", shape: ReliefShape = "linear") -> ToothModifications:
+    """Table 1 tip reliefs: 13.3 um on both gears, extent 0.2 (short) or 0.5 (long)."""
+    extents = {"short": 0.2, "long": 0.5}
+    if kind == "none":
+        return ToothModifications.none()
+    if kind not in extents:
+        raise ModificationError(f"relief={kind!r}: expected 'none', 'short' or 'long'")
+    return ToothModifications.tip_relief(13.3e-6, extents[kind], shape)
+
+
+def fig5_pitch_errors(z1: int = 26, amplitude_m: float = 12e-6) -> np.ndarray:
+    """Cumulative pitch deviations of the pinion (m), standing in for the paper's Fig. 5.
+
+    The paper prints the distribution only as a figure. We use a realistic
+    cumulative pattern for a ground 26-tooth pinion: a once-per-revolution sinusoid of
+    ``amplitude_m`` (runout-like envelope) plus a fixed pattern of individual single-pitch
+    deviations of about 2 um (seeded, reproducible), with the first tooth as datum (0).
+    """
+    n = np.arange(z1)
+    rng = np.random.default_rng(1995)
+    single = rng.normal(0.0, 2e-6, z1)
+    cumulative = amplitude_m * np.sin(2 * np.pi * n / z1) + np.cumsum(single - single.mean())
+    return cumulative - cumulative[0]
+
 
 N_NODES: int = 43
 
@@ -295,3 +369,31 @@ def baud_velex_structure(
         b.set_node(P(n), label=f"P{n}: {labels.get(n, 'shaft')}")
     b.set_pinion_node(PINION_NODE).set_gear_node(GEAR_NODE)
     return b.build()
+
+
+def _rig_structure(pair: GearPair) -> Structure:
+    """The rig's structure with the centre line of ``pair`` (centre distance, working
+    pressure angle)."""
+    return baud_velex_structure(
+        centre_distance_m=pair.centre_distance_m,
+        working_pressure_angle_rad=pair.working_pressure_angle_rad,
+    )
+
+
+def baud_velex_rig(helical: bool = False) -> Rig:
+    """The Baud & Velex rig (Section 6.1): Table 1 gears, 254.8 N m on the pinion (applied
+    at the motor node), the Table 2 structure, the Fig. 7 encoder positions, the Table 1
+    relief presets and the Fig. 5 stand-in pitch errors."""
+    pair = baud_velex_pair(helical)
+    kind = "helical (beta = 20 deg)" if helical else "spur"
+    return Rig(
+        name="baud-velex-helical" if helical else "baud-velex-spur",
+        pair=pair,
+        pinion_torque_Nm=PINION_TORQUE_NM,
+        pinion_pitch_errors_m=fig5_pitch_errors(pair.z1),
+        description=f"Baud & Velex test rig, {kind}, Table 1 gears, 254.8 N m on the pinion",
+        structure_factory=_rig_structure,
+        motor_node=MOTOR_NODE,
+        encoder_positions=dict(ENCODER_POSITIONS),
+        relief_presets=table1_relief,
+    )

@@ -1,4 +1,4 @@
-"""User rig files in TOML: :func:`load_rig` turns a file into a :class:`gearjax.rigs.registry.Rig`.
+"""User rig files in TOML: :func:`load_rig` turns a file into a :class:`gearjax.rigs.rig.Rig`.
 
 A rig file describes everything Section 6.1 of Velex & Ajmi needs for a geared test rig:
 the gear pair (Table 1), the operating torque, the shaft lines (Timoshenko elements), the
@@ -8,7 +8,7 @@ modifications. ``examples/rigs/baud_velex_spur.toml`` reproduces the built-in
 ``baud-velex-spur`` rig (same ``M`` and ``K``); every CLI command accepts
 ``--rig FILE.toml``.
 
-Any problem in a file raises :class:`gearjax.rigs.registry.RigError` whose message names the
+Any problem in a file raises :class:`gearjax.errors.RigError` whose message names the
 field path (``bearing[2].k_S_N_per_m``; array-of-table indices are 0-based, in file
 order), the value found and why it is wrong. Unknown keys are errors too (with a
 "did you mean" suggestion), so a typo never silently falls back to a default.
@@ -107,7 +107,7 @@ Nodes are declared by the shafts' node lists and the ``[[node]]`` tables; they m
 numbered ``first_node, first_node + 1, ...`` without gaps, and every other reference
 (disc, bearing, coupling, pinion/gear/motor node, encoders) must name a declared node.
 Internally nodes are 0-based (``index = number - first_node``); the returned
-:class:`~gearjax.rigs.registry.Rig` uses internal indices, messages use the file's numbers.
+:class:`~gearjax.rigs.rig.Rig` uses internal indices, messages use the file's numbers.
 
 Checks made at load time, beyond types and ranges: the gear pair is valid
 (:class:`~gearjax.gears.geometry.GearPair`), every dof of every node has mass, the pinion and
@@ -133,7 +133,9 @@ except ModuleNotFoundError:  # Python 3.10
 
 from ..gears.geometry import GearPair, GeometryError
 from ..gears.modifications import ModificationError, ToothModifications
-from .registry import Rig, RigError
+from ..errors import RigError
+from .baud_velex import table1_relief
+from .rig import Rig
 from ..structure.assembly import Structure, StructureBuilder
 from ..structure.modal import modal_basis
 from ..structure.beams import DOF_NAMES, STEEL, ElementInputError, Material, disc_properties
@@ -397,7 +399,7 @@ def _shaft_nodes(r: _Reader) -> list[int]:
 
 # ----------------------------------------------------------------------------- parse
 def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-file") -> Rig:
-    """A :class:`~gearjax.rigs.registry.Rig` from the parsed TOML ``data`` (see the module
+    """A :class:`~gearjax.rigs.rig.Rig` from the parsed TOML ``data`` (see the module
     docstring for the schema); ``source`` names the file in error messages."""
     root = _Reader(source, "", data, (
         "name", "description", "first_node", "pinion_node", "gear_node", "motor_node",
@@ -590,6 +592,7 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
         motor_node=special["motor_node"],
         encoder_positions=encoders,
         modifications_default=mods,
+        relief_presets=table1_relief,  # --relief short/long: the Table 1 reliefs
     )
 
 

@@ -1,0 +1,69 @@
+"""The one model factory: :func:`build_model` turns a rig and its tooth modifications into
+a dynamic model, the sdof torsional model (Eqs. (16), (20), (47a)) or the 3D model of its
+shaft lines (Eqs. (14), (42), (48a)). The command line, the design objectives, the
+notebooks and the benchmarks build their models here, so the rig's defaults (torque,
+motor node, encoder positions, structure) are applied in one place.
+"""
+
+from __future__ import annotations
+
+from ..errors import ModelError
+from ..gears.mesh import Mesh
+from ..gears.modifications import ToothModifications
+from ..models.geared3d import Geared3DModel
+from ..models.torsional import TorsionalModel
+from .rig import Rig
+
+__all__ = ["MODELS", "build_model"]
+
+MODELS = ("3d", "torsional")
+
+
+def build_model(
+    rig: Rig,
+    mods: ToothModifications | None = None,
+    *,
+    model: str = "3d",
+    law: str = "iso6336",
+    cells_per_line: int | None = None,
+    mesh: Mesh | None = None,
+    encoder_position: int = 1,
+    max_frequency_hz: float | None = None,
+    **kwargs,
+) -> TorsionalModel | Geared3DModel:
+    """The dynamic model of ``rig`` with tooth modifications ``mods`` (default none).
+
+    Parameters
+    ----------
+    rig : a built-in rig or a rig file (:func:`gearjax.rigs.registry.get_rig`).
+    model : ``"3d"`` (the rig's structure with the pinion-gear element,
+        :meth:`Geared3DModel.build`) or ``"torsional"`` (sdof, default inertias,
+        :meth:`TorsionalModel.build`).
+    law, cells_per_line : mesh stiffness law and cells per contact line of the mesh built
+        from ``rig.pair``; ``mesh`` instead: a ready mesh of that pair.
+    encoder_position : 3D: the rig's encoder position (Fig. 7) defining TE and DTE
+        (``encoder_nodes=`` overrides it); the torsional model has none and ignores it.
+    max_frequency_hz : 3D: modal cut-off (Hz) of the reduced model, None: all modes
+        (:func:`gearjax.models.geared3d.default_max_frequency_hz` gives the rule used by the
+        command line); must stay None for the torsional model.
+    kwargs : go to the model's ``build`` (``formulation``, ``damping_ratio``,
+        ``nlte_terms``, ``max_frequency_hz``, ...). Defaults taken from the rig:
+        ``pinion_torque_Nm`` (C_m0, N m) and, 3D, ``torque_node`` (the motor node) and
+        ``encoder_nodes``.
+    """
+    if model not in MODELS:
+        raise ModelError("model", model, f"must be one of {MODELS}")
+    if mesh is None:
+        mesh = Mesh.build(rig.pair, law, cells_per_line=cells_per_line)
+    kwargs.setdefault("pinion_torque_Nm", rig.pinion_torque_Nm)
+    if model == "torsional":
+        if max_frequency_hz is not None:
+            raise ModelError("max_frequency_hz", max_frequency_hz,
+                             "the torsional model has no modal cut-off")
+        return TorsionalModel.build(mesh, mods, **kwargs)
+    kwargs.setdefault("torque_node", rig.torque_node)
+    if "encoder_nodes" not in kwargs:
+        kwargs["encoder_nodes"] = rig.encoder_nodes(encoder_position)
+    return Geared3DModel.build(rig.structure(), mesh, mods, max_frequency_hz=max_frequency_hz,
+                               **kwargs)
+
