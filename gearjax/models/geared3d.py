@@ -384,50 +384,6 @@ class Geared3DModel(AbstractGearModel):
             harmonic_start=bool(harmonic_start), **layout,
         )
 
-    @classmethod
-    def baud_velex(
-        cls,
-        helical: bool = False,
-        mods: ToothModifications | None = None,
-        *,
-        law: str = "iso6336",
-        cells_per_line: int | None = None,
-        encoder_position: int = 1,
-        **kwargs,
-    ) -> "Geared3DModel":
-        """The Baud & Velex rig of Section 6.1 (258 dof, Table 1 gears, Table 2 bearings,
-        254.8 N m on the motor node); ``kwargs`` go to :meth:`build`."""
-        from ..gears.geometry import baud_velex_pair
-        from ..rigs.baud_velex import MOTOR_NODE, baud_velex_structure, encoder_nodes
-
-        mesh = Mesh.build(baud_velex_pair(helical), law, cells_per_line=cells_per_line)
-        kwargs.setdefault("torque_node", MOTOR_NODE)
-        kwargs.setdefault("encoder_nodes", encoder_nodes(encoder_position))
-        return cls.build(baud_velex_structure(), mesh, mods, **kwargs)
-
-    @classmethod
-    def from_rig(
-        cls,
-        rig,
-        mods: ToothModifications | None = None,
-        *,
-        law: str = "iso6336",
-        cells_per_line: int | None = None,
-        encoder_position: int = 1,
-        mesh: Mesh | None = None,
-        **kwargs,
-    ) -> "Geared3DModel":
-        """A 3D model of a :class:`gearjax.rigs.registry.Rig` (built-in or rig file): its structure,
-        gear pair, motor node, torque and encoder positions; ``mesh`` (default: built from
-        the rig's pair with ``law`` and ``cells_per_line``) a ready mesh of that pair;
-        ``kwargs`` go to :meth:`build`."""
-        if mesh is None:
-            mesh = Mesh.build(rig.pair, law, cells_per_line=cells_per_line)
-        kwargs.setdefault("torque_node", rig.torque_node)
-        kwargs.setdefault("encoder_nodes", rig.encoder_nodes(encoder_position))
-        kwargs.setdefault("pinion_torque_Nm", rig.pinion_torque_Nm)
-        return cls.build(rig.structure(), mesh, mods, **kwargs)
-
     # ------------------------------------------------------------------ constants
     @property
     def cos_bb(self) -> float:
