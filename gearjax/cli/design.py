@@ -15,14 +15,11 @@ import time
 import numpy as np
 
 from ..dynamics import watchdog
+from ..errors import DesignError
 
 __all__ = ["register"]
 
 _OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
-
-
-class _Bad(ValueError):
-    pass
 
 
 def _range(text: str, option: str, lo: float, hi: float, integer_n: bool = True):
@@ -30,9 +27,9 @@ def _range(text: str, option: str, lo: float, hi: float, integer_n: bool = True)
         a, b, n = text.split(":")
         a, b, n = float(a), float(b), int(n)
     except ValueError:
-        raise _Bad(f"{option}={text!r}: expected A:B:N, e.g. 300:500:8") from None
+        raise DesignError(f"{option}={text!r}: expected A:B:N, e.g. 300:500:8") from None
     if not (lo <= a <= b <= hi and n >= 1 and math.isfinite(b)):
-        raise _Bad(f"{option}={text!r}: need {lo:g} <= A <= B <= {hi:g} and N >= 1")
+        raise DesignError(f"{option}={text!r}: need {lo:g} <= A <= B <= {hi:g} and N >= 1")
     return np.linspace(a, b, n)
 
 
@@ -94,13 +91,13 @@ def _setup(args, separate=False):
     from .outputs import prepare_output_dir
 
     if not (0.0 <= args.damping < 1.0):
-        raise _Bad(f"--damping={args.damping!r}: must lie in [0, 1)")
+        raise DesignError(f"--damping={args.damping!r}: must lie in [0, 1)")
     prepare_output_dir("--out", args.out)  # before any computing: created and writable
     speeds = _range(args.speeds, "--speeds", 1e-6, 1e6)
     amps = _range(args.amplitudes, "--amplitudes", 0.0, 40e-6)
     if args.max_frequency is not None and not (math.isfinite(args.max_frequency)
                                                and args.max_frequency >= 0):
-        raise _Bad(f"--max-frequency={args.max_frequency!r}: need a cut-off >= 0 Hz (0: all modes)")
+        raise DesignError(f"--max-frequency={args.max_frequency!r}: need a cut-off >= 0 Hz (0: all modes)")
     rig = get_rig(args.rig)
     mesh = Mesh.build(rig.pair, args.stiffness)
     space = ReliefSpace(shape=args.shape, shared=not separate)
@@ -109,9 +106,9 @@ def _setup(args, separate=False):
         try:
             inertias = tuple(float(v) for v in inertias.split(","))
         except ValueError:
-            raise _Bad(f"--inertias={args.inertias!r}: expected 'bodies' or J1,J2") from None
+            raise DesignError(f"--inertias={args.inertias!r}: expected 'bodies' or J1,J2") from None
         if len(inertias) != 2 or not all(math.isfinite(v) and v > 0 for v in inertias):
-            raise _Bad(f"--inertias={args.inertias!r}: need two finite values > 0 (kg m^2)")
+            raise DesignError(f"--inertias={args.inertias!r}: need two finite values > 0 (kg m^2)")
     kw = {}
     if args.objective in ("peak-force", "dynamic-factor", "dte-ptp"):
         kw = dict(formulation=args.formulation, damping_ratio=args.damping,
@@ -136,7 +133,7 @@ def _cmd_harris_map(args) -> int:
 
     try:
         rig, obj, amps, exts = _setup(args)
-    except _Bad as exc:
+    except DesignError as exc:
         return _fail(str(exc))
     hmap = harris_map(obj, amps, exts)
     os.makedirs(args.out, exist_ok=True)
@@ -173,7 +170,7 @@ def _cmd_optimise(args) -> int:
         return _fail(f"--learning-rate={args.learning_rate}: must lie in (0, 10]")
     try:
         rig, obj, amps, exts = _setup(args, separate=args.separate)
-    except _Bad as exc:
+    except DesignError as exc:
         return _fail(str(exc))
     starts = coarse_starts(obj.space, args.starts)
     steps = [time.monotonic()]
