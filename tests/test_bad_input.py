@@ -73,6 +73,7 @@ CASES = [
     (["stability", "--max-frequency", "nan"], ["--max-frequency", ">= 0 Hz"]),
     (["sweep", "--chunk", "0", "--model", "torsional"], ["--chunk=0"]),
     (["sweep", "--resume", "--overwrite", "--model", "torsional"], ["--resume", "--overwrite"]),
+    (["sweep", "--resume", "--distributed"], ["--resume", "several processes"]),
     (["quasistatic", "--relief-extent", "1.5"], ["relief_extent"]),
     (["quasistatic", "--relief-amplitude=-1e-6"], ["relief_amplitude_m"]),
     (["quasistatic", "--positions", "2"], ["--positions=2"]),
