@@ -2,9 +2,10 @@
 Floquet stability maps, for the sdof torsional model and the 3D model.
 
 Registered by :mod:`gearjax.cli.main` (``_EXTENSIONS``). The commands parse options, build the
-models with :func:`build_dynamic_model` and format results; the physics lives in
-:mod:`gearjax.models`, :mod:`gearjax.dynamics.simulate`, :mod:`gearjax.dynamics.sweep` and
-:mod:`gearjax.dynamics.stability`.
+models with :func:`gearjax.rigs.factory.build_model` and format results; the physics lives
+in :mod:`gearjax.models`, :mod:`gearjax.dynamics.simulate`, :mod:`gearjax.dynamics.sweep`,
+:mod:`gearjax.dynamics.stability` and :mod:`gearjax.rigs.figures` (predicted critical
+speeds).
 
 Section 6.3 cases (Velex & Ajmi), one command each (``--speeds`` to taste)::
 
@@ -44,8 +45,10 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
     CUTOFF_MESH_HARMONICS,
     default_max_frequency_hz,
 )
+from ..rigs.factory import build_model
+from ..rigs.figures import predicted_critical_speeds
 
-__all__ = ["register", "build_dynamic_model", "case_name", "summarise_sweep",
+__all__ = ["register", "case_name", "summarise_sweep",
            "default_max_frequency_hz", "modal_cutoff"]
 
 FORMULATIONS = ("reference", "te", "perturbation")
@@ -172,29 +175,6 @@ def _check_damping(z: float):
         raise ValueError(f"--damping={z!r}: the modal damping factor must lie in [0, 1)")
 
 
-def build_dynamic_model(rig, mods, *, model: str, formulation: str, law: str = "iso6336",
-                        damping: float = 0.1, encoders: int = 1, nlte_terms: bool | None = None,
-                        max_frequency_hz: float | None = 6000.0):
-    """The dynamic model of a CLI scenario: :class:`~gearjax.models.torsional.TorsionalModel`
-    (default inertias, see its docstring) or :class:`~gearjax.models.geared3d.Geared3DModel`
-    of the rig (``max_frequency_hz`` None or 0: all modes)."""
-    if model == "torsional":
-        from ..gears.mesh import Mesh
-        from ..models.torsional import TorsionalModel
-
-        return TorsionalModel.build(
-            Mesh.build(rig.pair, law), mods, pinion_torque_Nm=rig.pinion_torque_Nm,
-            damping_ratio=damping, formulation=formulation, nlte_terms=nlte_terms,
-        )
-    from ..models.geared3d import Geared3DModel
-
-    return Geared3DModel.from_rig(
-        rig, mods, law=law, encoder_position=encoders, formulation=formulation,
-        damping_ratio=damping, nlte_terms=nlte_terms,
-        max_frequency_hz=max_frequency_hz if max_frequency_hz else None,
-    )
-
-
 def case_name(args, scenario=None) -> str:
     """Folder name of a sweep case, e.g. ``baud-velex-spur-3d-short-zeta0.1-enc1``
     (``scenario``: the :class:`gearjax.cli.scenario.Scenario` used, naming its relief)."""
@@ -219,43 +199,6 @@ def _forms(text: str) -> list[str]:
     if bad or not forms:
         raise ValueError(f"--formulations={text!r}: choose from reference,te,perturbation")
     return list(dict.fromkeys(forms))
-
-
-def predicted_critical_speeds(model, speeds_rad_s=None) -> dict:
-    """Main tooth critical pinion speed predicted from the modes (``Omega1 = omega / z1``).
-
-    * ``mode_*``: the mode with the largest share of strain energy in the mesh,
-      ``k_m (phi^T V)^2 / omega^2`` (mass-normalised modes of ``(M, K_bar)``; the shares sum
-      to ``k_m C_vv = 1``, Eq. (33)).
-    * ``critical_speed_rad_s``: the peak over ``speeds_rad_s`` (default 20-1500 rad/s) of the
-      mesh dynamic amplification ``|k_m C_vv(omega) - 1|`` at the mesh frequency
-      ``omega = z1 Omega1``, with the receptance ``C_vv(omega) = sum_j (phi_j^T V)^2 /
-      (omega_j^2 - omega^2 + 2 i zeta omega_j omega)`` (Eq. (33) at frequency omega): the
-      ratio of the dynamic to the quasi-static mesh deflection for the first mesh harmonic
-      of a TE excitation (Eq. (48a)); it accounts for close modes sharing the mesh energy.
-    * sdof model: ``omega_n`` for both.
-    """
-    z1 = model.mesh.pair.z1
-    if hasattr(model, "natural_frequency_rad_s"):
-        w = float(model.natural_frequency_rad_s())
-        return {"mode_frequency_hz": w / (2 * math.pi), "mesh_energy_share": 1.0,
-                "mode_critical_speed_rad_s": w / z1, "critical_speed_rad_s": w / z1}
-    n = model.n_modes
-    w = np.asarray(model.omega_r)
-    v = np.asarray(model.v_r)
-    k_m = float(model.k_m)
-    share = k_m * v[:n] ** 2 / np.where(w[:n] > 0, w[:n], np.inf) ** 2
-    j = int(np.argmax(share))
-    speeds = np.linspace(20.0, 1500.0, 2961) if speeds_rad_s is None else np.asarray(speeds_rad_s)
-    om = z1 * speeds
-    zeta = float(model.damping_ratio)
-    c = np.sum(v[None, :] ** 2 / (w[None, :] ** 2 - om[:, None] ** 2
-                                  + 2j * zeta * w[None, :] * om[:, None]), axis=1)
-    amp = np.abs(k_m * c - 1.0)
-    i = int(np.argmax(amp))
-    return {"mode_frequency_hz": float(w[j] / (2 * math.pi)), "mesh_energy_share": float(share[j]),
-            "mode_critical_speed_rad_s": float(w[j] / z1),
-            "critical_speed_rad_s": float(speeds[i]), "mesh_amplification_at_peak": float(amp[i])}
 
 
 def summarise_sweep(res, speeds) -> dict:
@@ -393,10 +336,10 @@ def cmd_sweep(args) -> int:
     try:
         for form in forms:
             t0 = time.perf_counter()
-            model = build_dynamic_model(rig, mods, model=args.model, formulation=form,
-                                        law=args.stiffness, damping=args.damping,
-                                        encoders=args.encoders, nlte_terms=nlte,
-                                        max_frequency_hz=cutoff_hz)
+            model = build_model(rig, mods, model=args.model, formulation=form,
+                                law=args.stiffness, damping_ratio=args.damping,
+                                encoder_position=args.encoders, nlte_terms=nlte,
+                                max_frequency_hz=cutoff_hz)
             _check_modes(args, model, cutoff_hz)
             t_build = time.perf_counter() - t0
             if "predicted" not in summary:
@@ -561,10 +504,11 @@ def cmd_stability(args) -> int:
     mods = scen.mods
     cutoff_hz, cutoff_source = modal_cutoff(args, rig, speeds) if args.model == "3d" else (None, None)
     _check_cutoff(args, rig, cutoff_hz)
-    model = build_dynamic_model(rig, mods, model=args.model, formulation=args.formulation,
-                                law=args.stiffness, damping=args.damping, encoders=args.encoders,
-                                nlte_terms=False if args.no_nlte_terms else None,
-                                max_frequency_hz=cutoff_hz)
+    model = build_model(rig, mods, model=args.model, formulation=args.formulation,
+                        law=args.stiffness, damping_ratio=args.damping,
+                        encoder_position=args.encoders,
+                        nlte_terms=False if args.no_nlte_terms else None,
+                        max_frequency_hz=cutoff_hz)
     _check_modes(args, model, cutoff_hz)
     t0 = time.perf_counter()
     rho = np.asarray(spectral_radius(model, speeds), dtype=float)
