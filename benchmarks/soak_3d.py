@@ -18,9 +18,13 @@ contact line, default tolerances) so that hundreds fit in a few minutes; ``--tes
 uses the slow test's setting instead (``tests/test_design.py::test_3d_dynamic_objective_
 gradients``: 3 kHz, 10 cells, tolerances 1e-11).
 
+gearjax sets XLA CPU flags on import (``gearjax/__init__.py``, issue 16); run with
+``GEARJAX_XLA_DEFAULTS=0`` in the environment to soak XLA's defaults instead.
+
 Examples::
 
     nice -n 10 timeout 1800 python benchmarks/soak_3d.py --evaluations 150 --timeout 120
+    GEARJAX_XLA_DEFAULTS=0 python benchmarks/soak_3d.py --evaluations 150 --test-setting
     python benchmarks/soak_3d.py --evaluations 30 --xla-flags=--xla_cpu_use_thunk_runtime=false
 """
 
@@ -82,7 +86,8 @@ def child(args) -> int:
         sm, ex, jac = obj.all_metrics(x)
         return float(jac[0, 0])
 
-    print(json.dumps({"event": "start", "pid": os.getpid(), "jax": jax.__version__}), flush=True)
+    print(json.dumps({"event": "start", "pid": os.getpid(), "jax": jax.__version__,
+                      "xla_flags": os.environ.get("XLA_FLAGS", "")}), flush=True)
     for i in range(args.start, args.evaluations):
         kind = KINDS[i % len(KINDS)]
         print(json.dumps({"event": "begin", "i": i, "kind": kind}), flush=True)
@@ -176,8 +181,8 @@ def parent(args) -> int:
                 if args.verbose:
                     print(f"{msg['i']:5d} {msg['kind']:7s} {msg['time_s']:8.3f} s", flush=True)
             elif msg["event"] == "start":
-                print(f"child pid {msg['pid']}, jax {msg['jax']}, XLA_FLAGS="
-                      f"{env.get('XLA_FLAGS', '')!r}", flush=True)
+                print(f"child pid {msg['pid']}, jax {msg['jax']}, XLA_FLAGS (after importing "
+                      f"gearjax) {msg.get('xla_flags', env.get('XLA_FLAGS', ''))!r}", flush=True)
     wall = time.perf_counter() - t_all
     import statistics
 

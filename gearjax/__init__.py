@@ -4,9 +4,32 @@ Implements Velex & Ajmi, "On the modelling of excitations in geared systems by
 transmission errors" (J. Sound Vib.): mesh model, quasi-static and no-load transmission
 errors, and the dynamic formulations Eqs. (14), (42), (48a). SI units throughout
 (m, N, kg, s, rad). Float64 is enabled on import.
+
+XLA CPU flags set on import (before jax's backend starts; set ``GEARJAX_XLA_DEFAULTS=0``
+to keep XLA's defaults, or name a flag in ``XLA_FLAGS`` to choose its value yourself):
+``--xla_cpu_experimental_ynn_fusion_type=`` and ``--xla_cpu_multi_thread_eigen=false``.
+jax 0.10.2 runs f64 dots as YNNPACK fusions that block an intra-op pool worker while
+fanning out into the same pool; repeated 3D steady-state evaluations hung there
+(issue 16; ``benchmarks/results/soak_3d.md``). They only matter on the CPU backend.
 """
 
-import jax
+import os as _os
+
+_CPU_FLAGS = ("--xla_cpu_experimental_ynn_fusion_type=", "--xla_cpu_multi_thread_eigen=false")
+
+
+def _set_cpu_flags():
+    flags = _os.environ.get("XLA_FLAGS", "")
+    if _os.environ.get("GEARJAX_XLA_DEFAULTS", "1") == "0":
+        return
+    add = [f for f in _CPU_FLAGS if f.split("=")[0] not in flags]
+    if add:
+        _os.environ["XLA_FLAGS"] = " ".join([flags, *add]).strip()
+
+
+_set_cpu_flags()
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
