@@ -111,9 +111,13 @@ Internally nodes are 0-based (``index = number - first_node``); the returned
 
 Checks made at load time, beyond types and ranges: the gear pair is valid
 (:class:`~gearjax.gears.geometry.GearPair`), every dof of every node has mass, the pinion and
-gear nodes are on different shaft lines, and the structure without the mesh has at most
-one rigid-body mode (the free rotation of the driving line, which the pinion-gear element
-removes, Section 4.2).
+gear nodes are on different shaft lines, no node is on two shaft lines, every number is in
+its physical range (``_RANGES``: stiffnesses up to 1e13 N/m and 1e9 N m/rad, diameters
+1 mm-10 m, elements at least 0.1 mm long, ...; a value outside is named with its range
+before any modal analysis), and the structure without the mesh has at most one rigid-body
+mode (the free rotation of the driving line, which the pinion-gear element removes,
+Section 4.2; extra zero-frequency modes that are only round-off of a too wide stiffness
+range are reported as such, not as missing supports).
 """
 
 from __future__ import annotations
