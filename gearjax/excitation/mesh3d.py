@@ -45,7 +45,8 @@ from .events import (
 from .tables import AngleMap, PeriodicHermiteTable
 
 __all__ = ["QuasiStaticMesh3D", "TableLayout", "scan_brackets", "jump_angles", "table_layout",
-           "tabulate"]
+           "tabulate",
+           "fourier_coefficients"]
 
 
 class QuasiStaticMesh3D(eqx.Module):
@@ -285,3 +286,17 @@ def tabulate(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, origin: float, 
         codes = jax.vmap(lambda t: qsm.state_code(t, True))(at)
         ok = jnp.all(codes == table_codes)
     return table, amap, ok
+
+
+def fourier_coefficients(f, origin: float, period: float, n_samples: int, n_h: int, theta0=0.0):
+    """(n_h + 1,) complex coefficients ``c_h`` of the periodic ``f(theta) = Re sum_h w_h c_h
+    exp(i h nu (theta - theta0))`` (``nu = 2 pi / period``, ``w_0 = 1``, ``w_h = 2``): the
+    DFT of ``n_samples`` uniform samples from ``origin`` (rad), shifted to ``theta0``. A
+    kinked ``f`` (``c_h = O(h^-2)``) aliases at O(n_samples^-2): sample finely (measured
+    in ``benchmarks/results/model_notes.md``)."""
+    th = origin + jnp.arange(n_samples) * (period / n_samples)
+    c = jnp.fft.rfft(jax.vmap(f)(th))[: n_h + 1] / n_samples
+    h = jnp.arange(n_h + 1)
+    nu = 2.0 * jnp.pi / period
+    return c * jnp.exp(1j * h * nu * (jnp.asarray(theta0, dtype=float) - origin))
+

@@ -31,18 +31,15 @@ k(theta), NLTE)`` once per design on a jump-aware periodic Hermite table
 and NLTE; ``excitation="inline"`` solves the contact at every right-hand side instead.
 
 Design derivatives (moving events): the angles where ``k`` jumps, NLTE' jumps or ``TE_S``
-kinks move with the tip relief. The tabulated formulations record the kind and cells of
-every event at build (:attr:`event_thetas`, :attr:`event_kinds`, :attr:`event_cells`,
-classified by :func:`gearjax.excitation.events.classify_events`), move them by Newton
-iterations on their switching functions (:meth:`jump_angles_rad`) and integrate in the
-simulation angle ``s`` with ``theta = phi(s)`` (:class:`gearjax.excitation.tables.AngleMap`,
-the identity at the build design): :meth:`vector_field` is ``phi'(s) dy/dtheta``. The
-model is complete when built; :meth:`with_modifications` returns the model of another
-design (traceable: table, map and :attr:`structure_ok` recomputed). ``k_m`` (the splitting
-constant of ``K_bar`` and the modal basis) stays the build value: exact for te, held fixed
-in the perturbation derivative. The map is valid while the design keeps the discrete
-quasi-static state of the build on each side of every knot (:attr:`structure_ok`). The
-reference formulation has no table and no map.
+kinks move with the tip relief. The tabulated formulations record every event at build
+(:attr:`event_thetas`, :attr:`event_kinds`, :attr:`event_cells`), move them by Newton on
+their switching functions (:meth:`jump_angles_rad`) and integrate in the simulation angle
+``s`` with ``theta = phi(s)`` (:class:`gearjax.excitation.tables.AngleMap`, the identity at
+the build design): :meth:`vector_field` is ``phi'(s) dy/dtheta``. The model is complete
+when built; :meth:`with_modifications` gives the model of another design (table, map and
+:attr:`structure_ok`, whether the design keeps the build's discrete quasi-static state,
+recomputed; traceable). ``k_m`` stays the build value (exact for te, held fixed in the
+perturbation derivative). The reference formulation has no table and no map.
 
 Inertial excitations (text after Eq. (14)): ``E`` (Eq. (5), :meth:`gearjax.structure.geared.
 GearedStructure.inertial_vector`) plus the eccentricity parts ``E~``, ``F~``, ``G~``
@@ -82,27 +79,19 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ModelError
-from ..excitation.mesh3d import QuasiStaticMesh3D, jump_angles, table_layout, tabulate
+from ..excitation.mesh3d import (QuasiStaticMesh3D, fourier_coefficients, jump_angles,
+                                 table_layout, tabulate)
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.quasistatic import contact_gaps, static_mesh_force
-from ..structure.condensation import Condensation, QuasiStatic3D
+from ..structure.condensation import Condensation, QuasiStatic3D, quasi_static_3d
 from ..structure.element import PinionGearElement
 from ..structure.geared import Eccentricity, disc_mass, geared_structure
-from .base import (
-    FORMULATIONS,
-    AbstractGearModel,
-    ModelOutputs,
-    modal_slowest_output_mode,
-    modal_transient_start,
-)
-from .cutoff import (  # re-exported: the rule used by the CLI and the design objectives
-    CUTOFF_FLOOR_HZ,
-    CUTOFF_MARGIN,
-    CUTOFF_MESH_HARMONICS,
-    default_max_frequency_hz,
-)
+from .base import (FORMULATIONS, AbstractGearModel, ModelOutputs, modal_slowest_output_mode,
+                   modal_transient_start)
+from .cutoff import (CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS,  # re-exported
+                     default_max_frequency_hz)
 
 __all__ = ["Geared3DModel", "MESH_VECTORS", "default_max_frequency_hz", "CUTOFF_FLOOR_HZ",
            "CUTOFF_MARGIN", "CUTOFF_MESH_HARMONICS"]
@@ -306,12 +295,9 @@ class Geared3DModel(AbstractGearModel):
         if int(n_table) < 16:
             raise ModelError("n_table", n_table, "must be >= 16 samples per mesh period")
         theta_tab = np.arange(n_tab) * (period / n_tab)
-        scan = QuasiStaticMesh3D(
-            mesh=mesh, mods=mods, element=el, cond=cond, v_local=jnp.asarray(v12),
-            free12=jnp.asarray(mask12), static_force_N=jnp.asarray(f_s), v_x0=jnp.zeros(()),
-            c_vv=jnp.ones(()), c_wv=jnp.ones(()), mesh_vectors=mesh_vectors,
-            qs_max_iter=int(qs_max_iter), nlte_terms=True, loaded_codes=False)
-        qs = jax.jit(jax.vmap(scan.solve))(jnp.asarray(theta_tab))
+        qs = jax.jit(jax.vmap(lambda t: quasi_static_3d(
+            cond, el, mods, t, f_s, jnp.asarray(v12), mesh_vectors, qs_max_iter,
+            jnp.asarray(mask12))))(jnp.asarray(theta_tab))
         if not bool(np.all(np.asarray(qs.converged))):
             bad = theta_tab[~np.asarray(qs.converged)]
             raise ModelError("qs_max_iter", qs_max_iter, f"active set did not converge at theta={bad[:3]}")
@@ -399,10 +385,6 @@ class Geared3DModel(AbstractGearModel):
     def static_force_N(self):
         """F_S = C_m0 / (Rb1 cos b_b) (N)."""
         return self.pinion_torque_Nm / (self.mesh.pair.base_radii_m[0] * self.cos_bb)
-
-    @property
-    def output_names(self) -> tuple[str, ...]:
-        return ("mesh_force_N", "dte_m", "accel_m_s2")
 
     @property
     def n_reduced(self) -> int:
@@ -657,17 +639,11 @@ class Geared3DModel(AbstractGearModel):
         m = self
         n_mesh = max(1, round(m.period_rad / m.mesh_period_rad))
         n_h = 128 * n_mesh if n_harmonics is None else int(n_harmonics)
-        # sample d 8x finer than the table knots: the DFT of a kinked signal aliases at
-        # O(N^-2) (measured: 1e-4 of the state at 128 samples per mesh period)
-        n = 8 * max(m.table_cells, 2 * n_h + 2)
-        period = m.period_rad
-        th = m.table_origin + jnp.arange(n) * (period / n)
-        d = jax.vmap(lambda t: m._excitation(t)[0])(th)
-        c = jnp.fft.rfft(d)[: n_h + 1] / n
+        # d sampled 8x finer than the table knots (aliasing of a kinked signal)
+        c = fourier_coefficients(lambda t: m._excitation(t)[0], m.table_origin, m.period_rad,
+                                 8 * max(m.table_cells, 2 * n_h + 2), n_h, theta0)
         h = jnp.arange(n_h + 1)
-        nu = 2.0 * jnp.pi / period
-        # coefficients of d(theta) = sum c_h exp(i h nu (theta - origin)), at theta0
-        c = c * jnp.exp(1j * h * nu * (jnp.asarray(theta0, dtype=float) - m.table_origin))
+        nu = 2.0 * jnp.pi / m.period_rad
         w_h = h * nu * omega
         r = m.n_reduced
         eye = jnp.eye(r)
