@@ -1,4 +1,5 @@
-"""Figures: quasi-static transmission errors and load sharing (more come with the sweeps).
+"""Every figure: quasi-static transmission errors and load sharing, response curves and
+mesh-force signals of the sweeps, design maps, optimisation histories and Harris plots.
 
 Matplotlib is imported lazily with the non-interactive Agg backend so that the CLI works on
 machines without a display.
@@ -8,7 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_quasistatic"]
+from .design.maps import HarrisMap
+from .design.optimise import OptimisationResult
+
+__all__ = ["plot_quasistatic", "plot_response_curves", "plot_mesh_force_signals",
+           "plot_design_map", "plot_history", "plot_harris"]
 
 
 def _pyplot():
@@ -112,3 +117,81 @@ def plot_mesh_force_signals(signals: dict, path: str, title: str = ""):
         fig.suptitle(title)
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+# ---------------------------------------------------------------------------- design
+_UNITS = {"peak-force": ("peak dynamic mesh force", 1e-3, "kN"),
+          "dynamic-factor": ("peak dynamic factor", 1.0, "-"),
+          "dte-ptp": ("peak DTE peak-to-peak", 1e6, "um"),
+          "te-ptp": ("TE$_S$ peak-to-peak", 1e6, "um"),
+          "te-rms": ("TE$_S$ RMS fluctuation", 1e6, "um")}
+
+
+def plot_design_map(hmap: HarrisMap, path: str, results=(), marks: dict | None = None,
+                    title: str = ""):
+    """Contour map of the exact objective over (extent, amplitude) with optimiser paths
+    (``results``: :class:`OptimisationResult` of a shared relief) and named points
+    (``marks``: ``{label: (amplitude_m, extent)}``)."""
+    plt = _pyplot()
+    label, f, unit = _UNITS.get(hmap.objective, (hmap.objective, 1.0, ""))
+    fig, ax = plt.subplots(figsize=(7, 5.5), constrained_layout=True)
+    cs = ax.contourf(hmap.extents, hmap.amplitudes_m * 1e6, hmap.exact * f, levels=24,
+                     cmap="viridis")
+    fig.colorbar(cs, ax=ax, label=f"{label} [{unit}]")
+    for k, r in enumerate(results):
+        xs = np.array([h["x"] for h in r.history])
+        ax.plot(xs[:, 1], xs[:, 0] * 1e6, "w.-", lw=1.0, ms=3,
+                label="optimiser paths" if k == 0 else None)
+        ax.plot(xs[-1, 1], xs[-1, 0] * 1e6, "r*", ms=10)
+    for name, (a, e) in (marks or {}).items():
+        ax.plot(e, a * 1e6, "o", mfc="none", mec="w", ms=9)
+        ax.annotate(name, (e, a * 1e6), color="w", xytext=(5, 5), textcoords="offset points")
+    ax.set_xlabel("relief extent L$_c$ [fraction of path of contact]")
+    ax.set_ylabel("relief amplitude P$_c$ [um]")
+    ax.set_title(title or f"Harris map: {label}")
+    if results:
+        ax.legend(loc="upper right")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_history(results, path: str, objective: str = "", title: str = ""):
+    """Smoothed and exact objective against iteration for one or several runs."""
+    plt = _pyplot()
+    if isinstance(results, OptimisationResult):
+        results = [results]
+    label, f, unit = _UNITS.get(objective, (objective or "objective", 1.0, ""))
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    for k, r in enumerate(results):
+        it = [h["iteration"] for h in r.history]
+        (ln,) = ax.plot(it, [h["exact"] * f for h in r.history], "-", lw=1.4,
+                        label="exact" if k == 0 else None)
+        ax.plot(it, [h["smooth"] * f for h in r.history], "--", lw=1.0, color=ln.get_color(),
+                label="smoothed" if k == 0 else None)
+    ax.set_xlabel("iteration")
+    ax.set_ylabel(f"{label} [{unit}]")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title(title or "optimisation history")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_harris(curves: dict, path: str, title: str = ""):
+    """Classic Harris plot: TE_S peak-to-peak (um) against pinion torque (N m)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    t = curves["torques_Nm"]
+    for name, v in curves.items():
+        if name != "torques_Nm":
+            ax.plot(t, np.asarray(v) * 1e6, "-o", ms=3, label=name)
+    ax.set_xlabel("pinion torque C$_{m0}$ [N m]")
+    ax.set_ylabel("TE$_S$ peak-to-peak [um]")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title(title or "Harris plot")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path

@@ -129,7 +129,8 @@ def _setup(args, separate=False):
 
 
 def _cmd_harris_map(args) -> int:
-    from ..design import harris_map, plot_design_map
+    from ..design import harris_map
+    from ..plotting import plot_design_map
 
     try:
         rig, obj, amps, exts = _setup(args)
@@ -160,7 +161,8 @@ def _cmd_harris_map(args) -> int:
 
 
 def _cmd_optimise(args) -> int:
-    from ..design import coarse_starts, harris_map, multi_start, plot_design_map, plot_history
+    from ..design import coarse_starts, harris_map, multi_start
+    from ..plotting import plot_design_map, plot_history
 
     if args.starts < 1:
         return _fail(f"--starts={args.starts}: need at least 1 start per variable")

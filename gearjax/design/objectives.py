@@ -1,0 +1,403 @@
+"""Design objectives: quasi-static TE_S (:class:`QuasiStaticObjective`) and dynamic steady-state
+metrics (:class:`DynamicObjective`) of a tip-relief design, their smooth maxima and
+:func:`make_objective` (see :mod:`gearjax.design` for the objectives and the 3D model)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import DesignError
+from ..gears.mesh import Mesh
+from ..gears.quasistatic import quasi_static, static_mesh_force
+from .spaces import ReliefSpace
+
+__all__ = ["OBJECTIVES", "DYNAMIC_OBJECTIVES", "DESIGN_MODELS", "DEFAULT_SHARPNESS", "DESIGN_INERTIAS", "design_inertias", "smooth_max", "Evaluation", "QuasiStaticObjective", "DynamicObjective", "make_objective"]
+
+
+OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
+DYNAMIC_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp")
+DESIGN_MODELS = ("torsional", "3d")
+DEFAULT_SHARPNESS = 200.0
+DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (module docstring)
+
+
+def design_inertias(mesh: Mesh, inertias_kg_m2=DESIGN_INERTIAS) -> tuple:
+    """(J1, J2) (kg m^2): ``"bodies"`` -> solid cylinders at the pitch radii with the face
+    widths (:func:`gearjax.models.torsional.solid_cylinder_inertias`), else the two values
+    given."""
+    from ..models.torsional import solid_cylinder_inertias
+
+    if isinstance(inertias_kg_m2, str):
+        if inertias_kg_m2 != "bodies":
+            raise DesignError("inertias_kg_m2", inertias_kg_m2, "'bodies' or (J1, J2) in kg m^2")
+        return tuple(float(v) for v in solid_cylinder_inertias(mesh.pair))
+    j = np.asarray(inertias_kg_m2, dtype=float)
+    if j.shape != (2,) or not np.all(np.isfinite(j)) or np.any(j <= 0):
+        raise DesignError("inertias_kg_m2", inertias_kg_m2, "need two finite values > 0 (kg m^2)")
+    return (float(j[0]), float(j[1]))
+
+
+def smooth_max(v, sharpness: float = DEFAULT_SHARPNESS, scale=1.0):
+    """``scale * logsumexp(sharpness * v / scale) / sharpness`` over all entries of ``v``:
+    a differentiable upper bound of ``max v``, exceeding it by at most ``scale ln(n) /
+    sharpness``."""
+    v = jnp.ravel(jnp.asarray(v))
+    return scale * jax.scipy.special.logsumexp(sharpness * v / scale) / sharpness
+
+
+class Evaluation(eqx.Module):
+    """One evaluation of an objective at a design.
+
+    Attributes
+    ----------
+    x : the design (see :class:`ReliefSpace`).
+    smooth : the smoothed objective (what the optimiser descends), SI units.
+    exact : the exact maximum / value beside it.
+    grad : d smooth / d x (same units over those of x), or None.
+    per_case : the per-speed (dynamic) or per-load (quasi-static) values.
+    structure_ok : the model's discrete structure matched (dynamic objectives), else True.
+    """
+
+    x: np.ndarray
+    smooth: float
+    exact: float
+    grad: np.ndarray | None
+    per_case: np.ndarray
+    structure_ok: bool = True
+
+
+def _value_and_jac(f, jac=jax.jacfwd):
+    """``x -> (df/dx, (f, aux))`` for ``f(x) = (value, aux)``, one pass."""
+    def g(x):
+        v, aux = f(x)
+        return v, (v, aux)
+
+    return jac(g, has_aux=True)
+
+
+# ---------------------------------------------------------------------------- quasi-static
+class QuasiStaticObjective:
+    """TE_S fluctuation objective ``"te-ptp"`` or ``"te-rms"`` (m) on one mesh period.
+
+    Parameters
+    ----------
+    mesh : the mesh (stiffness law, cells).
+    space : the :class:`ReliefSpace`.
+    torques_Nm : one or several pinion torques C_m0 (N m) (F_S = C_m0 / (Rb1 cos b_b)).
+    kind : ``"te-ptp"`` or ``"te-rms"``. For te-rms the smoothed value (the one descended)
+        is the mean square fluctuation over the loads divided by the scale (m): the RMS has
+        a V-shaped (non-differentiable) minimum where the fluctuation vanishes, the mean
+        square a smooth one; ``exact`` is the RMS (m).
+    n_positions : angles per mesh period.
+    sharpness : beta of the smooth maxima (module docstring); scale = mean static mesh
+        deflection F_S / (k_m cos b_b) at the first torque, k_m the mean geometric
+        mesh stiffness.
+    model : ``"torsional"`` (default: TE_S of the rigid-body mesh, Eq. (17)) or ``"3d"``
+        (TE_S = W^T X_S + NLTE of the 3D quasi-static solution of ``rig``, Eqs. (10),
+        (25): shaft and bearing deflections included, the load applied at the rig's
+        torque node and scaled linearly with the torque).
+    rig : the :class:`gearjax.rigs.registry.Rig` of a 3D objective.
+    """
+
+    def __init__(self, mesh: Mesh, space: ReliefSpace, torques_Nm=254.8, kind: str = "te-rms",
+                 n_positions: int = 256, sharpness: float = DEFAULT_SHARPNESS,
+                 model: str = "torsional", rig=None):
+        if kind not in ("te-ptp", "te-rms"):
+            raise DesignError("objective", kind, "quasi-static objectives are 'te-ptp', 'te-rms'")
+        if model not in DESIGN_MODELS:
+            raise DesignError("model", model, f"must be one of {DESIGN_MODELS}")
+        if model == "3d" and rig is None:
+            raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.registry.get_rig)")
+        torques = np.atleast_1d(np.asarray(torques_Nm, dtype=float))
+        if torques.ndim != 1 or not np.all(np.isfinite(torques)) or np.any(torques <= 0):
+            raise DesignError("torques_Nm", torques.tolist(), "need finite torques > 0 (N m)")
+        if int(n_positions) < 16:
+            raise DesignError("n_positions", n_positions, "need >= 16 angles per mesh period")
+        self.mesh, self.space, self.kind = mesh, space, kind
+        self.forces_N = np.array([static_mesh_force(mesh.pair, t) for t in torques])
+        self.torques_Nm = torques
+        self.theta = mesh.theta_grid(int(n_positions))
+        self.sharpness = float(sharpness)
+        cos_bb = math.cos(mesh.pair.base_helix_angle_rad)
+        self.scale_m = float(self.forces_N[0] / (float(mesh.mean_stiffness()) * cos_bb))
+        self.model_type, self.model3d = model, None
+        if model == "3d":
+            from ..rigs.factory import build_model
+
+            self.model3d = build_model(
+                rig, None, mesh=mesh, pinion_torque_Nm=float(torques[0]),
+                formulation="reference", max_frequency_hz=1000.0)  # quasi-static: no modes used
+        self._value = eqx.filter_jit(self._values)
+        self._vjac = eqx.filter_jit(_value_and_jac(self._values))
+        self._grid = eqx.filter_jit(jax.vmap(self._values))
+
+    def _values(self, x):
+        mods = self.space.mods(x)
+        beta, s = self.sharpness, self.scale_m
+
+        def per_load(f):
+            if self.model3d is None:
+                te = quasi_static(self.mesh, mods, self.theta, f).te_s_m
+            else:  # the 3D static load is linear in the torque (F_0 at the torque node)
+                m, r = self.model3d, f / self.forces_N[0]
+                m = eqx.tree_at(lambda m: (m.mods, m.cond.f_c, m.cond.c_w, m.cond.x0_local,
+                                           m.pinion_torque_Nm),
+                                m, (mods, m.cond.f_c * r, m.cond.c_w * r, m.cond.x0_local * r,
+                                    m.pinion_torque_Nm * r))
+                te = jax.vmap(lambda t: m.quasi_static(t).te_s_m)(jnp.asarray(self.theta))
+            if self.kind == "te-rms":
+                v = jnp.sqrt(jnp.mean((te - jnp.mean(te)) ** 2))
+                return v, v
+            smooth = smooth_max(te, beta, s) + smooth_max(-te, beta, s)
+            return smooth, jnp.max(te) - jnp.min(te)
+
+        sm, ex = jax.vmap(per_load)(jnp.asarray(self.forces_N))
+        if self.kind == "te-rms":  # descend the mean square (smooth at a zero minimum)
+            return jnp.mean(sm**2) / s, (jnp.sqrt(jnp.mean(ex**2)), ex)
+        return smooth_max(sm, beta, s), (jnp.max(ex), ex)
+
+    def __call__(self, x, grad: bool = True) -> Evaluation:
+        x = self.space.check(x)
+        if grad:
+            g, (sm, (ex, per)) = self._vjac(jnp.asarray(x))
+            return Evaluation(x, float(sm), float(ex), np.asarray(g), np.asarray(per))
+        sm, (ex, per) = self._value(jnp.asarray(x))
+        return Evaluation(x, float(sm), float(ex), None, np.asarray(per))
+
+    def grid(self, xs) -> tuple[np.ndarray, np.ndarray]:
+        """(smooth, exact) at every row of ``xs`` (n, size), one vmapped call."""
+        sm, (ex, _) = self._grid(jnp.asarray(xs, dtype=float))
+        return np.asarray(sm), np.asarray(ex)
+
+
+# ---------------------------------------------------------------------------- dynamic
+class DynamicObjective:
+    """Dynamic objective over a speed range, sdof torsional or 3D model.
+
+    Parameters
+    ----------
+    mesh : the mesh.
+    space : the :class:`ReliefSpace`; linear reliefs get their extent bound lowered below
+        the pair's equal-slope limit (:meth:`ReliefSpace.for_dynamics`), see :attr:`space`.
+    speeds_rad_s : pinion speeds Omega1 (rad/s) over which the maximum is taken.
+    kind : ``"peak-force"`` (N), ``"dynamic-factor"`` or ``"dte-ptp"`` (m).
+    model : ``"torsional"`` (default; Eqs. (16), (20), (47a)) or ``"3d"`` (the 3D model of
+        ``rig``, Eqs. (14), (42), (48a), reduced to the modes below ``max_frequency_hz``).
+    rig : the :class:`gearjax.rigs.registry.Rig` of a 3D objective (structure, torque node,
+        encoder position 1).
+    formulation : ``"perturbation"`` (Eq. (47a) / (48a), default), ``"te"`` (Eq. (20) /
+        (42)) or ``"reference"`` (Eq. (16) / (14)); see the module docstring,
+        "Formulation". The 3D perturbation formulation holds its splitting constant k_m
+        at the build design (module docstring, "3D model").
+    pinion_torque_Nm, inertias_kg_m2, damping_ratio : model data (defaults: 254.8 N m,
+        :data:`DESIGN_INERTIAS` (the gear bodies, sdof only), 0.03).
+    nlte_reaction : ``"drive"`` (default) or ``"pinion"`` (module docstring, "Inertias";
+        sdof only).
+    max_frequency_hz : modal cut-off of the 3D model (Hz; None: all modes); default
+        ``"auto"``: :func:`gearjax.models.geared3d.default_max_frequency_hz` of the highest
+        speed (3 mesh harmonics x 1.5, at least 6 kHz: 16.8 kHz up to 900 rad/s on the
+        Baud-Velex rig, whose mesh modes lie at 3.4-3.5 kHz).
+    method : ``"transient"`` (:func:`gearjax.dynamics.simulate.simulate`, transient then measured
+        periods; default for the sdof model) or ``"steady"`` (periodic steady state by
+        shooting, :func:`gearjax.dynamics.steady.steady_state`; default for the 3D model, whose
+        slow shaft-line modes would need long transients).
+    sharpness : beta of the smooth maximum over speeds (module docstring).
+    n_table : table knots per mesh period of the model.
+    sim_kwargs : options of :func:`gearjax.dynamics.simulate.simulate` (or of
+        :func:`gearjax.dynamics.steady.steady_state`) (static).
+    adjoint : diffrax adjoint for the gradient (default ``diffrax.ForwardMode()`` with
+        ``jax.jacfwd``; a ``RecursiveCheckpointAdjoint`` uses ``jax.jacrev``, transient
+        method only: the shooting is forward mode).
+    """
+
+    def __init__(self, mesh: Mesh, space: ReliefSpace, speeds_rad_s, kind: str = "peak-force", *,
+                 model: str = "torsional", rig=None,
+                 formulation: str = "perturbation", pinion_torque_Nm: float = 254.8,
+                 inertias_kg_m2=DESIGN_INERTIAS, damping_ratio: float = 0.03,
+                 nlte_reaction: str = "drive", max_frequency_hz: float | str | None = "auto",
+                 method: str | None = None,
+                 sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
+                 sim_kwargs: dict | None = None, adjoint=None):
+        if kind not in DYNAMIC_OBJECTIVES:
+            raise DesignError("objective", kind, f"dynamic objectives are {DYNAMIC_OBJECTIVES}")
+        if model not in DESIGN_MODELS:
+            raise DesignError("model", model, f"must be one of {DESIGN_MODELS}")
+        if model == "3d" and rig is None:
+            raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.registry.get_rig)")
+        method = ("steady" if model == "3d" else "transient") if method is None else method
+        if method not in ("transient", "steady"):
+            raise DesignError("method", method, "must be 'transient' or 'steady'")
+        if method == "steady" and isinstance(adjoint, diffrax.RecursiveCheckpointAdjoint):
+            raise DesignError("adjoint", type(adjoint).__name__,
+                              "the steady (shooting) method differentiates in forward mode only")
+        speeds = np.atleast_1d(np.asarray(speeds_rad_s, dtype=float))
+        if speeds.ndim != 1 or not np.all(np.isfinite(speeds)) or np.any(speeds <= 0):
+            raise DesignError("speeds_rad_s", speeds.tolist(), "need finite pinion speeds > 0 (rad/s)")
+        space = space.for_dynamics(mesh.pair)
+        self.mesh, self.space, self.kind = mesh, space, kind
+        self.speeds = speeds
+        self.formulation = formulation
+        self.model_type, self.rig, self.method = model, rig, method
+        if model == "torsional":
+            self.model_kwargs = dict(pinion_torque_Nm=float(pinion_torque_Nm),
+                                     inertias_kg_m2=design_inertias(mesh, inertias_kg_m2),
+                                     damping_ratio=float(damping_ratio), formulation=formulation,
+                                     nlte_reaction=nlte_reaction, n_table=int(n_table))
+        else:
+            if max_frequency_hz == "auto":
+                from ..models.geared3d import default_max_frequency_hz
+
+                max_frequency_hz = default_max_frequency_hz(float(np.max(speeds)), mesh.pair.z1)
+            self.model_kwargs = dict(pinion_torque_Nm=float(pinion_torque_Nm),
+                                     damping_ratio=float(damping_ratio), formulation=formulation,
+                                     max_frequency_hz=max_frequency_hz, n_table=int(n_table))
+        self.sharpness = float(sharpness)
+        self.sim_kwargs = dict(sim_kwargs or {})
+        self.adjoint = diffrax.ForwardMode() if adjoint is None else adjoint
+        self.static_force_N = static_mesh_force(mesh.pair, pinion_torque_Nm)
+        cos_bb = math.cos(mesh.pair.base_helix_angle_rad)
+        self._x_ref_m = self.static_force_N / (float(mesh.mean_stiffness()) * cos_bb)
+        self.scale = self._scales()[DYNAMIC_OBJECTIVES.index(kind)]
+        self.model = None
+        self.n_builds = 0
+        self.build_time_s = 0.0
+        self._static = (space, tuple(float(v) for v in self._scales()), self.sharpness,
+                        tuple(sorted(self.sim_kwargs.items())), method)
+
+    # model management
+    def build(self, x, frozen: bool = False):
+        """The model (:class:`~gearjax.models.torsional.TorsionalModel` or
+        :class:`~gearjax.models.geared3d.Geared3DModel`) built at design ``x``;
+        ``frozen`` drops the angle map (switching angles fixed at ``x``: forward values
+        elsewhere are resolved to the table spacing, derivatives miss their motion)."""
+        t0 = time.perf_counter()
+        mods = self.space.mods(np.asarray(x, dtype=float))
+        if self.model_type == "torsional":
+            from ..models.torsional import TorsionalModel
+
+            m = TorsionalModel.build(self.mesh, mods, **self.model_kwargs)
+            if frozen:
+                m = dataclasses.replace(m, jump_kinds=(0,) * len(m.jump_kinds))
+                m = m.with_modifications(m.mods)  # re-assembled without the angle map
+        else:
+            from ..rigs.factory import build_model
+
+            m = build_model(self.rig, mods, mesh=self.mesh, **self.model_kwargs)
+            if frozen:
+                m = dataclasses.replace(m, event_thetas=(), event_kinds=(), event_cells=(),
+                                        table_codes=None)
+        self.n_builds += 1
+        self.build_time_s += time.perf_counter() - t0
+        return m
+
+    def _scales(self):
+        """Units of the three dynamic metrics: F_S (N), 1, mean static deflection (m)."""
+        return (self.static_force_N, 1.0, self._x_ref_m)
+
+    @property
+    def _index(self) -> int:
+        return DYNAMIC_OBJECTIVES.index(self.kind)
+
+    def __call__(self, x, grad: bool = True) -> Evaluation:
+        """Evaluate at ``x`` (and its gradient), rebuilding the model when its structure
+        does not match the design."""
+        x = self.space.check(x)
+        k = self._index
+        speeds = jnp.asarray(self.speeds)
+        for attempt in range(2):
+            if self.model is None:
+                self.model = self.build(x)
+            xj = jnp.asarray(x)
+            if grad:
+                g, (sm, (ex, per, ok)) = _dyn_vjac(self.model, xj, speeds, self._static,
+                                                   self.adjoint)
+                g = np.asarray(g)[k]
+            else:
+                sm, (ex, per, ok) = _dyn_values(self.model, xj, speeds, self._static)
+                g = None
+            if bool(ok) or attempt == 1:
+                break
+            self.model = None  # structure changed: rebuild at x
+        return Evaluation(x, float(sm[k]), float(ex[k]), g, np.asarray(per)[k], bool(ok))
+
+    def all_metrics(self, x, grad: bool = True):
+        """(smooth (3,), exact (3,), jacobian (3, size) or None) of peak-force,
+        dynamic-factor and dte-ptp at ``x`` from one set of solves (same model)."""
+        x = self.space.check(x)
+        if self.model is None:
+            self.model = self.build(x)
+        speeds = jnp.asarray(self.speeds)
+        if grad:
+            g, (sm, (ex, _, _)) = _dyn_vjac(self.model, jnp.asarray(x), speeds, self._static,
+                                            self.adjoint)
+            return np.asarray(sm), np.asarray(ex), np.asarray(g)
+        sm, (ex, _, _) = _dyn_values(self.model, jnp.asarray(x), speeds, self._static)
+        return np.asarray(sm), np.asarray(ex), None
+
+    def grid(self, xs, reference_x=None) -> tuple[np.ndarray, np.ndarray]:
+        """(smooth, exact) at every row of ``xs`` in one vmapped call, with a *frozen*
+        model built at ``reference_x`` (default: the middle row): switching angles of other
+        designs are resolved to the table spacing (1/n_table of a mesh period), which is
+        what a forward map needs (no derivatives)."""
+        xs = np.asarray(xs, dtype=float)
+        ref = xs[len(xs) // 2] if reference_x is None else reference_x
+        model = self.build(ref, frozen=True)
+        sm, (ex, _, _) = _dyn_grid(model, jnp.asarray(xs), jnp.asarray(self.speeds), self._static)
+        return np.asarray(sm)[:, self._index], np.asarray(ex)[:, self._index]
+
+
+def _dyn_values_impl(model, x, speeds, static, adjoint=None):
+    """Smooth and exact maxima over ``speeds`` of (max F_D, max F_D / F_S, DTE ptp)."""
+    from ..dynamics.simulate import simulate
+
+    space, scales, sharpness, sim_kw, method = static
+    m = model.with_modifications(space.mods(x))
+    kw = dict(sim_kw)
+    if method == "steady":
+        from ..dynamics.steady import steady_state
+
+        res = jax.vmap(lambda w: steady_state(m, w, **kw).result)(speeds)
+    else:
+        if adjoint is not None:
+            kw["adjoint"] = adjoint
+        res = jax.vmap(lambda w: simulate(m, w, **kw))(speeds)
+    per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])
+    sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
+    ok = m.structure_ok & jnp.all(res.solver_ok)
+    return sm, (jnp.max(per, axis=1), per, ok)
+
+
+_dyn_values = eqx.filter_jit(_dyn_values_impl)
+
+
+@eqx.filter_jit
+def _dyn_vjac(model, x, speeds, static, adjoint):
+    reverse = isinstance(adjoint, diffrax.RecursiveCheckpointAdjoint)
+    jac = jax.jacrev if reverse else jax.jacfwd
+    return _value_and_jac(lambda y: _dyn_values_impl(model, y, speeds, static, adjoint), jac)(x)
+
+
+@eqx.filter_jit
+def _dyn_grid(model, xs, speeds, static):
+    return jax.vmap(lambda x: _dyn_values_impl(model, x, speeds, static))(xs)
+
+
+def make_objective(kind: str, mesh: Mesh, space: ReliefSpace, *, speeds_rad_s=None,
+                   torques_Nm=254.8, **kwargs):
+    """The objective ``kind`` of :data:`OBJECTIVES` (dynamic ones need ``speeds_rad_s``)."""
+    if kind not in OBJECTIVES:
+        raise DesignError("objective", kind, f"must be one of {OBJECTIVES}")
+    if kind in DYNAMIC_OBJECTIVES:
+        if speeds_rad_s is None:
+            raise DesignError("speeds_rad_s", None, f"objective {kind!r} needs a speed range")
+        return DynamicObjective(mesh, space, speeds_rad_s, kind,
+                                pinion_torque_Nm=float(np.atleast_1d(torques_Nm)[0]), **kwargs)
+    return QuasiStaticObjective(mesh, space, torques_Nm, kind, **kwargs)
