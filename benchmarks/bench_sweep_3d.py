@@ -41,7 +41,6 @@ import numpy as np
 import gearjax  # noqa: F401
 import gearjax.dynamics.steady  # noqa: F401
 import gearjax.dynamics.sweep  # noqa: F401
-from gearjax.models.geared3d import Geared3DModel
 from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.rigs.registry import get_rig
 from gearjax.dynamics.simulate import default_solver, jump_density, transient_start

@@ -409,7 +409,6 @@ def ratio_at_equal_error(rows, target=1e-5):
 
 
 def study_3d(args):
-    from gearjax.models.geared3d import Geared3DModel
 
     say("\n## 3D te model (spur rig, reduced to 6 kHz, mesh_vectors='mean', zeta 0.1)")
     t0 = time.perf_counter()
@@ -468,7 +467,6 @@ def scaling(args):
     say(f"peak RSS so far: {rss_mb():.0f} MB")
 
     say("\n### time against number of dofs (te, one speed 900 rad/s)\n")
-    from gearjax.models.geared3d import Geared3DModel
 
     say("| model | states | steady run s | compile s | transient (simulate) run s | compile s |")
     say("|---|---|---|---|---|---|")

@@ -197,7 +197,6 @@ def test_3d_sweep_reports_its_cutoff(capsys, tmp_path):
     """A one-speed 3D sweep (te, 400 rad/s: 4.5 f_m = 7.45 kHz) reports its cut-off in the
     summary, and keeps exactly the modes of the full model (all 258 modes of (M, K_bar))
     at or below it. ~1 min on 2 shared cores."""
-    from gearjax.models.geared3d import Geared3DModel
 
     summary = _json(capsys, ["sweep", "--model", "3d", "--formulations", "te", "--speeds",
                              "400:400:1", "--out", str(tmp_path), "--json"])

@@ -123,7 +123,6 @@ def test_dynamic_force_gradient_sees_moving_jumps(mesh_iso):
 
 # ------------------------------------------------------------------ 3D model
 def _build_3d(amp, ext, formulation="te", mean_stiffness=None):
-    from gearjax.models.geared3d import Geared3DModel
 
     return build_model(RIG, ToothModifications.tip_relief(amp, ext),
                                   formulation=formulation, damping_ratio=0.1,

@@ -75,7 +75,6 @@ def test_example_file_3d_model_same_natural_frequencies(example_rig):
     """build_model on the file and on the built-in rig: same modes of (M, K_bar),
     same static transmission-error constants at encoder position 3 (wiring of the motor
     node, torque and encoders)."""
-    from gearjax.models.geared3d import Geared3DModel
 
     kw = dict(max_frequency_hz=10_000.0, n_table=32, encoder_position=3)
     m_file = build_model(example_rig, **kw)

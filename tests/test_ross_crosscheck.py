@@ -89,7 +89,6 @@ def test_geared_rotor_natural_frequencies_match_ross_multirotor():
     modes). Measured 2026-11-22: 102 modes below 10 kHz, max relative difference 5.5e-9.
     This checks our pinion-gear element (direction, base-radius arms, signs) against an
     independent one, not only the shafts."""
-    from gearjax.models.geared3d import Geared3DModel
     from gearjax.rigs.ross_bridge import ross_geared_rotor
 
     kappa = ross_shear_coefficient(0.05, 0.0, nu=0.3, method="cowper")
@@ -126,7 +125,6 @@ def test_geared_rotor_periodic_mesh_force_matches_ross_matrices():
     import jax.numpy as jnp
 
     from gearjax import ToothModifications, quasi_static
-    from gearjax.models.geared3d import Geared3DModel
     from gearjax.rigs.ross_bridge import periodic_mesh_force, ross_geared_rotor, ross_mesh_modes
     from gearjax.dynamics.simulate import simulate
 

@@ -209,7 +209,6 @@ def test_clear_errors(te_model):
 
 # ---------------------------------------------------------------------- 3D rigs (slow)
 def _rig(helical):
-    from gearjax.models.geared3d import Geared3DModel
 
     # mesh_vectors="mean": the fast te excitation until the tabulated cell-vector
     # quasi-static solve lands

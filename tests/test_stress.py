@@ -284,7 +284,6 @@ def test_very_stiff_and_soft_bearings_3d(k_bearing):
     state -- agree to 1e-4 in dynamic factor wherever both say converged (a stiffer
     support moves the mesh mode up: the results must differ from the soft case, not
     silently coincide)."""
-    from gearjax.models.geared3d import Geared3DModel
 
     rig = _stiff_bearing_rig(k_bearing)
     model = build_model(rig, rig.modifications("short"), formulation="te",
@@ -330,7 +329,6 @@ def test_stiff_bearings_converge_to_rigid_limit_3d():
     that 1e12 N/m pushes up to 226 kHz.)"""
     import scipy.linalg as sl
 
-    from gearjax.models.geared3d import Geared3DModel
     from gearjax.structure import modal_basis
 
     def frequencies_hz(M, K):

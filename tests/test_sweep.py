@@ -207,7 +207,6 @@ def test_3d_slow_mode_transient_is_right_or_flagged():
     factor to 1e-4; the plain quasi-static start (measured error ~1e-3) must then say
     converged=False (the convergence measure extrapolates the slow mode's decay), or be
     right to 1e-4."""
-    from gearjax.models.geared3d import Geared3DModel
     from gearjax.rigs.registry import get_rig
     from gearjax.dynamics.steady import steady_sweep
 
