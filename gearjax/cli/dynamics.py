@@ -45,6 +45,7 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
     CUTOFF_MESH_HARMONICS,
     default_max_frequency_hz,
 )
+from ..dynamics import watchdog
 from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
 
@@ -331,6 +332,9 @@ def cmd_sweep(args) -> int:
     if done:
         summary["resumed"] = {f: len(v) for f, v in done.items()}
     times, signals = {}, {}
+    if lead:  # a stall (gearjax.dynamics.watchdog) ends the process: say where the rows are
+        watchdog.add_stall_hook(lambda: f"the speeds finished so far are in {csv_path}; continue "
+                                        "with the same command and --resume")
     t_all = time.perf_counter()
     interrupted = False
     try:
