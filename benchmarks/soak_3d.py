@@ -35,6 +35,7 @@ import json
 import os
 import queue
 import shutil
+import signal
 import subprocess
 import sys
 import threading
@@ -132,13 +133,30 @@ def parent(args) -> int:
         env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + " " + args.xla_flags).strip()
     os.makedirs(args.stack_dir, exist_ok=True)
     times = {k: [] for k in KINDS}
-    hangs, done, start, n_children = [], 0, 0, 0
+    hangs: list = []
     t_all = time.perf_counter()
+
+    def _stop(*_):
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, _stop)
+    proc_box: list = [None]
+    try:
+        _soak(args, env, times, hangs, proc_box)
+    except KeyboardInterrupt:
+        if proc_box[0] is not None:
+            proc_box[0].kill()
+        print("stopped early (SIGTERM / Ctrl-C); counts below are for the evaluations done")
+    done = sum(len(v) for v in times.values())
+    return _report(args, times, hangs, done, t_all, n_children=len(set(hangs)) + 1)
+
+
+def _soak(args, env, times, hangs, proc_box) -> None:
+    start = 0
     while start < args.evaluations:
         cmd = [sys.executable, os.path.abspath(__file__), "--child", "--start", str(start)]
         cmd += [a for a in sys.argv[1:] if a != "--child"]
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=env)
-        n_children += 1
+        proc = proc_box[0] = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=env)
         q: queue.Queue = queue.Queue()
         threading.Thread(target=_reader, args=(proc.stdout, q), daemon=True).start()
         seen, current, last = set(), None, time.perf_counter()
@@ -162,8 +180,7 @@ def parent(args) -> int:
             if line is None:  # child ended
                 rc = proc.wait()
                 if rc != 0:
-                    print(f"child exited with {rc} at evaluation {current}", flush=True)
-                    return 2
+                    raise SystemExit(f"child exited with {rc} at evaluation {current}")
                 start = args.evaluations
                 break
             try:
@@ -175,7 +192,6 @@ def parent(args) -> int:
                 current = msg
             elif msg["event"] == "done":
                 times[msg["kind"]].append(msg["time_s"])
-                done += 1
                 seen.add(msg["kind"])
                 last = time.perf_counter()
                 if args.verbose:
@@ -183,6 +199,9 @@ def parent(args) -> int:
             elif msg["event"] == "start":
                 print(f"child pid {msg['pid']}, jax {msg['jax']}, XLA_FLAGS (after importing "
                       f"gearjax) {msg.get('xla_flags', env.get('XLA_FLAGS', ''))!r}", flush=True)
+
+
+def _report(args, times, hangs, done, t_all, n_children) -> int:
     wall = time.perf_counter() - t_all
     import statistics
 
@@ -195,7 +214,7 @@ def parent(args) -> int:
     if hangs:
         print(f"hangs at evaluations {hangs}; stacks in {args.stack_dir}")
     print(f"wall {wall:.0f} s, {n_children} child process(es)")
-    print(f"{args.evaluations} evaluations, {len(hangs)} hangs")
+    print(f"{done + len(hangs)} evaluations, {len(hangs)} hangs")
     return 1 if hangs else 0
 
 
