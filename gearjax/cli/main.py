@@ -18,6 +18,7 @@ import argparse
 import importlib
 import json
 import math
+import os
 import sys
 
 import numpy as np
@@ -70,8 +71,10 @@ def _parser() -> argparse.ArgumentParser:
         importlib.import_module(name).register(sub, _add_rig, _add_scenario)
     for name, default in _STALL_TIMEOUTS.items():
         if name in sub.choices:
-            what = ("one vmapped call: default 0 (off); a value is a time limit" if default == 0
-                    else f"default {default:g} s; the first includes compiling; 0 disables")
+            what = ("one vmapped call: default 0 (off); a value is a time limit"
+                    if name in ("stability", "harris-map")
+                    else f"default {default:g} s (GEARJAX_STALL_TIMEOUT); the first includes "
+                         "compiling; 0 disables")
             sub.choices[name].add_argument(
                 "--stall-timeout", type=float, default=default, metavar="SECONDS",
                 help="end with a one-line message (exit 3) when no sweep chunk / optimiser "
@@ -82,7 +85,10 @@ def _parser() -> argparse.ArgumentParser:
 # Default --stall-timeout (s) of the long commands (gearjax.dynamics.watchdog): sweep and
 # optimise report progress per chunk / step; stability and harris-map are one vmapped call
 # each, whose length depends on the model and grid, so their watchdog is opt-in.
-_STALL_TIMEOUTS = {"sweep": 600.0, "optimise": 600.0, "stability": 0.0, "harris-map": 0.0}
+# GEARJAX_STALL_TIMEOUT (seconds) replaces the 600 s default (e.g. 0 in a test suite that
+# calls main() in-process, which a stall would end).
+_WATCHED_S = float(os.environ.get("GEARJAX_STALL_TIMEOUT", "600") or 0)
+_STALL_TIMEOUTS = {"sweep": _WATCHED_S, "optimise": _WATCHED_S, "stability": 0.0, "harris-map": 0.0}
 
 
 # Modules adding sub-commands: each defines ``register(subparsers, add_rig, add_scenario)``
