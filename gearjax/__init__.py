@@ -59,7 +59,7 @@ from .rigs.factory import build_model as build_model
 from .models.torsional import TorsionalModel as TorsionalModel
 from .models.geared3d import Geared3DModel as Geared3DModel
 from .dynamics.simulate import SimulationResult as SimulationResult
-from .dynamics.sweep import SweepResult as SweepResult
+from .dynamics.results import SweepResult as SweepResult
 from .dynamics.stability import floquet_multipliers as floquet_multipliers
 from .dynamics.stability import spectral_radius as spectral_radius
 from .dynamics.steady import steady_state as steady_state

@@ -67,8 +67,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import watchdog
+from .results import METRIC_FIELDS, SweepResult
 from .simulate import PeriodicJumpController, SimulationError, SimulationResult, simulate
-from .sweep import _FIELDS, SweepResult
 
 __all__ = [
     "periodic_state",
@@ -270,7 +270,7 @@ def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
 
 # ---------------------------------------------------------------------- sweeps
 class SteadySweepResult(SweepResult):
-    """:class:`gearjax.dynamics.sweep.SweepResult` of :func:`steady_sweep`, with per speed the
+    """:class:`gearjax.dynamics.results.SweepResult` of :func:`steady_sweep`, with per speed the
     Floquet ``spectral_radius`` of the orbit and ``continued`` (the metrics come from a
     diffrax transient started on the periodic orbit, see :func:`steady_sweep`)."""
 
@@ -283,8 +283,8 @@ def _steady_batch(model, speeds, kwargs):
     def one(w):
         out = steady_state(model, w, **dict(kwargs))
         r = out.result
-        return tuple(getattr(r, f) for f in _FIELDS) + (out.periodic.spectral_radius,
-                                                        out.periodic.y0)
+        return tuple(getattr(r, f) for f in METRIC_FIELDS) + (out.periodic.spectral_radius,
+                                                               out.periodic.y0)
     return jax.vmap(one)(speeds)
 
 
@@ -292,7 +292,7 @@ def _steady_batch(model, speeds, kwargs):
 def _continue_batch(model, speeds, y0s, kwargs):
     def one(w, y0):
         r = simulate(model, w, y0=y0, **dict(kwargs))
-        return tuple(getattr(r, f) for f in _FIELDS)
+        return tuple(getattr(r, f) for f in METRIC_FIELDS)
     return jax.vmap(one)(speeds, y0s)
 
 
@@ -300,7 +300,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
                  continuation: bool = True, continuation_kwargs: dict | None = None,
                  **steady_kwargs) -> SteadySweepResult:
     """Steady state over pinion speeds by shooting (vmapped, one compilation per chunk
-    shape), returning the :class:`~gearjax.dynamics.sweep.SweepResult` fields of
+    shape), returning the :class:`~gearjax.dynamics.results.SweepResult` fields of
     :func:`gearjax.dynamics.sweep.sweep` with the same meaning.
 
     Reference formulation: at every speed where the periodic orbit shows contact loss,
@@ -338,7 +338,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     order = np.argsort(speeds, kind="stable")
     padded = np.concatenate([order, np.full(n_chunks * chunk - speeds.size, order[-1])])
     kw = tuple(sorted(steady_kwargs.items()))
-    out = {f: np.full(speeds.size, np.nan) for f in _FIELDS}
+    out = {f: np.full(speeds.size, np.nan) for f in METRIC_FIELDS}
     rho = np.full(speeds.size, np.nan)
     y0s = None
     t_start = time.perf_counter()
@@ -347,7 +347,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
         t0 = time.perf_counter()
         res = jax.device_get(_steady_batch(model, jnp.asarray(speeds[sel]), kw))
         watchdog.progress(f"steady-state sweep chunk {c + 1}/{n_chunks}")
-        for f, v in zip(_FIELDS, res[:len(_FIELDS)]):
+        for f, v in zip(METRIC_FIELDS, res[:len(METRIC_FIELDS)]):
             out[f][sel] = np.asarray(v, dtype=float)
         rho[sel] = np.asarray(res[-2], dtype=float)
         y = np.asarray(res[-1])
@@ -372,7 +372,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
             t0 = time.perf_counter()
             res = jax.device_get(_continue_batch(model, jnp.asarray(speeds[idx]),
                                                  jnp.asarray(start), ckw))
-            for f, v in zip(_FIELDS, res):
+            for f, v in zip(METRIC_FIELDS, res):
                 out[f][idx] = np.asarray(v, dtype=float)
             continued[idx] = True
             watchdog.progress("steady-state sweep continuation")

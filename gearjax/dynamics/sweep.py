@@ -36,83 +36,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import watchdog
+from .results import CSV_COLUMNS, METRIC_FIELDS, SweepResult
 from .simulate import SimulationError, SimulationResult, simulate
 
 __all__ = ["sweep", "SweepResult", "CSV_COLUMNS"]
-
-CSV_COLUMNS = (
-    "speed_rad_s",
-    "formulation",
-    "max_mesh_force_N",
-    "dynamic_factor",
-    "dte_ptp_m",
-    "accel_ptp_m_s2",
-    "min_mesh_force_N",
-    "contact_loss",
-    "converged",
-)
-
-
-class SweepResult(eqx.Module):
-    """Metrics of a speed sweep, one entry per requested speed (caller's order).
-
-    Attributes
-    ----------
-    speed_rad_s, max_mesh_force_N, min_mesh_force_N, dynamic_factor, dte_ptp_m,
-    accel_ptp_m_s2, contact_loss, convergence, converged, solver_ok, n_steps,
-    transient_periods : NumPy arrays of shape (n_speeds,), see
-        :class:`gearjax.dynamics.simulate.SimulationResult`.
-    formulation : the model's formulation (str).
-    """
-
-    speed_rad_s: np.ndarray
-    max_mesh_force_N: np.ndarray
-    min_mesh_force_N: np.ndarray
-    dynamic_factor: np.ndarray
-    dte_ptp_m: np.ndarray
-    accel_ptp_m_s2: np.ndarray
-    contact_loss: np.ndarray
-    convergence: np.ndarray
-    converged: np.ndarray
-    solver_ok: np.ndarray
-    n_steps: np.ndarray
-    transient_periods: np.ndarray
-    formulation: str = eqx.field(static=True)
-
-    def rows(self):
-        """CSV rows (dicts keyed by :data:`CSV_COLUMNS`)."""
-        return _rows(self, slice(None))
-
-
-_FIELDS = (
-    "speed_rad_s", "max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
-    "accel_ptp_m_s2", "contact_loss", "convergence", "converged", "solver_ok", "n_steps",
-    "transient_periods",
-)
-
-
-def _fmt(v):
-    v = float(v)
-    return "" if math.isnan(v) else repr(v)
-
-
-def _rows(res, sl):
-    out = []
-    for i in range(len(np.asarray(res.speed_rad_s)[sl])):
-        g = lambda name: np.asarray(getattr(res, name))[sl][i]
-        out.append({
-            "speed_rad_s": repr(float(g("speed_rad_s"))),
-            "formulation": res.formulation,
-            "max_mesh_force_N": _fmt(g("max_mesh_force_N")),
-            "dynamic_factor": _fmt(g("dynamic_factor")),
-            "dte_ptp_m": _fmt(g("dte_ptp_m")),
-            "accel_ptp_m_s2": _fmt(g("accel_ptp_m_s2")),
-            "min_mesh_force_N": _fmt(g("min_mesh_force_N")),
-            "contact_loss": str(bool(g("contact_loss"))),
-            "converged": str(bool(g("converged"))),
-        })
-    return out
-
 
 @partial(eqx.filter_jit, donate="none")
 def _batched(model, speeds, sim_kwargs):
@@ -120,7 +47,7 @@ def _batched(model, speeds, sim_kwargs):
 
 
 def _metrics_only(res: SimulationResult):
-    return tuple(getattr(res, f) for f in _FIELDS)
+    return tuple(getattr(res, f) for f in METRIC_FIELDS)
 
 
 def _make_sharded(devices):
@@ -263,7 +190,7 @@ def sweep(
     else:
         fn = _batched
 
-    results = {f: np.full(total, np.nan) for f in _FIELDS}
+    results = {f: np.full(total, np.nan) for f in METRIC_FIELDS}
     if not lead:
         out_csv, progress = None, False
     write_header = out_csv is not None and (
@@ -285,7 +212,7 @@ def sweep(
         out = jax.device_get(out)
         dt = time.perf_counter() - t0
         watchdog.progress(f"sweep ({formulation}) chunk {c + 1}/{n_chunks}")
-        for f, v in zip(_FIELDS, out):
+        for f, v in zip(METRIC_FIELDS, out):
             results[f][c * chunk:(c + 1) * chunk] = np.asarray(v, dtype=float)
         # rows of the real (non-padded) speeds of this chunk, in sorted-speed order
         first = {}
@@ -301,7 +228,7 @@ def sweep(
                 wr.writerows(chunk_res.rows())
         if progress:
             n_done += len(first)
-            conv = np.asarray(out[_FIELDS.index("converged")], dtype=bool)
+            conv = np.asarray(out[METRIC_FIELDS.index("converged")], dtype=bool)
             real = np.asarray(list(first.values())) - c * chunk
             bar = "#" * round(20 * n_done / speeds.size)
             print(
@@ -360,7 +287,7 @@ def _steady(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwar
 
 def _gather(results, formulation, idx):
     idx = np.asarray(idx, dtype=int)
-    kw = {f: results[f][idx] for f in _FIELDS}
+    kw = {f: results[f][idx] for f in METRIC_FIELDS}
     for f in ("contact_loss", "converged", "solver_ok"):
         kw[f] = kw[f].astype(bool)
     kw["n_steps"] = kw["n_steps"].astype(np.int64)
