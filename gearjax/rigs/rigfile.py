@@ -112,17 +112,16 @@ Internally nodes are 0-based (``index = number - first_node``); the returned
 Checks made at load time, beyond types and ranges: the gear pair is valid
 (:class:`~gearjax.gears.geometry.GearPair`), every dof of every node has mass, the pinion and
 gear nodes are on different shaft lines, no node is on two shaft lines, every number is in
-its physical range (``_RANGES``: stiffnesses up to 1e13 N/m and 1e9 N m/rad, diameters
-1 mm-10 m, elements at least 0.1 mm long, ...; a value outside is named with its range
-before any modal analysis), and the structure without the mesh has at most one rigid-body
-mode (the free rotation of the driving line, which the pinion-gear element removes,
-Section 4.2; extra zero-frequency modes that are only round-off of a too wide stiffness
-range are reported as such, not as missing supports).
+its physical range (:data:`gearjax.rigs.rigfile_checks.RANGES`: stiffnesses up to 1e13 N/m and
+1e9 N m/rad, diameters 1 mm-10 m, elements at least 0.1 mm long, ...; a value outside is named
+with its range before any modal analysis), and the structure without the mesh has at most one
+rigid-body mode (the free rotation of the driving line, which the pinion-gear element removes,
+Section 4.2; extra zero-frequency modes that are only round-off of a too wide stiffness range
+are reported as such, not as missing supports).
 """
 
 from __future__ import annotations
 
-import difflib
 import math
 import os
 from pathlib import Path
@@ -140,180 +139,13 @@ from ..gears.modifications import ModificationError, ToothModifications
 from ..errors import RigError
 from .baud_velex import table1_relief
 from .rig import Rig
+from .rigfile_checks import (AXIS_KEYS, MIN_ELEMENT_LENGTH_M, REQUIRED, Nodes, Reader,
+                             per_element, read_axis, table_list)
 from ..structure.assembly import Structure, StructureBuilder
 from ..structure.modal import modal_basis
 from ..structure.beams import DOF_NAMES, STEEL, ElementInputError, Material, disc_properties
 
 __all__ = ["load_rig", "parse_rig"]
-
-_REQUIRED = object()
-MIN_ELEMENT_LENGTH_M = 1e-4  # shortest shaft element accepted (0.1 mm)
-
-
-class _Reader:
-    """Typed access to one TOML table; every error names the full field path."""
-
-    def __init__(self, source: str, path: str, data: Any, allowed: tuple[str, ...]):
-        self.source = source
-        self.path = path
-        if not isinstance(data, dict):
-            self.fail(path, data, f"must be a table, got {type(data).__name__}")
-        self.data = data
-        for key in data:
-            if key not in allowed:
-                close = difflib.get_close_matches(key, allowed, n=1, cutoff=0.6)
-                lower = [a for a in allowed if a.lower() == key.lower()]
-                hint = lower or close
-                why = f"unknown key; did you mean {hint[0]!r}?" if hint else (
-                    f"unknown key; allowed keys are {sorted(allowed)}")
-                self.fail(self.sub(key), data[key], why)
-
-    def sub(self, key: str) -> str:
-        return f"{self.path}.{key}" if self.path else key
-
-    def fail(self, path: str, value: Any, why: str):
-        raise RigError(f"{path}={_show(value)}: {why} (rig file {self.source})")
-
-    def missing(self, key: str, what: str):
-        raise RigError(f"{self.sub(key)}: missing ({what}) (rig file {self.source})")
-
-    def has(self, key: str) -> bool:
-        return key in self.data
-
-    def get(self, key: str, kind: str, what: str, default: Any = _REQUIRED) -> Any:
-        """Value of ``key`` checked as ``kind``: real, nonneg, positive, int, str, table,
-        reals (list), ints (list)."""
-        if key not in self.data:
-            if default is _REQUIRED:
-                self.missing(key, what)
-            return default
-        return _check(self, self.sub(key), self.data[key], kind, what)
-
-
-def _show(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 80 else text[:77] + "..."
-
-
-def _is_real(x: Any) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool)
-
-
-# Physical ranges of the numbers of a rig file (by key), checked at load: values beyond
-# them are typos or unit slips (mm for m), and values far beyond them make the structure's
-# modal analysis meaningless (a 1e15 N/m bearing next to a 1e5 N m/rad torsional spring
-# turns soft modes into apparent rigid-body modes).
-_N_PER_M = (0.0, 1e13, "N/m")
-_NM_PER_RAD = (0.0, 1e9, "N m/rad")
-_RANGES: dict[str, tuple[float, float, str]] = {
-    "k_S_N_per_m": _N_PER_M, "k_T_N_per_m": _N_PER_M, "k_axial_N_per_m": _N_PER_M,
-    "k_radial_N_per_m": _N_PER_M,
-    "k_phi_Nm_per_rad": _NM_PER_RAD, "k_psi_Nm_per_rad": _NM_PER_RAD,
-    "k_torsion_Nm_per_rad": _NM_PER_RAD, "k_tilt_Nm_per_rad": _NM_PER_RAD,
-    "k_Nm_per_rad": _NM_PER_RAD,
-    "outer_diameter_m": (1e-3, 10.0, "m"), "inner_diameter_m": (0.0, 10.0, "m"),
-    "width_m": (1e-4, 10.0, "m"), "lengths_m": (MIN_ELEMENT_LENGTH_M, 100.0, "m"),
-    "z_m": (-100.0, 100.0, "m"), "start_z_m": (-100.0, 100.0, "m"),
-    "axis_st_m": (-100.0, 100.0, "m"),
-    "E_Pa": (1e6, 1e13, "Pa"), "rho_kg_per_m3": (1.0, 1e5, "kg/m^3"),
-    "mass_kg": (0.0, 1e6, "kg"), "transverse_inertia_kg_m2": (0.0, 1e6, "kg m^2"),
-    "polar_inertia_kg_m2": (0.0, 1e6, "kg m^2"), "pinion_torque_Nm": (0.0, 1e8, "N m"),
-    "crowning_m": (0.0, 1e-3, "m"), "eccentricity_m": (0.0, 1e-3, "m"),
-    "pitch_errors_m": (-1e-3, 1e-3, "m"),
-}
-
-
-def _check_range(r: _Reader, path: str, v: Any, x: float, what: str) -> None:
-    key = path.rsplit(".", 1)[-1].split("[", 1)[0]
-    if key in _RANGES:
-        lo, hi, unit = _RANGES[key]
-        if not lo <= x <= hi:
-            r.fail(path, v, f"outside the physical range [{lo:g}, {hi:g}] {unit} ({what}); "
-                            "check the value and its unit")
-
-
-def _check(r: _Reader, path: str, v: Any, kind: str, what: str) -> Any:
-    if kind in ("real", "nonneg", "positive"):
-        if not _is_real(v):
-            r.fail(path, v, f"must be a number ({what}), got {type(v).__name__}")
-        x = float(v)
-        if not math.isfinite(x):
-            r.fail(path, v, f"must be finite ({what})")
-        if kind == "nonneg" and x < 0.0:
-            r.fail(path, v, f"must be >= 0 ({what})")
-        if kind == "positive" and x <= 0.0:
-            r.fail(path, v, f"must be > 0 ({what})")
-        _check_range(r, path, v, x, what)
-        return x
-    if kind == "int":
-        if isinstance(v, bool) or not isinstance(v, int):
-            r.fail(path, v, f"must be an integer ({what}), got {type(v).__name__}")
-        return int(v)
-    if kind == "str":
-        if not isinstance(v, str):
-            r.fail(path, v, f"must be a string ({what}), got {type(v).__name__}")
-        return v
-    if kind in ("reals", "ints"):
-        if not isinstance(v, list):
-            r.fail(path, v, f"must be a list ({what}), got {type(v).__name__}")
-        sub = "real" if kind == "reals" else "int"
-        return [_check(r, f"{path}[{i}]", x, sub, what) for i, x in enumerate(v)]
-    raise AssertionError(kind)
-
-
-class _Nodes:
-    """The declared nodes: file numbers <-> internal 0-based indices."""
-
-    def __init__(self, first: int, declared: set[int]):
-        self.first = first
-        self.declared = declared
-
-    def index(self, r: _Reader, path: str, v: Any) -> int:
-        n = _check(r, path, v, "int", "a node number")
-        if n not in self.declared:
-            lo, hi = self.first, self.first + len(self.declared) - 1
-            r.fail(path, v, f"unknown node; the declared nodes are {lo}..{hi} (shaft node "
-                            "lists and [[node]] tables)")
-        return n - self.first
-
-    def number(self, index: int) -> int:
-        return index + self.first
-
-
-def _table_list(root: _Reader, key: str) -> list[tuple[str, Any]]:
-    items = root.data.get(key, [])
-    if not isinstance(items, list):
-        root.fail(key, items, f"must be an array of tables ([[{key}]])")
-    return [(f"{key}[{i}]", item) for i, item in enumerate(items)]
-
-
-_AXIS_KEYS = ("axis", "axis_st_m")
-
-
-def _axis(r: _Reader) -> str | tuple[float, float]:
-    if r.has("axis") and r.has("axis_st_m"):
-        r.fail(r.sub("axis_st_m"), r.data["axis_st_m"], "give either axis or axis_st_m, not both")
-    if r.has("axis_st_m"):
-        st = r.get("axis_st_m", "reals", "(S, T) of the shaft axis, m")
-        if len(st) != 2:
-            r.fail(r.sub("axis_st_m"), r.data["axis_st_m"], "must be 2 numbers [S, T] (m)")
-        return (st[0], st[1])
-    axis = r.get("axis", "str", '"pinion" or "gear"', "pinion")
-    if axis not in ("pinion", "gear"):
-        r.fail(r.sub("axis"), axis, 'must be "pinion" or "gear" (or give axis_st_m)')
-    return axis
-
-
-def _per_element(r: _Reader, key: str, n_el: int, kind: str, what: str, default: Any) -> list[float]:
-    if r.has(key) and isinstance(r.data[key], list):
-        vals = r.get(key, "reals", what)
-        if len(vals) != n_el:
-            r.fail(r.sub(key), r.data[key], f"must be one number or {n_el} numbers (one per element)")
-        for i, x in enumerate(vals):
-            _check(r, f"{r.sub(key)}[{i}]", x, kind, what)
-        return vals
-    return [r.get(key, kind, what, default)] * n_el
-
 
 # ---------------------------------------------------------------------------- sections
 _PAIR_ANGLES = ("normal_pressure_angle", "helix_angle")
@@ -321,12 +153,12 @@ _PAIR_NUMBERS = ("profile_shift1", "profile_shift2", "addendum_coeff1", "addendu
                  "dedendum_coeff1", "dedendum_coeff2", "face_width1_m", "face_width2_m")
 
 
-def _gear_pair(root: _Reader) -> GearPair:
+def _gear_pair(root: Reader) -> GearPair:
     allowed = (("normal_module_m", "z1", "z2") + _PAIR_NUMBERS
                + tuple(f"{a}_{u}" for a in _PAIR_ANGLES for u in ("rad", "deg")))
     if not root.has("gear_pair"):
         root.missing("gear_pair", "the [gear_pair] table")
-    r = _Reader(root.source, "gear_pair", root.data["gear_pair"], allowed)
+    r = Reader(root.source, "gear_pair", root.data["gear_pair"], allowed)
     kw: dict[str, Any] = {
         "normal_module_m": r.get("normal_module_m", "positive", "normal module, m"),
         "z1": r.get("z1", "int", "pinion tooth number"),
@@ -354,7 +186,7 @@ def _gear_pair(root: _Reader) -> GearPair:
         r.fail(r.sub(field), value, reason)
 
 
-def _materials(root: _Reader) -> dict[str, Material]:
+def _materials(root: Reader) -> dict[str, Material]:
     mats = {"steel": STEEL}
     if not root.has("materials"):
         return mats
@@ -362,7 +194,7 @@ def _materials(root: _Reader) -> dict[str, Material]:
     if not isinstance(table, dict):
         root.fail("materials", table, "must be a table of [materials.NAME] tables")
     for name, data in table.items():
-        r = _Reader(root.source, f"materials.{name}", data, ("E_Pa", "nu", "rho_kg_per_m3"))
+        r = Reader(root.source, f"materials.{name}", data, ("E_Pa", "nu", "rho_kg_per_m3"))
         E = r.get("E_Pa", "positive", "Young's modulus, Pa")
         nu = r.get("nu", "real", "Poisson's ratio")
         rho = r.get("rho_kg_per_m3", "positive", "density, kg/m^3")
@@ -372,7 +204,7 @@ def _materials(root: _Reader) -> dict[str, Material]:
     return mats
 
 
-def _material(r: _Reader, mats: dict[str, Material]) -> Material:
+def _material(r: Reader, mats: dict[str, Material]) -> Material:
     name = r.get("material", "str", "a material name", "steel")
     if name not in mats:
         r.fail(r.sub("material"), name, f"unknown material; defined: {sorted(mats)}")
@@ -380,10 +212,10 @@ def _material(r: _Reader, mats: dict[str, Material]) -> Material:
 
 
 _SHAFT_KEYS = ("name", "line", "nodes", "node_range", "z_m", "lengths_m", "start_z_m",
-               "outer_diameter_m", "inner_diameter_m", "material", "shear_coefficient") + _AXIS_KEYS
+               "outer_diameter_m", "inner_diameter_m", "material", "shear_coefficient") + AXIS_KEYS
 
 
-def _shaft_nodes(r: _Reader) -> list[int]:
+def _shaft_nodes(r: Reader) -> list[int]:
     if r.has("nodes") == r.has("node_range"):
         r.missing("nodes", "give exactly one of nodes = [...] and node_range = [first, last]")
     if r.has("nodes"):
@@ -405,7 +237,7 @@ def _shaft_nodes(r: _Reader) -> list[int]:
 def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-file") -> Rig:
     """A :class:`~gearjax.rigs.rig.Rig` from the parsed TOML ``data`` (see the module
     docstring for the schema); ``source`` names the file in error messages."""
-    root = _Reader(source, "", data, (
+    root = Reader(source, "", data, (
         "name", "description", "first_node", "pinion_node", "gear_node", "motor_node",
         "gear_pair", "operating", "materials", "shaft", "node", "disc", "bearing", "coupling",
         "torsional_spring", "encoders", "modifications"))
@@ -418,14 +250,14 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
     pair = _gear_pair(root)
     if not root.has("operating"):
         root.missing("operating", "the [operating] table with pinion_torque_Nm")
-    op = _Reader(source, "operating", root.data["operating"], ("pinion_torque_Nm",))
+    op = Reader(source, "operating", root.data["operating"], ("pinion_torque_Nm",))
     torque = op.get("pinion_torque_Nm", "positive", "motor torque on the pinion C_m0, N m")
     mats = _materials(root)
 
     # ---- declare nodes: shaft node lists and [[node]] tables
-    shafts = [(p, _Reader(source, p, d, _SHAFT_KEYS)) for p, d in _table_list(root, "shaft")]
-    node_tabs = [(p, _Reader(source, p, d, ("node", "line", "z_m", "label") + _AXIS_KEYS))
-                 for p, d in _table_list(root, "node")]
+    shafts = [(p, Reader(source, p, d, _SHAFT_KEYS)) for p, d in table_list(root, "shaft")]
+    node_tabs = [(p, Reader(source, p, d, ("node", "line", "z_m", "label") + AXIS_KEYS))
+                 for p, d in table_list(root, "node")]
     if not shafts:
         root.missing("shaft", "at least one [[shaft]]")
     declared: set[int] = set()
@@ -443,7 +275,7 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
             f"node {gap[0]} is never declared" if gap else f"node {bad[0]} is out of sequence")
         root.fail("nodes", sorted(declared), f"nodes must be numbered {first}, {first + 1}, ... "
                                              f"without gaps; {detail}")
-    nodes = _Nodes(first, declared)
+    nodes = Nodes(first, declared)
     n_nodes = len(declared)
 
     # ---- element specifications (checked now, assembled by the structure factory)
@@ -460,7 +292,7 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
             if r.has("start_z_m"):
                 r.fail(r.sub("start_z_m"), r.data["start_z_m"], "only with lengths_m")
         else:
-            lengths = _per_element(r, "lengths_m", n_el, "positive", "element length, m", None)
+            lengths = per_element(r, "lengths_m", n_el, "positive", "element length, m", None)
             z = list(r.get("start_z_m", "real", "position of the first node, m", 0.0)
                      + np.concatenate([[0.0], np.cumsum(lengths)]))
         for i in range(n_el):
@@ -471,8 +303,8 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
                 r.fail(f"{r.sub('z_m')}[{i + 1}]", z[i + 1],
                        f"element {i} would be {z[i + 1] - z[i]:.3g} m long, below "
                        f"{MIN_ELEMENT_LENGTH_M:g} m (0.1 mm); positions are in metres")
-        do = _per_element(r, "outer_diameter_m", n_el, "positive", "outer diameter, m", _REQUIRED)
-        di = _per_element(r, "inner_diameter_m", n_el, "nonneg", "bore diameter, m", 0.0)
+        do = per_element(r, "outer_diameter_m", n_el, "positive", "outer diameter, m", REQUIRED)
+        di = per_element(r, "inner_diameter_m", n_el, "nonneg", "bore diameter, m", 0.0)
         for i in range(n_el):
             if di[i] >= do[i]:
                 key = "inner_diameter_m"
@@ -484,7 +316,7 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
             nodes=idx, positions_m=np.asarray(z, dtype=float), outer_diameters_m=np.asarray(do),
             inner_diameters_m=np.asarray(di), material=_material(r, mats),
             line=r.get("line", "str", "shaft line", shaft_name), shear_coeff=k_shear, name=shaft_name,
-        ), _axis(r)))
+        ), read_axis(r)))
 
     # a node turns with one shaft line: a node listed on two lines (e.g. on the pinion and
     # the gear shafts) would join them rigidly, and the mesh relations would be meaningless
@@ -505,13 +337,13 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
         z = r.get("z_m", "real", "axial position, m", None)
         node_specs.append((path, n, dict(label=r.get("label", "str", "free text", None),
                                          line=r.get("line", "str", "shaft line", None)),
-                           z, _axis(r)))
+                           z, read_axis(r)))
 
     disc_specs = []
     geo = ("outer_diameter_m", "inner_diameter_m", "width_m", "material")
     explicit = ("mass_kg", "transverse_inertia_kg_m2", "polar_inertia_kg_m2")
-    for path, d in _table_list(root, "disc"):
-        r = _Reader(source, path, d, ("node", "name") + geo + explicit)
+    for path, d in table_list(root, "disc"):
+        r = Reader(source, path, d, ("node", "name") + geo + explicit)
         n = nodes.index(r, r.sub("node"), r.get("node", "int", "node number"))
         if any(r.has(k) for k in explicit):
             for k in geo:
@@ -533,8 +365,8 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
                                          name=r.get("name", "str", "element name", None))))
 
     bearing_specs = []
-    for path, d in _table_list(root, "bearing"):
-        r = _Reader(source, path, d, ("node", "name", "k_S_N_per_m", "k_T_N_per_m",
+    for path, d in table_list(root, "bearing"):
+        r = Reader(source, path, d, ("node", "name", "k_S_N_per_m", "k_T_N_per_m",
                                       "k_axial_N_per_m", "k_phi_Nm_per_rad", "k_psi_Nm_per_rad"))
         n = nodes.index(r, r.sub("node"), r.get("node", "int", "node number"))
         bearing_specs.append((path, n, dict(
@@ -546,8 +378,8 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
             name=r.get("name", "str", "element name", None))))
 
     coupling_specs = []
-    for path, d in _table_list(root, "coupling"):
-        r = _Reader(source, path, d, ("nodes", "name", "k_torsion_Nm_per_rad", "k_radial_N_per_m",
+    for path, d in table_list(root, "coupling"):
+        r = Reader(source, path, d, ("nodes", "name", "k_torsion_Nm_per_rad", "k_radial_N_per_m",
                                       "k_axial_N_per_m", "k_tilt_Nm_per_rad"))
         pair_nodes = r.get("nodes", "ints", "[node 1, node 2]")
         if len(pair_nodes) != 2:
@@ -563,8 +395,8 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
             name=r.get("name", "str", "element name", None))))
 
     spring_specs = []
-    for path, d in _table_list(root, "torsional_spring"):
-        r = _Reader(source, path, d, ("node", "name", "k_Nm_per_rad"))
+    for path, d in table_list(root, "torsional_spring"):
+        r = Reader(source, path, d, ("node", "name", "k_Nm_per_rad"))
         n = nodes.index(r, r.sub("node"), r.get("node", "int", "node number"))
         spring_specs.append((path, n, r.get("k_Nm_per_rad", "nonneg", "torsional stiffness to ground, N m/rad"),
                              r.get("name", "str", "element name", None)))
@@ -600,13 +432,13 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
     )
 
 
-def _encoders(root: _Reader, nodes: _Nodes, special: dict) -> dict[int, tuple[int, int]]:
+def _encoders(root: Reader, nodes: Nodes, special: dict) -> dict[int, tuple[int, int]]:
     if not root.has("encoders"):
         return {1: (special["pinion_node"], special["gear_node"])}
     table = root.data["encoders"]
     if not isinstance(table, dict):
         root.fail("encoders", table, "must be a table: position = [node I, node II]")
-    r = _Reader(root.source, "encoders", table, tuple(table))
+    r = Reader(root.source, "encoders", table, tuple(table))
     out = {}
     for key, value in table.items():
         if not key.isdigit() or int(key) < 1:
@@ -618,10 +450,10 @@ def _encoders(root: _Reader, nodes: _Nodes, special: dict) -> dict[int, tuple[in
     return out
 
 
-def _modifications(root: _Reader, pair: GearPair) -> tuple[ToothModifications | None, np.ndarray]:
+def _modifications(root: Reader, pair: GearPair) -> tuple[ToothModifications | None, np.ndarray]:
     if not root.has("modifications"):
         return None, np.zeros(pair.z1)
-    r = _Reader(root.source, "modifications", root.data["modifications"],
+    r = Reader(root.source, "modifications", root.data["modifications"],
                 ("relief_shape", "crowning_m", "pinion", "gear"))
     shape = r.get("relief_shape", "str", '"linear" or "parabolic"', "linear")
     if shape not in ("linear", "parabolic"):
@@ -635,7 +467,7 @@ def _modifications(root: _Reader, pair: GearPair) -> tuple[ToothModifications | 
         if not r.has(gear):
             pitch[k] = np.zeros(z)
             continue
-        g = _Reader(root.source, r.sub(gear), r.data[gear], keys)
+        g = Reader(root.source, r.sub(gear), r.data[gear], keys)
         amp[k] = g.get("relief_amplitude_m", "nonneg", "tip relief amplitude, m", 0.0)
         if amp[k] > 1e-3:
             g.fail(g.sub("relief_amplitude_m"), amp[k], "above 1 mm; amplitudes are in metres "
@@ -715,7 +547,7 @@ def _assemble(source, pair, n_nodes, nodes, shaft_specs, node_specs, disc_specs,
         raise RigError(f"{path}: {msg} (rig file {source})") from None
 
 
-def _check_structure(root: _Reader, s: Structure, nodes: _Nodes, special: dict) -> None:
+def _check_structure(root: Reader, s: Structure, nodes: Nodes, special: dict) -> None:
     M = np.asarray(s.M)
     diag = np.diag(M)
     empty = np.flatnonzero(diag <= 0.0)
