@@ -46,7 +46,7 @@ from .tables import AngleMap, PeriodicHermiteTable
 
 __all__ = ["QuasiStaticMesh3D", "TableLayout", "scan_brackets", "jump_angles", "table_layout",
            "tabulate",
-           "fourier_coefficients"]
+           "fourier_coefficients", "harmonic_response"]
 
 
 class QuasiStaticMesh3D(eqx.Module):
@@ -300,3 +300,24 @@ def fourier_coefficients(f, origin: float, period: float, n_samples: int, n_h: i
     nu = 2.0 * jnp.pi / period
     return c * jnp.exp(1j * h * nu * (jnp.asarray(theta0, dtype=float) - origin))
 
+
+def harmonic_response(kbar_r, c_r, v_r, amp, period: float, omega):
+    """Periodic steady response ``(z, z')`` (``z' = dz/dtheta``) of the constant-coefficient
+    modal system (``M_r = I``) ``Omega^2 z'' + Omega C_r z' + K_bar_r z = f(theta) v_r`` with
+    ``f = Re sum_h w_h amp_h exp(i h nu theta)`` (``amp`` as :func:`fourier_coefficients`,
+    ``nu = 2 pi / period``): each harmonic answers independently at ``w_h = h nu Omega``,
+    ``z_h = (K_bar_r - w_h^2 I + i w_h C_r)^-1 amp_h v_r``, one complex (r, r) solve each."""
+    n_h = amp.shape[0] - 1
+    h = jnp.arange(n_h + 1)
+    nu = 2.0 * jnp.pi / period
+    w_h = h * nu * omega
+    r = kbar_r.shape[0]
+    eye = jnp.eye(r)
+    a = (kbar_r[None] - (w_h**2)[:, None, None] * eye[None]
+         + 1j * w_h[:, None, None] * c_r[None])
+    g = jnp.linalg.solve(a, jnp.broadcast_to(v_r.astype(a.dtype), (n_h + 1, r))[..., None])[..., 0]
+    z_h = g * amp[:, None]
+    weight = jnp.where(h > 0, 2.0, 1.0)[:, None]
+    z = jnp.real(jnp.sum(weight * z_h, axis=0))
+    zp = jnp.real(jnp.sum(weight * (1j * h * nu)[:, None] * z_h, axis=0))  # d/dtheta
+    return z, zp

@@ -79,8 +79,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ModelError
-from ..excitation.mesh3d import (QuasiStaticMesh3D, fourier_coefficients, jump_angles,
-                                 table_layout, tabulate)
+from ..excitation.mesh3d import (QuasiStaticMesh3D, fourier_coefficients, harmonic_response,
+                                 jump_angles, table_layout, tabulate)
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
@@ -345,8 +345,7 @@ class Geared3DModel(AbstractGearModel):
                       event_thetas=(), event_kinds=(), event_cells=())
         if formulation != "reference" and excitation == "table":
             lay = table_layout(qsm, theta_tab, period, jumps)
-            ev = dict(event_thetas=lay.event_thetas, event_kinds=lay.event_kinds,
-                      event_cells=lay.event_cells)
+            ev = dict(event_thetas=lay.event_thetas, event_kinds=lay.event_kinds, event_cells=lay.event_cells)
             table, amap, ok = _tabulate(
                 qsm, lay.knots, lay.side, lay.cell_first, origin=lay.origin, period=float(period),
                 n_cells=lay.n_cells, max_extra=lay.max_extra, table_codes=lay.codes, **ev)
@@ -473,16 +472,13 @@ class Geared3DModel(AbstractGearModel):
             # K X_S = F_0 - f_mesh with K = K_bar - k_m V V^T and V^T X_S = V_l^T x_l
             qs = self.quasi_static(theta)
             cells, _, _ = contact_gaps(self.mesh, self.mods, theta)
-            f_loc = self._vectors(cells).T @ qs.cell_load_N
+            f_loc = self.quasi_static_mesh().vectors(cells).T @ qs.cell_load_N
             rhs = -(self.t_local.T @ f_loc) + self.k_m * self.v_r * (self.v_local @ qs.x_local)
             return self.q0 + jnp.linalg.solve(self.kbar_r, rhs)
         d, _ = self._excitation(theta)
         return self.q0 + d / self.c_wv * self.c_v_r
 
     # ------------------------------------------------------------------ excitation vectors
-    def _vectors(self, cells):
-        return self.quasi_static_mesh().vectors(cells)
-
     def _ecc_local(self, theta):
         """(E~, F~, G~) at the 12 element dofs (Eq. (14))."""
         return self.ecc.local_vectors(theta, *self.mesh.pair.base_radii_m)
@@ -539,7 +535,7 @@ class Geared3DModel(AbstractGearModel):
         f_s = self.static_force_N
         if self.formulation == "reference":  # no angle map: s = theta
             cells, de, _ = contact_gaps(self.mesh, self.mods, s)
-            vecs = self._vectors(cells)
+            vecs = self.quasi_static_mesh().vectors(cells)
             x_loc = self.t_local @ q
             loads = cells.stiffness_N_per_m * jnp.maximum(vecs @ x_loc - de, 0.0)
             f_loc = vecs.T @ loads
@@ -620,17 +616,12 @@ class Geared3DModel(AbstractGearModel):
         """Periodic steady state of Eq. (48a) at ``theta0``, exact in the frequency domain.
 
         Without NLTE and eccentricity terms Eq. (48a) is linear with *constant* coefficients
-        and a periodic forcing ``k_m cos(b_b) d(theta) V``, ``d = TE_S - w_x0`` (tabulated), so
-        each harmonic ``h`` of the excitation period P answers independently (modal
-        coordinates, ``M_r = I``, frequency ``w_h = h (2 pi / P) Omega``)::
-
-            z_h = (K_bar_r - w_h^2 I + i w_h C_r)^-1 k_m cos(b_b) d_h v_r
-
-        with ``d_h`` the discrete Fourier coefficients of the tabulated ``d`` sampled 8 times
-        finer than the table (``n_harmonics`` kept, default 128 per mesh period). ``d`` has
-        kinks (relief starts, engagements), so ``d_h = O(h^-2)`` and ``z_h = O(h^-4)`` above
-        the modes: the sum converges fast. Returns the scaled state (see the module
-        docstring). Cost: one complex (r, r) solve per harmonic.
+        and a periodic forcing ``k_m cos(b_b) d(theta) V``, ``d = TE_S - w_x0`` (tabulated):
+        each harmonic of the excitation period answers independently
+        (:func:`gearjax.excitation.mesh3d.harmonic_response`). ``d_h`` are the discrete
+        Fourier coefficients of the tabulated ``d`` sampled 8 times finer than the table
+        (``n_harmonics`` kept, default 128 per mesh period); ``d`` has kinks, so ``d_h =
+        O(h^-2)`` and ``z_h = O(h^-4)`` above the modes. Returns the scaled state.
         """
         if not self._constant_coefficients:
             raise ModelError("formulation", self.formulation,
@@ -642,18 +633,7 @@ class Geared3DModel(AbstractGearModel):
         # d sampled 8x finer than the table knots (aliasing of a kinked signal)
         c = fourier_coefficients(lambda t: m._excitation(t)[0], m.table_origin, m.period_rad,
                                  8 * max(m.table_cells, 2 * n_h + 2), n_h, theta0)
-        h = jnp.arange(n_h + 1)
-        nu = 2.0 * jnp.pi / m.period_rad
-        w_h = h * nu * omega
-        r = m.n_reduced
-        eye = jnp.eye(r)
-        a = (m.kbar_r[None] - (w_h**2)[:, None, None] * eye[None]
-             + 1j * w_h[:, None, None] * m.c_r[None])
-        g = jnp.linalg.solve(a, jnp.broadcast_to(m.v_r.astype(a.dtype), (n_h + 1, r))[..., None])[..., 0]
-        z_h = g * (m.k_m * m.cos_bb * c)[:, None]
-        weight = jnp.where(h > 0, 2.0, 1.0)[:, None]
-        z = jnp.real(jnp.sum(weight * z_h, axis=0))
-        zp = jnp.real(jnp.sum(weight * (1j * h * nu)[:, None] * z_h, axis=0))  # d/dtheta
+        z, zp = harmonic_response(m.kbar_r, m.c_r, m.v_r, m.k_m * m.cos_bb * c, m.period_rad, omega)
         rr = m.omega_r / omega
         return jnp.concatenate([z / m.scale_a, zp / (rr * m.scale_a)])
 
