@@ -313,7 +313,6 @@ def test_misread_switching_event_is_kept_fixed_with_a_warning(monkeypatch):
     """The build-time self-check: an event classified as moving whose switching function
     does not vanish at its build angle (here every engagement is misread as a relief-zone
     crossing) is kept fixed with a RuntimeWarning, and k_m stays the quasi-static mean."""
-    import gearjax.models.torsional as tors
     from gearjax.excitation import events
 
     spur = Mesh.build(baud_velex_pair(False))
@@ -326,7 +325,7 @@ def test_misread_switching_event_is_kept_fixed_with_a_warning(monkeypatch):
             return events.EV_ZONE1, 0, 0
         return kind, a, b
 
-    monkeypatch.setattr(tors, "event_kinds", misread)
+    monkeypatch.setattr(events, "event_kinds", misread)  # read by classify_events
     with pytest.warns(RuntimeWarning, match="kept at their build angles"):
         bad = TorsionalModel.build(spur, table1_relief("short"), formulation="te")
     assert bad.jump_kinds == good.jump_kinds

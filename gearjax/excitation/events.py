@@ -13,6 +13,33 @@ change between adjacent floating-point angles by bisection from a uniform scan;
 design-dependent ones with the modifications by Newton iterations on their switching
 function (:func:`switch_value`), differentiable by the implicit function theorem
 ``d theta_j = -(dg/d design) / (dg/d theta)``. All angles in rad (pinion angle theta).
+
+Derivatives with respect to the design (why the events are moved)
+-----------------------------------------------------------------
+The switching angles ``theta_j`` move with the tip relief: where a relieved tooth starts
+to carry load (its gap equals the approach, ``y = delta_e``, Eq. (17)), where two removed
+materials are equal (NLTE, Eq. (9)), where a cell crosses the start of a relief zone
+(``xi = xi_e - L_c1 g_alpha`` or ``xi_start + L_c2 g_alpha``). For an integral
+``int f(theta, P) dtheta`` with a jump at ``theta_j(P)`` the derivative contains the
+boundary term ``(f^- - f^+) dtheta_j/dP``, which AD through a solver whose steps end at
+*fixed* angles never produces.
+
+The fix is a change of the independent variable. The build records, for every jump angle
+``s_j``, the kind of event and the cells involved (:func:`classify_events`);
+:func:`moved_event_angles` recomputes ``theta_j(P)`` by Newton iterations on the switching
+function from ``s_j`` (implicit differentiation: ``dtheta_j/dP = -g_P / g_theta``), and the
+models integrate in the simulation angle ``s`` with ``theta = phi(s)``,
+:class:`gearjax.excitation.tables.AngleMap`, a periodic C^1 map with ``phi(s_j) =
+theta_j(P)`` (``phi = identity`` at the build design). The jumps then stay at the fixed
+``s_j`` given to the step-size controller, the tables are built in ``s`` (knots fixed,
+values ``q(phi(s))``, means over theta taken with the factor ``phi'``), the vector field is
+``dy/ds = phi'(s) dy/dtheta`` and outputs are evaluated at ``phi(s)``: everything is smooth
+in the design between jumps, and AD differentiates the correct function.
+
+The map is valid while the discrete structure of the quasi-static solution (the codes at
+every table knot) is the build one; the models check it (``structure_ok``). A design far
+from the build design (a relief that no longer lifts a tooth off, an event that appears or
+vanishes) needs a rebuilt model.
 """
 
 from __future__ import annotations

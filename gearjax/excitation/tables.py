@@ -25,7 +25,10 @@ class PeriodicHermiteTable(eqx.Module):
     extra knots (e.g. the two floating-point neighbours of a jump). Values and slopes are
     given at every knot, so jumps and kinks placed between two adjacent extra knots are
     reproduced exactly. Lookup is O(1): the uniform cell gives the first knot, at most
-    ``max_extra`` comparisons give the segment.
+    ``max_extra`` comparisons give the segment. With the exact quasi-static values and
+    slopes (forward-mode AD) at the knots, the interpolant is exact at the jumps of the
+    loaded stiffness and at the kinks of ``TE_S`` and NLTE (no smearing), exact for the
+    piecewise linear/quadratic NLTE of linear/parabolic reliefs, and O(h^4) elsewhere.
 
     Attributes
     ----------

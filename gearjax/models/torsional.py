@@ -38,28 +38,21 @@ Dynamic mesh force
 Excitations: a jump-aware periodic table (default) or inline solves
 ------------------------------------------------------------------
 ``TE_S``, ``NLTE`` and ``(sum k_i)^S`` do not depend on speed. With ``excitation="table"``
-(default) they are tabulated once per call (by the traceable assembly, so they stay differentiable
-in the modifications) by the exact unilateral quasi-static solve at the knots of a
-:class:`PeriodicHermiteTable` -- ``n_table`` uniform knots per mesh period plus, for every
-angle where the quasi-static active set or the cell realising NLTE changes, the two
-adjacent floating-point angles that bracket it (found by bisection at build time) -- with
-their exact slopes (forward-mode AD). Cubic Hermite interpolation between knots is then
-exact at the jumps of ``(sum k_i)^S`` and at the kinks of ``TE_S`` and NLTE (no smearing),
-exact for the piecewise linear/quadratic NLTE of linear/parabolic reliefs, and O(h^4)
-elsewhere. A lookup costs a few flops, against an O(n^2) (sort-free) unilateral solve over
-the cells at every right-hand side with ``excitation="inline"`` (kept to check the table).
+(default) they are tabulated once per call (by the traceable assembly, so they stay
+differentiable in the modifications) by the exact unilateral quasi-static solve at the knots
+of a :class:`~gearjax.excitation.tables.PeriodicHermiteTable` (``n_table`` uniform knots per
+mesh period plus the two floats bracketing every change of the quasi-static state, found by
+bisection at build time; exact slopes by forward-mode AD): exact at the jumps and kinks,
+O(h^4) elsewhere, a few flops per lookup against an O(n^2) unilateral solve over the cells
+at every right-hand side with ``excitation="inline"`` (kept to check the table).
 
 NLTE' and NLTE'' (no-load transmission error derivatives)
 --------------------------------------------------------
-NLTE is a minimum over cells of the removed material: it has kinks (where the tooth pair
-that touches first changes, where a relief starts), so NLTE'' contains Dirac terms that
-automatic differentiation of the sampled function misses, and a spectral derivative with a
-harmonic cut-off H converges only slowly: the sdof response to the inertial forcing
-``-Omega^2 (J2/Rb2^2) NLTE''`` at frequencies well above resonance is
-``x_h = -kappa NLTE_h`` with ``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (about 30
-for the Baud-Velex pair), independent of the harmonic order, so the truncation error of x is
-of the order of ``kappa`` times the tail of the NLTE spectrum (O(1/H) for a kinked NLTE).
-
+NLTE (a minimum over cells of the removed material) has kinks, so NLTE'' holds Dirac terms
+that AD of the sampled function misses, and a spectral NLTE'' with H harmonics converges
+slowly: well above resonance the response to ``-Omega^2 (J2/Rb2^2) NLTE''`` is ``x_h = -kappa
+NLTE_h``, ``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (about 30 for the
+Baud-Velex pair), so the error of x is ``kappa`` times the NLTE spectrum tail (O(1/H)).
 We therefore remove NLTE'' *exactly* by a change of variable (``nlte_method="substitution"``,
 the default)::
 
@@ -68,11 +61,9 @@ the default)::
 so the state ``(z, z')`` is continuous and only NLTE (continuous) and NLTE' (piecewise
 smooth, with jumps at the kinks, obtained exactly by forward-mode differentiation of the
 minimum, which picks the active branch) enter the vector field; the kinks are passed to the
-integrator as ``jump_thetas``. The same substitution applies to the 3D model (Eq. (42)) as
-``X = Z - NLTE M^-1 E`` while ``E`` is constant. ``nlte_method="spectral"`` keeps the
-original variable and evaluates NLTE'' from the truncated Fourier series of NLTE sampled
-over one period (``nlte_harmonics`` harmonics of the mesh frequency); it exists to check
-the substitution.
+integrator as ``jump_thetas``. The 3D model (Eq. (42)) substitutes ``X = Z - NLTE M^-1 E``.
+``nlte_method="spectral"`` (to check the substitution) keeps x and evaluates NLTE'' from
+the Fourier series of NLTE over one period (``nlte_harmonics`` mesh harmonics).
 
 ``nlte_terms=False`` sets NLTE = 0 in the equations of motion, as the paper's Fig. 10
 "TE-based formulation (with NLTE = 0)": the NLTE'' inertial term is dropped and, in the
@@ -108,35 +99,12 @@ it and only the gear term remains: ``kappa = 1`` (``nlte_reaction="drive"``).
 Derivatives with respect to the design (moving switching angles)
 ----------------------------------------------------------------
 The model is forward-mode differentiable in its array data (speed, inertias, torque,
-damping, modifications). The excitations of the te and perturbation formulations (and
-NLTE' in the substitution) *jump* at angles ``theta_j`` where the quasi-static active set
-or the cell realising NLTE changes, and those angles move with the tip relief: where a
-relieved tooth starts to carry load (its gap equals the approach, ``y = delta_e``,
-Eq. (17)), where two removed materials are equal (NLTE, Eq. (9)), where a cell crosses
-the start of a relief zone (``xi = xi_e - L_c1 g_alpha`` or ``xi_start + L_c2 g_alpha``).
-For an integral ``int f(theta, P) dtheta`` with a jump at ``theta_j(P)`` the derivative
-contains the boundary term ``(f^- - f^+) dtheta_j/dP``, which AD through a solver whose
-steps end at *fixed* angles never produces.
-
-The fix is a change of the independent variable. The build records, for every jump
-angle ``s_j``, the kind of event and the cells involved (:func:`gearjax.excitation.events.event_kinds`);
-:meth:`TorsionalModel.jump_angles_rad` recomputes ``theta_j(P)`` by Newton iterations on
-the switching function from ``s_j`` (implicit differentiation:
-``dtheta_j/dP = -g_P / g_theta``), and the model integrates in the simulation angle
-``s`` with ``theta = phi(s)``, :class:`AngleMap`, a periodic C^1 map with
-``phi(s_j) = theta_j(P)`` (``phi = identity`` at the build design). The jumps then stay at
-the fixed ``s_j`` given to the step-size controller, the table is built in ``s`` (knots
-fixed, values ``q(phi(s))``, the mean stiffness ``k_m`` taken over theta with the factor
-``phi'``), the vector field is ``dy/ds = phi'(s) dy/dtheta`` and outputs are evaluated at
-``phi(s)``: everything is smooth in the design between jumps, and AD differentiates the
-correct function.
-
-The map is valid while the discrete structure of the quasi-static solution (the codes at
-every table knot) is the build one; the assembly checks it and stores
-:attr:`TorsionalModel.structure_ok`. A design far from the build design (a relief that no longer
-lifts a tooth off, an event that appears or vanishes) needs a rebuilt model;
-:mod:`gearjax.design` does that. The reference contact law is continuous in the gaps
-(only NLTE' jumps), so the map is not needed for its derivative.
+damping, modifications). The jumps of the te/perturbation excitations (and of NLTE') move
+with the tip relief; the model integrates in the simulation angle ``s``, ``theta = phi(s)``
+(:class:`~gearjax.excitation.tables.AngleMap` through :meth:`TorsionalModel.jump_angles_rad`;
+derivation in :mod:`gearjax.excitation.events`), valid while
+:attr:`TorsionalModel.structure_ok` holds (else :mod:`gearjax.design` rebuilds). The
+reference contact law is continuous in the gaps, so its derivative needs no map.
 """
 
 from __future__ import annotations
@@ -158,29 +126,21 @@ from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..excitation.events import (
     EV_FIXED,
     check_event_roots,
+    classify_events,
     code,
     code_jnp,
     engagement_angles,
-    event_kinds,
     find_brackets,
     moved_event_angles,
     quiet_origin,
-    switch_value,
 )
+from ..excitation.sdof import sdof_signature, sdof_signature_fn, sdof_switch
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from .base import FORMULATIONS, AbstractGearModel, ModelOutputs
 from ..errors import ModelError
 
-__all__ = [
-    "TorsionalModel",
-    "ModelOutputs",
-    "ModelError",
-    "FORMULATIONS",
-    "solid_cylinder_inertias",
-    "unilateral_solve_pairwise",
-    "PeriodicHermiteTable",
-    "AngleMap",
-]
+__all__ = ["TorsionalModel", "ModelOutputs", "ModelError", "FORMULATIONS",
+           "solid_cylinder_inertias"]
 
 Formulation = Literal["reference", "te", "perturbation"]
 NLTE_METHODS = ("substitution", "spectral")
@@ -200,14 +160,6 @@ def solid_cylinder_inertias(pair: GearPair, density_kg_m3: float = STEEL_DENSITY
         density_kg_m3 * math.pi * pair.face_width1_m * r1**4 / 2.0,
         density_kg_m3 * math.pi * pair.face_width2_m * r2**4 / 2.0,
     )
-
-
-def _sdof_switch(mesh, mods, force, kind, a, b, theta):
-    """:meth:`TorsionalModel._switch_function` from its inputs (also used at build, before
-    the model exists)."""
-    cells, delta_e, _ = contact_gaps(mesh, mods, theta)
-    y, _ = solve_unilateral(cells.stiffness_N_per_m, delta_e, force)
-    return switch_value(mesh, mods, cells, theta, y - delta_e[a], kind, a, b)
 
 
 _X_S, _K_S, _NLTE = 0, 1, 2
@@ -297,11 +249,9 @@ class _TorsionalInputs(eqx.Module):
         return any(k != EV_FIXED for k in self.jump_kinds)
 
     def _switch_function(self, kind, a, b, theta):
-        """g(theta) whose root is the switching angle of an event of ``kind`` (m):
-        loaded set (cell a): ``y - delta_e_a`` (approach = gap, Eq. (17)); NLTE cell
-        (a -> b): ``r_a - r_b``; relief start of the pinion / gear (cell a):
-        ``xi_a - (xi_e - L_c1 g_alpha)`` / ``xi_a - (xi_start + L_c2 g_alpha)``."""
-        return _sdof_switch(self.mesh, self.mods, self.static_force_N, kind, a, b, theta)
+        """g(theta) (m) whose root is the switching angle of an event of ``kind`` (cells
+        a, b): :func:`gearjax.excitation.sdof.sdof_switch`."""
+        return sdof_switch(self.mesh, self.mods, self.static_force_N, kind, a, b, theta)
 
     def jump_angles_rad(self, newton_steps: int = 4):
         """The switching angles ``theta_j`` (rad) of the current design, one per entry of
@@ -352,7 +302,7 @@ class _TorsionalInputs(eqx.Module):
             table = PeriodicHermiteTable(values=vals[:, :3], slopes=slopes[:, :3], **layout)
             k_m = PeriodicHermiteTable(values=vals[:, 3:], slopes=slopes[:, 3:], **layout).mean()[0]
             th = jax.vmap(amap)(self.table_knots)[0] + self.table_side * delta
-            sig = jax.vmap(lambda t: code_jnp(_signature_one(
+            sig = jax.vmap(lambda t: code_jnp(sdof_signature(
                 self.mesh, self.mods, self.static_force_N, t)))(th)
             structure_ok = jnp.all(sig == self.table_codes)
         m_eq = self.equivalent_mass_kg
@@ -431,7 +381,6 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         else 0.
     nlte_dd_coeffs : complex Fourier coefficients of NLTE'' (spectral method), else None.
     """
-
 
     angle_map: AngleMap | None = eqx.field(kw_only=True)
     structure_ok: jax.Array = eqx.field(kw_only=True)
@@ -516,23 +465,19 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             for an unknown option, a non-positive torque or inertia, zeta outside [0, 1)
             or inconsistent sizes.
         """
-        if formulation not in FORMULATIONS:
-            raise ModelError("formulation", formulation, f"must be one of {FORMULATIONS}")
-        if nlte_method not in NLTE_METHODS:
-            raise ModelError("nlte_method", nlte_method, f"must be one of {NLTE_METHODS}")
-        if excitation not in EXCITATIONS:
-            raise ModelError("excitation", excitation, f"must be one of {EXCITATIONS}")
-        if nlte_reaction not in NLTE_REACTIONS:
-            raise ModelError("nlte_reaction", nlte_reaction, f"must be one of {NLTE_REACTIONS}")
+        for name, value, allowed in (("formulation", formulation, FORMULATIONS),
+                                     ("nlte_method", nlte_method, NLTE_METHODS),
+                                     ("excitation", excitation, EXCITATIONS),
+                                     ("nlte_reaction", nlte_reaction, NLTE_REACTIONS)):
+            if value not in allowed:
+                raise ModelError(name, value, f"must be one of {allowed}")
         if mods is None:
             mods = ToothModifications.none()
         mods.check_against(mesh.pair)
         torque = float(pinion_torque_Nm)
         if not (math.isfinite(torque) and torque > 0):
-            raise ModelError(
-                "pinion_torque_Nm", pinion_torque_Nm,
-                "must be finite and > 0 (the contact model loads the drive flanks)",
-            )
+            raise ModelError("pinion_torque_Nm", pinion_torque_Nm,
+                             "must be finite and > 0 (the contact model loads the drive flanks)")
         zeta = float(damping_ratio)
         if not (math.isfinite(zeta) and 0.0 <= zeta < 1.0):
             raise ModelError("damping_ratio", damping_ratio, "must lie in [0, 1)")
@@ -540,30 +485,26 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             inertias_kg_m2 = solid_cylinder_inertias(mesh.pair)
         inert = np.asarray(inertias_kg_m2, dtype=float)
         if inert.shape != (2,) or not np.all(np.isfinite(inert)) or np.any(inert <= 0):
-            raise ModelError(
-                "inertias_kg_m2", inertias_kg_m2, "must be two finite positive values (J1, J2)"
-            )
+            raise ModelError("inertias_kg_m2", inertias_kg_m2,
+                             "must be two finite positive values (J1, J2)")
         n_table = int(n_table)
         if n_table < 16:
             raise ModelError("n_table", n_table, "must be >= 16 knots per mesh period")
         if nlte_method == "spectral" and not (1 <= int(nlte_harmonics) < n_table // 2):
-            raise ModelError(
-                "nlte_harmonics", nlte_harmonics, f"must lie in [1, n_table/2) = [1, {n_table // 2})"
-            )
+            raise ModelError("nlte_harmonics", nlte_harmonics,
+                             f"must lie in [1, n_table/2) = [1, {n_table // 2})")
         if (merge_spur_lines and mesh.pair.spur and mesh.cells_per_line > 1
-                and not _nonzero(mods.crowning_m)):
+                and not np.any(np.asarray(mods.crowning_m) != 0.0)):
             mesh = dataclasses.replace(mesh, cells_per_line=1)
         period = mods.excitation_period_rad(mesh.pair)
         force = static_mesh_force(mesh.pair, torque)
         n_mesh = int(round(period / mesh.pair.mesh_period_rad))
-        sig = _signature_fn(mesh, mods, force)
+        sig = sdof_signature_fn(mesh, mods, force)
         theta = np.arange(n_table * n_mesh) * (period / (n_table * n_mesh))
         scan = {k: np.asarray(v) for k, v in sig(jnp.asarray(theta)).items()}
         if not np.all(np.isfinite(scan["x_s"])):
-            raise ModelError(
-                "mods", "...", "the quasi-static solve has no contact at some angle "
-                "(modifications larger than the static deflection everywhere?)",
-            )
+            raise ModelError("mods", "...", "the quasi-static solve has no contact at some angle "
+                             "(modifications larger than the static deflection everywhere?)")
         if nlte_terms is None:
             nlte_terms = bool(np.max(np.abs(scan["nlte"])) > 0.0)
         # table origin far from every change of the discrete quasi-static state, then the
@@ -579,32 +520,21 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         jumps = jumps[np.concatenate([[True], np.diff(jumps) > 1e-12 * period])]
         if jumps.size > 1 and jumps[-1] > period * (1 - 1e-12) and jumps[0] < 1e-12 * period:
             jumps = jumps[:-1]
-        lo_u, hi_u = lo, hi
         knots, cell_first, max_extra = PeriodicHermiteTable.layout(
-            origin, period, n_table * n_mesh, np.concatenate([lo_u, hi_u])
+            origin, period, n_table * n_mesh, np.concatenate([lo, hi])
         )
         side = np.zeros(knots.shape)
-        side[np.isin(knots, lo_u)] = -1.0
-        side[np.isin(knots, hi_u)] = 1.0
+        side[np.isin(knots, lo)] = -1.0
+        side[np.isin(knots, hi)] = 1.0
         # design-dependent switching angles: kind and cells of the event at every jump, so
         # that the assembly can move them with the modifications (module docstring,
         # "Derivatives with respect to the design")
-        n_cells = mesh.n_cells
-        kinds, cells_ab = [0] * jumps.size, [(0, 0)] * jumps.size
+        kinds, cells_ab = [EV_FIXED] * jumps.size, [(0, 0)] * jumps.size
         if lo.size:
-            c_lo = code(sig(jnp.asarray(lo)))
-            c_hi = code(sig(jnp.asarray(hi)))
-            hi_mod = np.mod(hi, period)
-            for j, t in enumerate(jumps):
-                dist = np.abs(hi_mod - t)
-                dist = np.minimum(dist, period - dist)
-                near = [event_kinds(c_lo[i], c_hi[i], n_cells)
-                        for i in np.nonzero(dist <= 1e-9 * period)[0]]
-                if near and all(ev[0] != EV_FIXED for ev in near):
-                    # coinciding brackets: a geometric (fixed) one pins the angle
-                    kinds[j], cells_ab[j] = near[0][0], near[0][1:]
+            kinds, cells_ab = classify_events(jumps, lo, hi, code(sig(jnp.asarray(lo))),
+                                              code(sig(jnp.asarray(hi))), mesh.n_cells, period)
         kinds, cells_ab = check_event_roots(
-            eqx.Partial(_sdof_switch, mesh, mods, jnp.asarray(force)),
+            eqx.Partial(sdof_switch, mesh, mods, jnp.asarray(force)),
             jumps, kinds, cells_ab, mesh.pair.mesh_period_rad)
         moving = any(k != EV_FIXED for k in kinds)
         codes = None
@@ -612,28 +542,17 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             delta = 1e-9 * period
             codes = jnp.asarray(code(sig(jnp.asarray(knots + side * delta))), dtype=jnp.int32)
         return cls._complete(
-            mesh=mesh,
-            mods=mods,
-            inertias_kg_m2=jnp.asarray(inert),
-            pinion_torque_Nm=jnp.asarray(torque),
-            damping_ratio=jnp.asarray(zeta),
-            table_knots=jnp.asarray(knots),
+            mesh=mesh, mods=mods, inertias_kg_m2=jnp.asarray(inert),
+            pinion_torque_Nm=jnp.asarray(torque), damping_ratio=jnp.asarray(zeta),
+            table_knots=jnp.asarray(knots), table_side=jnp.asarray(side),
             table_cell_first=jnp.asarray(cell_first, dtype=jnp.int32),
-            table_side=jnp.asarray(side),
-            formulation=formulation,
-            nlte_terms=bool(nlte_terms),
-            nlte_method=nlte_method,
-            nlte_reaction=nlte_reaction,
-            nlte_harmonics=int(nlte_harmonics),
-            excitation=excitation,
-            period_rad=float(period),
-            jump_thetas=tuple(float(t) for t in jumps),
-            n_table=n_table,
-            table_origin=float(origin),
-            table_max_extra=max_extra,
+            formulation=formulation, nlte_terms=bool(nlte_terms), nlte_method=nlte_method,
+            nlte_reaction=nlte_reaction, nlte_harmonics=int(nlte_harmonics),
+            excitation=excitation, period_rad=float(period),
+            jump_thetas=tuple(float(t) for t in jumps), n_table=n_table,
+            table_origin=float(origin), table_max_extra=max_extra,
             jump_kinds=tuple(int(k) for k in kinds),
-            jump_cells=tuple((int(a), int(b)) for a, b in cells_ab),
-            table_codes=codes,
+            jump_cells=tuple((int(a), int(b)) for a, b in cells_ab), table_codes=codes,
         )
 
     def angle(self, s):
@@ -777,53 +696,3 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         """Free-decay rate of the linearised model per radian of theta,
         ``zeta omega_n / Omega`` (sizes the automatic transient)."""
         return self.damping_ratio * self.omega_n / omega
-
-
-
-
-# ---------------------------------------------------------------------- build helpers
-def _nonzero(x) -> bool:
-    return bool(np.any(np.asarray(x) != 0.0))
-
-
-def _signature_one(mesh, mods, force, theta):
-    """Discrete state of the quasi-static solution at one angle theta: loaded cells, the
-    cell realising NLTE, and, per cell, inside/outside the path of contact and
-    inside/outside each tip-relief zone (where the gaps, hence TE_S and NLTE, have kinks;
-    the zones follow :mod:`gearjax.gears.modifications`). Traceable in ``mods``."""
-    p = mesh.pair
-    cos_bb = math.cos(p.base_helix_angle_rad)
-    xi_a, xi_e = p.contact_limits_m
-    ext = mods.relief_extent * p.path_of_contact_m
-    cells, delta_e, nlte = contact_gaps(mesh, mods, theta)
-    k = cells.stiffness_N_per_m
-    y, _ = solve_unilateral(k, delta_e, force)
-    r = mesh.removed_material(mods, cells, theta)
-    amp = mods.relief_amplitude_m
-    zone = (jnp.where(amp[0] > 0, cells.xi_m > xi_e - ext[0], False).astype(jnp.int32)
-            + 2 * jnp.where(amp[1] > 0, cells.xi_m < xi_a + ext[1], False).astype(jnp.int32))
-    return {
-        "loaded": (k > 0) & (delta_e < y),
-        "nlte_arg": jnp.argmin(jnp.where(cells.inside, r, jnp.inf)),
-        "inside": cells.inside,
-        "zone": jnp.where(cells.inside, zone, -1),
-        "nlte": nlte,
-        "x_s": y / cos_bb,
-    }
-
-
-def _signature_fn(mesh, mods, force):
-    """Jitted, vmapped :func:`_signature_one` over angles theta (build time)."""
-
-    @jax.jit
-    @jax.vmap
-    def sig(theta):
-        return _signature_one(mesh, mods, force, theta)
-
-    return sig
-
-
-# old private names, kept importable until the 3D model imports from gearjax.excitation
-_EV_FIXED = EV_FIXED
-_event_kinds = event_kinds
-_quiet_origin = quiet_origin
