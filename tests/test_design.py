@@ -274,6 +274,24 @@ def test_3d_structure_check_matches_rebuilt_events():
     assert seen == {True, False}  # both outcomes exercised
 
 
+@pytest.mark.parametrize("model", ["torsional", "3d"])
+def test_frozen_build_drops_the_angle_map(model):
+    """The frozen model of DynamicObjective.grid (harris_map): no moving event, no angle
+    map, structure flag True, and at its own design the same table and k_m as the model
+    with the map (phi is the identity there; 3D: 1e-9 apart, the mapped tabulation's
+    round-off)."""
+    mesh = Mesh.build(RIG.pair)
+    obj = DynamicObjective(mesh, ReliefSpace(), [300.0], model=model, rig=RIG,
+                           formulation="te", max_frequency_hz=3000.0)
+    x = np.array([13.3e-6, 0.2])
+    m, frozen = obj.build(x), obj.build(x, frozen=True)
+    assert m.angle_map is not None and frozen.angle_map is None
+    assert bool(frozen.structure_ok)
+    np.testing.assert_allclose(np.asarray(frozen.table.values), np.asarray(m.table.values),
+                               rtol=1e-8, atol=0)
+    assert float(frozen.k_m) == pytest.approx(float(m.k_m), rel=1e-8)
+
+
 def test_3d_quasi_static_objective(mesh_iso):
     """TE_S objective on the 3D quasi-static solution (Eq. (25)) at two loads: the load
     scaled linearly with the torque equals a model built at that torque; shaft and bearing

@@ -293,7 +293,8 @@ class DynamicObjective:
             m = build_model(self.rig, mods, mesh=self.mesh, **self.model_kwargs)
             if frozen:
                 m = dataclasses.replace(m, event_thetas=(), event_kinds=(), event_cells=(),
-                                        table_codes=None)
+                                        table_codes=None, angle_map=None)
+                m = m.with_modifications(m.mods)  # re-assembled without the angle map
         self.n_builds += 1
         self.build_time_s += time.perf_counter() - t0
         return m
