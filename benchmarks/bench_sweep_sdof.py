@@ -85,7 +85,7 @@ def scipy_metrics(model, omega, n_transient, rhs="jax", n_measured=3, samples=12
     """Same steady-state metrics with solve_ivp; returns (max F_D / F_S, seconds)."""
     from baselines import solve_ivp_piecewise  # benchmarks/ is on sys.path as the script dir
 
-    mp = eqx.filter_jit(lambda m: m.prepare())(model)
+    mp = model
     name, rtol, atol = _scipy_method(model)
     period = model.period_rad
     jumps = np.asarray(mp.jump_thetas)
@@ -114,7 +114,7 @@ def _numpy_rhs(mp, omega):
     case: NLTE = 0), reading the model's Hermite table."""
     if mp.formulation == "reference" or mp.nlte_terms:
         raise ValueError("NumPy RHS only for te/perturbation without NLTE terms")
-    d = mp.derived
+    d = mp
     tab = d.table
     knots, vals, slopes = (np.asarray(tab.knots), np.asarray(tab.values), np.asarray(tab.slopes))
     origin, period = tab.origin, tab.period

@@ -123,7 +123,7 @@ def errors(fmax, dte, ref_fmax, ref_dte, f_s):
 
 def n_transient(model, w, decay=1e-6, n_min=8, n_max=400):
     """simulate's automatic transient (excitation periods) at speed w."""
-    mp = eqx.filter_jit(lambda m: m.prepare())(model)
+    mp = model
     n_mesh = int(round(model.period_rad / model.mesh_period_rad))
     rate = float(mp.decay_rate_per_rad(w))
     n = math.ceil(math.log(1 / decay) / (rate * model.period_rad))
@@ -157,7 +157,7 @@ def run_fixed(model, speeds, steps_per_mesh, n_measured=3, samples=128):
     @eqx.filter_jit
     def go(model, speeds):
         def one(w):
-            m = model.prepare()
+            m = model
             t_tr = n_tr * period
             ts = t_tr + (jnp.arange(n_measured * samples * n_mesh) + 0.5) * (period / (samples * n_mesh))
             sol = diffrax.diffeqsolve(
@@ -222,8 +222,8 @@ def run_newmark(model, speeds, steps_per_mesh, n_measured=3, samples=128):
     (the contact law is piecewise linear: exact after the active set settles)."""
     t_start = time.perf_counter()
     speeds = np.asarray(speeds, dtype=float)
-    mp = eqx.filter_jit(lambda m: m.prepare())(model)
-    d = mp.derived
+    mp = model
+    d = mp
     period = model.period_rad
     n_mesh = int(round(period / model.mesh_period_rad))
     n_trs = np.array([n_transient(model, w)[0] for w in speeds])
