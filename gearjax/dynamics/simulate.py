@@ -1,94 +1,55 @@
 """Steady-state dynamic response at one pinion speed: diffrax in theta = Omega1 t.
 
-:func:`simulate` works for any model exposing the simulation interface (the torsional model
-:class:`gearjax.models.torsional.TorsionalModel`, the 3D model
-:class:`gearjax.models.geared3d.Geared3DModel`):
+:func:`simulate` integrates any :class:`gearjax.models.base.AbstractGearModel` (the sdof
+:class:`~gearjax.models.torsional.TorsionalModel`, Eqs. (16)/(20)/(47a), and the 3D
+:class:`~gearjax.models.geared3d.Geared3DModel`, Eqs. (14)/(42)/(48a)) at one speed, through
+a transient to its periodic steady state, and measures that state. It asks the model only
+what the base class declares.
 
-``prepare()``
-    returns the model with its derived quantities filled (called inside ``jit``).
-``initial_state(omega)``
-    state at theta = 0 with the quasi-static deflection X_S (dynamic part zero).
-``vector_field(theta, y, omega)``
-    dy/dtheta.
-``outputs(theta, y, omega)``
-    a :class:`~gearjax.models.torsional.ModelOutputs` (mesh force, DTE, acceleration or
-    None).
-``decay_rate_per_rad(omega)``
-    slowest free-decay rate per radian of theta (sizes the automatic transient).
-``period_rad``, ``mesh_period_rad``, ``jump_thetas``, ``static_force_N``, ``formulation``.
-
-Integration scheme
-------------------
-One ``diffeqsolve`` per speed, from theta = 0 to the end of the last measured period,
-saving the state only on the measured grid (``samples_per_mesh_period`` points per mesh
-period, at mid-cells ``(j + 1/2) P / n`` so that no sample falls on an engagement angle) by
-dense interpolation, which does not constrain the step size. The outputs (mesh force, DTE,
-acceleration) are evaluated on that grid and reduced to per-period extrema; nothing else
-of the trajectory is kept (the signals only with ``save_signals=True``).
-
-Start: :func:`transient_start` -- the quasi-static state X_S(0) (dynamic part zero), except
-that modal models start the modes far below the excitation frequency on the period mean of
-the quasi-static state (they cannot follow the ripple; started on it, the 3D rig's 61.8 rad/s
-mode, weakly coupled to the mesh, outlived the automatic transient and left a silent 1e-3
-error in the dynamic factor; from the mean, 1e-5 at 700-840 rad/s, no extra cost but 64
-quasi-static evaluations per speed).
-
-The transient is either ``n_transient_periods`` excitation periods, or (``None``) chosen per
-speed so that the free response of the linearised model decays by ``transient_decay``:
+Integration
+-----------
+One ``diffeqsolve`` per speed in the angle ``theta`` (rad), from ``model.transient_start``
+to the end of the last measured period. The transient is ``n_transient_periods``
+excitation periods, or (``None``) chosen per speed so that the slowest free response of the
+linearised model decays by ``transient_decay``:
 ``n = ceil(ln(1/transient_decay) / (decay_rate * period))`` clipped to
-``[min_transient_mesh_periods, max_transient_mesh_periods]`` (rounded up to whole periods).
-Steps per radian grow like ``1/Omega`` while the periods needed grow like ``Omega``, so every
-speed costs about the same -- which a vmapped sweep needs, because diffrax advances the
-batch in lockstep and the slowest member sets the cost. (Integrating period by period in a
-loop would multiply the *per-period* maxima over the batch: measured several times slower.)
+``[min_transient_mesh_periods, max_transient_mesh_periods]``. Steps per radian grow like
+``1/Omega`` while the periods needed grow like ``Omega``, so every speed costs about the
+same, which a vmapped sweep needs (diffrax advances the batch in lockstep).
 
-Jumps: the right-hand side of a gear model jumps or kinks at angles that do not depend on
-speed (cell engagement, quasi-static active-set changes, NLTE kinks), ``model.jump_thetas``
-within one period. :class:`PeriodicJumpController` makes every step end just before such an
-angle and the next start just after it (as ``PIDController(jump_ts=...)``, i.e.
-``ClipStepSizeController``, does, but in O(1) per step: the diffrax controller compares
-each step with every entry of ``jump_ts``, which over 100+ periods of 6-240 jumps made the
-controller, not the vector field, the cost: 7x on a helical sweep). State-dependent kinks
-of the reference contact law (cells losing or regaining contact) are left to the error
-control.
+The right-hand side jumps or kinks at angles independent of speed (cell engagement,
+quasi-static active-set changes, NLTE kinks: ``model.jump_thetas``);
+:class:`PeriodicJumpController` ends every step just before such an angle and restarts just
+after it, in O(1) per step. State-dependent kinks of the reference contact law (cells
+losing or regaining contact) are left to the error control. Solvers and tolerances:
+:func:`default_solver` (measured choices: ``benchmarks/results/model_notes.md``).
 
-Solvers and tolerances (:func:`default_solver`, chosen by work-precision measurements on
-16 speeds 60-1450 rad/s of the spur Table 1 pair, errors against Dopri8 at rtol 1e-11;
-``benchmarks/bench_sweep_sdof.py --work-precision`` repeats them): the reference contact
-law has state-dependent kinks, where a low order pays off: Tsit5 at rtol 1e-7 (error of the
-dynamic factor ~1e-5, 9.0e3 steps x 6 stages for the costliest speed) beats Dopri8 at
-rtol 1e-6 (5e-6, 7.4e3 x 13). The te and perturbation right-hand sides are smooth between
-the jumps: Dopri8 at rtol 1e-7 (error ~1e-6, 1.9e3 x 13) beats Tsit5 at rtol 1e-7 (1e-5,
-5.0e3 x 6). ``atol = 1e-9``. Both on the dimensionless state (lengths over the mean static
-approach).
+Metrics
+-------
+The state is saved on the output grid of :mod:`gearjax.dynamics.metrics` (mid-cell
+samples plus both sides of every jump, by the solver's dense interpolant, which does not
+constrain the steps); max and min mesh force, DTE and acceleration are read there and
+refined between grid points, so they are exact to the integration tolerance. Per speed:
+max and min mesh force F_D (N, Eqs. (22)/(24)), dynamic factor ``max F_D / F_S``, DTE and
+acceleration peak-to-peak, ``contact_loss`` (``min F_D <= 0``: separation for the reference
+formulation, a tensile -- unphysical -- force for the linear te/perturbation ones), the
+convergence measure and ``converged``.
 
-Metrics (per speed): max and min mesh force, dynamic factor ``max F_D / F_S``, DTE and
-acceleration peak-to-peak over all measured periods, a contact-loss flag (``min F_D <= 0``:
-total separation of the teeth for the reference formulation, a tensile -- unphysical --
-mesh force for the linear te/perturbation formulations), the convergence measure (the
-largest relative change of the per-period extrema between the last two measured periods,
-forces relative to F_S, DTE relative to the DTE peak-to-peak; for modal models divided by
-``|1 - mu|``, ``mu`` the free-decay multiplier per period of the slowest mode the outputs
-see, :func:`slowest_output_mode`: a geometric extrapolation to the distance from the steady
-state, so that a slow drift is not read as converged) and ``converged``
-(``convergence <= convergence_tol`` and the solver succeeded). A model whose
-``decay_rate_per_rad`` is 0 (undamped) never reads as converged: its free response keeps
-the amplitude of the start (an undamped oscillator at 0.7 of the mesh frequency changed its
-per-period extrema by only 9e-5 and was read as converged). ``converged`` therefore
-means "periodic with the excitation period to within the tolerance": a sub-harmonic
-response (after contact loss, or in a parametric instability zone of the reference), a
-quasi-periodic or chaotic one, a response still growing (parametric instability of the
-linear te model, see :mod:`gearjax.dynamics.stability`) or an insufficient transient all read as
-not converged. A failed integration (step limit, non-finite state) gives
-``solver_ok = False``, ``converged = False`` and NaN metrics: never a silent NaN.
+``convergence`` is the largest relative change of the per-period extrema between the last
+two measured periods (forces over F_S, DTE and acceleration over their peak-to-peak), for
+modal models divided by ``|1 - mu|``, ``mu`` the free-decay multiplier per period of the
+slowest mode the outputs see (``model.slowest_output_mode``): a geometric extrapolation to
+the distance from the steady state. ``converged`` means "periodic with the excitation
+period to within ``convergence_tol``": a sub-harmonic, quasi-periodic or growing response
+(parametric instability, :mod:`gearjax.dynamics.stability`) or an insufficient transient
+reads as not converged, and an undamped model (decay rate 0) never does. A failed
+integration (step limit, non-finite state) gives ``solver_ok = False``, ``converged =
+False`` and NaN metrics: never a silent NaN.
 
-All operations on the metric path are differentiable (max/min over the sampled grid are
-exact maxima of the samples); the default ``adjoint=diffrax.ForwardMode()`` gives
-forward-mode derivatives through the solve (checked against central differences for the
-speed and the relief amplitude). For te and perturbation the jump angles move with the
-design; the torsional model maps them to fixed integration angles so that AD sees their
-motion (see :mod:`gearjax.models.torsional`). The 3D model's table knots are fixed at build
-time: its te/perturbation derivatives with respect to the modifications miss that motion.
+Derivatives: every operation on the metric path is differentiable; the default
+``adjoint=diffrax.ForwardMode()`` gives forward-mode derivatives through the solve. Both
+models integrate in a simulation angle whose jumps stay fixed while the physical switching
+angles move with the design (their angle maps), so AD sees the motion of the jumps.
 """
 
 from __future__ import annotations
@@ -102,6 +63,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from ..errors import SimulationError
+from ..models.base import AbstractGearModel
+from .metrics import output_grid, refined_extrema
 
 __all__ = [
     "simulate",
@@ -356,6 +319,9 @@ def simulate(
     SimulationError
         for a concrete non-positive or non-finite speed or inconsistent configuration.
     """
+    if not isinstance(model, AbstractGearModel):
+        raise SimulationError("model", type(model).__name__,
+                              "must be a gear model (gearjax.models.base.AbstractGearModel)")
     _check_config(n_transient_periods, n_measured_periods, samples_per_mesh_period,
                   transient_decay, min_transient_mesh_periods, max_transient_mesh_periods)
     if not isinstance(omega, jax.core.Tracer):
@@ -390,8 +356,10 @@ def simulate(
         n_tr = jnp.asarray(float(n_max))
     t_tr = n_tr * period
     t_end = t_tr + n_measured_periods * period
-    # samples at mid-cells: never exactly on an engagement angle (spur engagement is at 0)
-    ts = t_tr + (jnp.arange(n_measured_periods * n_samples) + 0.5) * (period / n_samples)
+    # output grid: mid-cell samples (never on an engagement angle) plus both sides of
+    # every jump, per measured period (gearjax.dynamics.metrics)
+    grid = output_grid(period, n_samples, jumps, n_measured_periods)
+    ts = t_tr + jnp.asarray(grid.offsets)
     ctrl = _controller(rtol, atol, jumps, period)
     if start not in ("auto", "initial"):
         raise SimulationError("start", start, 'must be "auto" or "initial"')
@@ -406,21 +374,27 @@ def simulate(
     ys = sol.ys
     ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(ys))
     steps = sol.stats["num_steps"]
-    out = jax.vmap(lambda t, yy: model.outputs(t, yy, omega))(ts, ys)
-    per = lambda a: a.reshape(n_measured_periods, n_samples)  # noqa: E731
-    fd, dte = per(out.mesh_force_N), per(out.dte_m)
-    cols = [fd.max(1), fd.min(1), dte.max(1), dte.min(1)]
-    acc = None if out.accel_m_s2 is None else per(out.accel_m_s2)
-    if acc is not None:
-        cols += [acc.max(1), acc.min(1)]
-    ext = jnp.stack(cols, axis=1)  # (periods, extrema)
-    sig = (ts, out.mesh_force_N, out.dte_m, out.accel_m_s2)
+
+    def observed(t, y):
+        o = model.outputs(t, y, omega)
+        cols = [o.mesh_force_N, o.dte_m] + ([] if o.accel_m_s2 is None else [o.accel_m_s2])
+        return jnp.stack(cols)
+
+    def flow(t0, y_start, t_out):  # the same integration, again from a grid point
+        return diffrax.diffeqsolve(
+            term, solver, t0=t0, t1=t_out[-1], dt0=None, y0=y_start, args=omega,
+            saveat=diffrax.SaveAt(ts=t_out), stepsize_controller=ctrl,
+            max_steps=max(4096, max_steps // 100), adjoint=adjoint, throw=False).ys
+
+    vals, v_max, v_min = refined_extrema(observed, flow, ts, ys)
+    has_acc = vals.shape[1] > 2
+    per = vals.reshape(n_measured_periods, grid.per_period, -1)
+    ext = jnp.stack([per.max(1), per.min(1)], axis=2).reshape(n_measured_periods, -1)
+    # ext columns: F max, F min, DTE max, DTE min (, accel max, accel min), per period
     f_s = model.static_force_N
-    f_max = jnp.max(ext[:, 0])
-    f_min = jnp.min(ext[:, 1])
-    dte_ptp = jnp.max(ext[:, 2]) - jnp.min(ext[:, 3])
-    has_acc = ext.shape[1] > 4
-    acc_ptp = jnp.max(ext[:, 4]) - jnp.min(ext[:, 5]) if has_acc else jnp.asarray(jnp.nan)
+    f_max, f_min = v_max[0], v_min[0]
+    dte_ptp = v_max[1] - v_min[1]
+    acc_ptp = v_max[2] - v_min[2] if has_acc else jnp.asarray(jnp.nan)
     # convergence: last two periods; forces / F_S, DTE / DTE ptp, accel / accel ptp (ptp
     # floored at 1e-3 of the largest |value|, for signals that hardly vary)
     dte_s = jnp.maximum(dte_ptp, 1e-3 * jnp.max(jnp.abs(ext[:, 2:4])))
@@ -449,11 +423,11 @@ def simulate(
     nan = jnp.asarray(jnp.nan)
     bad = lambda v: jnp.where(ok, v, nan)
     signals = None
-    if save_signals:
-        ts, fd, dte, acc = sig
+    if save_signals:  # the uniform mid-cell samples only (one-sided jump points left out)
+        mid = np.nonzero(grid.samples)[0]
         signals = Signals(
-            theta_rad=ts.reshape(-1), mesh_force_N=fd.reshape(-1), dte_m=dte.reshape(-1),
-            accel_m_s2=None if acc is None else acc.reshape(-1),
+            theta_rad=ts[mid], mesh_force_N=vals[mid, 0], dte_m=vals[mid, 1],
+            accel_m_s2=vals[mid, 2] if has_acc else None,
         )
     return SimulationResult(
         speed_rad_s=omega,

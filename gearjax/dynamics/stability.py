@@ -15,11 +15,11 @@ error control; the jumps of ``k(theta)`` passed as ``jump_ts``). For a linear sy
 *is* the Jacobian of the flow map, without the pitfall of ``jax.jacfwd`` through an
 adaptive solve, whose step sizes would be chosen for one primal trajectory only.
 
-Models provide ``homogeneous_vector_field(theta, y, omega)`` (linear in ``y``) and the
-simulation interface of :mod:`gearjax.dynamics.simulate` (``prepare``, ``period_rad``,
-``jump_thetas``). For :class:`gearjax.models.torsional.TorsionalModel` the reference
-formulation is linearised about the quasi-static contact (same equation as te, valid while
-no cell changes contact), and the perturbation formulation has constant coefficients
+Models provide ``homogeneous_vector_field(theta, y, omega)`` (linear in ``y``),
+``period_rad`` and ``jump_thetas`` (:class:`gearjax.models.base.AbstractGearModel`). For
+:class:`gearjax.models.torsional.TorsionalModel` the reference formulation is linearised
+about the quasi-static contact (same equation as te, valid while no cell changes contact),
+and the perturbation formulation has constant coefficients
 (``rho = exp(-zeta omega_n T)``, a check).
 """
 
@@ -31,7 +31,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .simulate import SimulationError
+from ..errors import SimulationError
+from ..models.base import AbstractGearModel
 
 __all__ = ["monodromy", "floquet_multipliers", "spectral_radius"]
 
@@ -52,6 +53,11 @@ def monodromy(model, omega, *, solver=None, rtol: float = 1e-10, atol: float = 1
     (n, n) array ``Phi(P)`` in the model's (scaled) state coordinates; NaN if the
     integration failed.
     """
+    if not isinstance(model, AbstractGearModel):
+        raise SimulationError(
+            "model", type(model).__name__,
+            "must be a gear model (gearjax.models.base.AbstractGearModel, which declares "
+            "homogeneous_vector_field, period_rad and jump_thetas)")
     solver = diffrax.Dopri8() if solver is None else solver
     omega = jnp.asarray(omega, dtype=float)
     period = float(model.period_rad)
