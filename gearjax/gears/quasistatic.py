@@ -27,9 +27,12 @@ from .modifications import ToothModifications
 __all__ = ["QuasiStatic", "solve_unilateral", "contact_gaps", "quasi_static", "static_mesh_force"]
 
 
-def static_mesh_force(pair, pinion_torque_Nm: float) -> float:
-    """Static normal mesh force F_S = C_m0 / (Rb1 cos(beta_b)) (N) (Section 3, Eq. (23))."""
-    return float(pinion_torque_Nm) / (pair.base_radii_m[0] * math.cos(pair.base_helix_angle_rad))
+def static_mesh_force(pair, pinion_torque_Nm):
+    """Static normal mesh force F_S = C_m0 / (Rb1 cos(beta_b)) (N) (Section 3, Eq. (23)).
+    A float for a float torque; traceable (a model's torque is an array field)."""
+    if isinstance(pinion_torque_Nm, (int, float)):
+        pinion_torque_Nm = float(pinion_torque_Nm)
+    return pinion_torque_Nm / (pair.base_radii_m[0] * math.cos(pair.base_helix_angle_rad))
 
 
 def contact_gaps(mesh: Mesh, mods: ToothModifications, theta):

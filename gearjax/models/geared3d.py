@@ -383,7 +383,7 @@ class Geared3DModel(AbstractGearModel):
     @property
     def static_force_N(self):
         """F_S = C_m0 / (Rb1 cos b_b) (N)."""
-        return self.pinion_torque_Nm / (self.mesh.pair.base_radii_m[0] * self.cos_bb)
+        return static_mesh_force(self.mesh.pair, self.pinion_torque_Nm)
 
     @property
     def n_reduced(self) -> int:

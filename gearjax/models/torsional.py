@@ -208,7 +208,7 @@ class _TorsionalInputs(eqx.Module):
     @property
     def static_force_N(self):
         """F_S = C_m0 / (Rb1 cos b_b) (N) (Section 3)."""
-        return self.pinion_torque_Nm / (self.pair.base_radii_m[0] * self.cos_bb)
+        return static_mesh_force(self.pair, self.pinion_torque_Nm)
 
     @property
     def equivalent_mass_kg(self):
