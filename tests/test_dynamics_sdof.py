@@ -238,35 +238,42 @@ def test_eq24_mesh_force_from_cell_forces(spur):
 def test_reference_equals_te_without_contact_changes(spur):
     """Perfect gears (every gap zero): the loaded cells are all cells in the path of
     contact, statically and dynamically, as long as contact is not lost; then Eq. (20) is
-    an exact rewriting of Eq. (16) (Eq. (18) holds exactly). Where contact is lost the
-    linear TE-based equation cannot follow the separation."""
+    an exact rewriting of Eq. (16) (Eq. (18) holds exactly). When contact is lost every
+    cell separates at once (equal gaps), so the reference's cell-by-cell law and the
+    TE-based mesh-level contact law (:func:`gearjax.gears.contact.te_contact`) coincide:
+    at 700 rad/s the teeth separate and the two still agree."""
     mods = ToothModifications.none()
     speeds = jnp.asarray([200.0, 500.0, 900.0, 700.0])
     ref = sim2(TorsionalModel.build(spur, mods, formulation="reference"), speeds)
     te = sim2(TorsionalModel.build(spur, mods, formulation="te"), speeds)
-    loss = np.asarray(ref.contact_loss)
-    assert list(loss) == [False, False, False, True]
+    assert list(np.asarray(ref.contact_loss)) == [False, False, False, True]
+    assert list(np.asarray(te.contact_loss)) == [False, False, False, True]
     for f in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m"):
         a, b = np.asarray(getattr(ref, f)), np.asarray(getattr(te, f))
-        # both integrated at rtol 1e-7: agreement to a few 1e-6
-        np.testing.assert_allclose(a[:3], b[:3], rtol=5e-6, err_msg=f)
-        assert abs(b[3] - a[3]) > 0.1 * max(abs(a[3]), abs(b[3])), f
+        # both integrated at rtol 1e-7: agreement to a few 1e-6 (through the impacts too)
+        np.testing.assert_allclose(a, b, rtol=5e-6, atol=1e-9 * float(ref.max_mesh_force_N[0]),
+                                   err_msg=f)
 
 
 def test_reference_close_to_te_with_short_relief(spur):
     """Table 1 short relief, 300 rad/s (no contact loss): the formulations agree to < 1 %.
     They are not identical because the dynamic approach shifts the instants at which the
-    relieved tips come into contact (Eq. (18) is then an approximation); at 700 rad/s the
-    teeth separate and the TE-based result is off by tens of per cent (paper Section 6.3.1)."""
+    relieved tips come into contact (Eq. (18) is then an approximation). At 700 rad/s the
+    teeth separate: the TE-based equation with the contact law separates too (its force
+    stays >= 0) and its peak force stays within 5 % of the reference (the linear Eq. (20)
+    without the contact law was off by tens of per cent there)."""
     mods = table1_relief("short")
     speeds = jnp.asarray([300.0, 700.0])
     ref = sim2(TorsionalModel.build(spur, mods, formulation="reference"), speeds)
     te = sim2(TorsionalModel.build(spur, mods, formulation="te"), speeds)
     assert list(np.asarray(ref.contact_loss)) == [False, True]
+    assert list(np.asarray(te.contact_loss)) == [False, True]
+    assert float(te.min_mesh_force_N[1]) == 0.0
     for f in ("max_mesh_force_N", "dte_ptp_m"):
         a, b = np.asarray(getattr(ref, f)), np.asarray(getattr(te, f))
         assert abs(b[0] / a[0] - 1) < 1e-2, f
-        assert abs(b[1] / a[1] - 1) > 0.1, f
+    a, b = np.asarray(ref.max_mesh_force_N), np.asarray(te.max_mesh_force_N)
+    assert abs(b[1] / a[1] - 1) < 5e-2
 
 
 # ---------------------------------------------------------------------- model options

@@ -70,15 +70,23 @@ def output_grid(period: float, n_samples: int, jump_thetas, n_periods: int) -> O
 
 def _vertex_max(t, v, short):
     """Largest value of the samples ``v`` at the sorted angles ``t`` and of the parabola
-    through the largest sample and its two neighbours, where that fit is sound: the three
-    points equally spaced, farther apart than ``short`` (no jump between them) and the
-    middle one the largest (interpolation, no extrapolation). Fourth-order error."""
-    i = jnp.clip(jnp.argmax(v), 1, v.shape[0] - 2)
+    through the largest sample and its two neighbours, where that fit is sound: the five
+    points around it equally spaced, farther apart than ``short`` (no jump between them),
+    the middle one the largest (interpolation, no extrapolation) and the three second
+    differences alike (no kink: a mesh force that stays at zero while the teeth separate,
+    or a cell that loses contact, would put a parabola's vertex beyond the signal).
+    Fourth-order error."""
+    i = jnp.clip(jnp.argmax(v), 2, v.shape[0] - 3)
     y0, y1, y2 = v[i - 1], v[i], v[i + 1]
-    d0, d1 = t[i] - t[i - 1], t[i + 1] - t[i]
+    dt = jnp.diff(jax.lax.dynamic_slice(t, (i - 2,), (5,)))
+    d1 = dt[2]
     curv = y0 - 2.0 * y1 + y2
-    sound = ((jnp.abs(d1 - d0) <= 1e-6 * d1) & (d0 > short) & (y1 >= y0) & (y1 >= y2)
-             & (curv < 0))
+    c_lo = v[i - 2] - 2.0 * y0 + y1
+    c_hi = y1 - 2.0 * y2 + v[i + 2]
+    tol = 0.25 * jnp.abs(curv)
+    smooth = (jnp.abs(c_lo - curv) <= tol) & (jnp.abs(c_hi - curv) <= tol)
+    sound = ((jnp.max(jnp.abs(dt - d1)) <= 1e-6 * d1) & (jnp.min(dt) > short) & (y1 >= y0)
+             & (y1 >= y2) & (curv < 0) & smooth)
     vertex = y1 - (y0 - y2) ** 2 / (8.0 * jnp.where(curv < 0, curv, -1.0))
     return jnp.maximum(jnp.max(v), jnp.where(sound, vertex, -jnp.inf))
 

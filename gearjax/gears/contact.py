@@ -15,7 +15,9 @@ almost everywhere.
   vector field, where it vectorises better for n <= ~200);
 * :func:`active_set_solve` -- unilateral contact of cells acting along *different*
   structure vectors on a condensed elastic system (the 3D quasi-static solution, Eq. (25)):
-  an active-set iteration, exact at convergence.
+  an active-set iteration, exact at convergence;
+* :func:`te_contact` -- the contact algorithm of the TE-based formulations (Eqs. (20),
+  (42), (47a), (48a)): the mesh acts only while it is in compression.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-__all__ = ["solve_unilateral", "unilateral_solve_pairwise", "active_set_solve"]
+__all__ = ["solve_unilateral", "unilateral_solve_pairwise", "active_set_solve", "te_contact"]
 
 
 def solve_unilateral(k, gap, force):
@@ -131,3 +133,38 @@ def active_set_solve(k_cc, f_c, vecs, k, gap, active0, max_iter: int):
     active = jax.lax.stop_gradient(active)
     x = solve(active)
     return x, active, it, ~changed
+
+
+def te_contact(f_equation, f_loaded):
+    """The paper's contact algorithm (Section 6.2) in the TE-based formulations.
+
+    Eqs. (20)/(42) and (47a)/(48a) are linear: their mesh force, ``f_equation = F_S +
+    k cos(b_b) x_D`` (Eq. (24) / (41), with ``k`` the loaded quasi-static stiffness
+    ``(sum k_i)^S`` in (20)/(42) and the mean ``k_m`` in (47a)/(48a); N), turns tensile
+    when the dynamic approach falls below the separation approach ``x_S - F_S / (k
+    cos b_b)``. Section 6.2 evaluates the stiffness of every formulation "at each step
+    depending on the instantaneous contact conditions". These formulations know the mesh
+    only through ``TE_S``, ``NLTE`` and ``k(theta)`` (what a measured transmission error
+    gives), so the contact state they can resolve is the mesh's: in contact while the
+    linear force is compressive, and then the equations are unchanged; separated
+    otherwise, and then the mesh stiffness and its transmission-error forcing are both
+    zero, so the mesh force is zero, never tensile. Partial loss of contact along the
+    lines (some cells unloading) needs each cell's gap, which is the reference
+    formulation (Eq. (14)/(16)).
+
+    Parameters
+    ----------
+    f_equation : the linear mesh force of the equation of motion (N).
+    f_loaded : the reported linear mesh force ``F_S + (sum k_i)^S cos(b_b) x_D`` (N, the
+        same as ``f_equation`` for te; for the perturbation formulation the tooth load
+        is read with the loaded stiffness, Eq. (41)).
+
+    Returns
+    -------
+    (cut, f_d) : ``cut = min(0, f_equation)``, the force to remove from the linear
+    equation (0 while in contact, so the linear equations are kept bit for bit), and the
+    reported mesh force ``f_d`` (N): ``max(0, f_loaded)`` in contact, 0 when separated.
+    """
+    in_contact = f_equation > 0.0
+    return (jnp.minimum(f_equation, 0.0),
+            jnp.where(in_contact, jnp.maximum(f_loaded, 0.0), 0.0))

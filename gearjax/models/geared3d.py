@@ -19,7 +19,10 @@ that each compiles only its own terms (``' = d/dtheta``, ``theta = Omega1 t`` in
 
 with ``K_bar = K + k_m V V^T`` (Eq. (27)), ``k(theta) = k_m (1 + alpha g)`` the loaded
 quasi-static stiffness (N/m) and ``k_m`` its mean over one excitation period, so that
-``alpha k_m g = k(theta) - k_m``; ``V`` the averaged structure vector (Eq. (A.1)), ``W``
+``alpha k_m g = k(theta) - k_m``. Contact algorithm (Section 6.2) in (42)/(48a): their mesh
+term acts along ``V`` with the linear force ``F_S + k v_xD`` (``k_m`` in (48a)), kept while
+compressive and cut to zero (stiffness and TE forcing together) when it would be tensile
+(:func:`gearjax.gears.contact.te_contact`); ``V`` the averaged structure vector (Eq. (A.1)), ``W``
 the TE projection vector (Rb1, Rb2 at the encoder torsional dofs, Eq. (10)),
 ``X_0 = K_bar^-1 F_0``, ``w_x0 = W^T X_0``, ``v_x0 = V^T X_0``.
 
@@ -62,8 +65,8 @@ State: ``y = ((q - q_0)/a, u / (r a))`` (dimensionless) with ``q_0`` the coordin
 ``F_S C_v`` (Eq. (A.2)).
 
 Outputs: mesh force (N), reference ``sum_i k_i max(0, V(M_i)^T X - de_i)``, te/perturbation
-Eq. (41) ``F_D = F_S + k(theta) V^T (X - X_S)`` with ``V^T X_S = v_x0 + cos b_b (TE_S -
-NLTE - w_x0)`` (Eq. (36)); DTE ``= W^T X + NLTE`` (m, Eq. (10)); acceleration of the pinion
+Eq. (41) ``F_D = F_S + k(theta) V^T (X - X_S)`` (0 while separated) with ``V^T X_S = v_x0 +
+cos b_b (TE_S - NLTE - w_x0)`` (Eq. (36)); DTE ``= W^T X + NLTE`` (m, Eq. (10)); acceleration of the pinion
 centre along s ``Omega^2 X_v''`` (m/s^2, the Dirac part of NLTE'' excluded).
 Measurements behind these choices: ``benchmarks/results/model_notes.md`` ("geared3d").
 """
@@ -84,6 +87,7 @@ from ..excitation.mesh3d import (QuasiStaticMesh3D, fourier_coefficients, harmon
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
+from ..gears.contact import te_contact
 from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..structure.condensation import Condensation, QuasiStatic3D, quasi_static_3d
 from ..structure.element import PinionGearElement
@@ -453,8 +457,7 @@ class Geared3DModel(AbstractGearModel):
 
     # ------------------------------------------------------------------ quasi-static
     def quasi_static(self, theta) -> QuasiStatic3D:
-        """Quasi-static 3D solution (Eq. (25)) at ``theta`` (rad, scalar; vmap for several)."""
-        return self.quasi_static_mesh().solve(theta)
+        return self.quasi_static_mesh().solve(theta)  # Eq. (25) at theta (rad, scalar)
 
     def _excitation(self, theta):
         """(d (m), k (N/m)) with d = TE_S - NLTE - w_x0 (or TE_S - w_x0 without NLTE terms)
@@ -480,7 +483,6 @@ class Geared3DModel(AbstractGearModel):
 
     # ------------------------------------------------------------------ excitation vectors
     def _ecc_local(self, theta):
-        """(E~, F~, G~) at the 12 element dofs (Eq. (14))."""
         return self.ecc.local_vectors(theta, *self.mesh.pair.base_radii_m)
 
     def _inertial(self, theta):
@@ -528,9 +530,10 @@ class Geared3DModel(AbstractGearModel):
         u = y[nr:] * r * self.scale_a
         return z, u, r
 
-    def _elastic(self, s, q):
+    def _elastic(self, s, q, contact: bool = True):
         """(restoring minus static force in modal coordinates, mesh force F_D (N)) at the
-        simulation angle ``s``."""
+        simulation angle ``s``; te/perturbation with the contact law of
+        :func:`gearjax.gears.contact.te_contact` unless ``contact=False`` (linear)."""
         z = q - self.q0
         f_s = self.static_force_N
         if self.formulation == "reference":  # no angle map: s = theta
@@ -546,14 +549,18 @@ class Geared3DModel(AbstractGearModel):
         v_q = self.v_r @ q
         v_xs = self.v_x0 + self.cos_bb * d
         f_d = f_s + k * (v_q - v_xs)  # Eq. (41)
+        # force = K_bar z - k_m v_q V + f_eq V: f_eq the equation's linear mesh force
         if self.formulation == "te":
-            force = (self.kbar_r @ z + (k - self.k_m) * v_q * self.v_r
-                     - (k * self.cos_bb * d + (k - self.k_m) * f_s / self.k_m) * self.v_r)
+            f_eq = k * v_q - k * self.cos_bb * d - (k - self.k_m) * f_s / self.k_m
         else:
-            force = self.kbar_r @ z - self.k_m * self.cos_bb * d * self.v_r
-        return force, f_d
+            f_eq = self.k_m * (v_q - self.cos_bb * d)
+        force = self.kbar_r @ z + (f_eq - self.k_m * v_q) * self.v_r
+        if not contact:
+            return force, f_d
+        cut, f_d = te_contact(f_eq, f_d)
+        return force - cut * self.v_r, f_d
 
-    def _accel(self, s, y, omega):
+    def _accel(self, s, y, omega, contact: bool = True):
         """(q, q', u') for the state y at the simulation angle ``s`` (derivatives with
         respect to theta): the equations of motion in modal coordinates."""
         z, u, r = self._unscale(y, omega)
@@ -565,7 +572,7 @@ class Geared3DModel(AbstractGearModel):
             qp = u - nl1 * e
         else:
             qp = u
-        force, _ = self._elastic(s, q)
+        force, _ = self._elastic(s, q, contact)
         up = -(force + omega * (self.c_r @ qp)) / omega**2
         if e is not None:
             up = up + nl1 * ep
@@ -575,11 +582,11 @@ class Geared3DModel(AbstractGearModel):
             up = up - g
         return q, qp, up
 
-    def vector_field(self, s, y, omega):
+    def vector_field(self, s, y, omega, contact: bool = True):
         """d y / d s for the scaled state ``y = ((q - q_0)/a, u/(r a))`` (module
         docstring): ``phi'(s)`` times d y / d theta at ``theta = phi(s)`` (``s = theta``
         at the build-time design); ``omega`` is the pinion speed Omega1 (rad/s)."""
-        _, qp, up = self._accel(s, y, omega)
+        _, qp, up = self._accel(s, y, omega, contact)
         r = self.omega_r / omega
         dyth = jnp.concatenate([qp / self.scale_a, up / (r * self.scale_a)])
         dth = self.angle(s)[1]
@@ -587,16 +594,16 @@ class Geared3DModel(AbstractGearModel):
 
     @property
     def state_size(self) -> int:
-        """Length of the scaled state ``y`` (2 r)."""
-        return 2 * self.n_reduced
+        return 2 * self.n_reduced  # the scaled state y = ((q - q_0)/a, u/(r a))
 
     def homogeneous_vector_field(self, theta, y, omega):
-        """The linear part of :meth:`vector_field` (te/perturbation: the right-hand side is
+        """The linear part of :meth:`vector_field` (te/perturbation without the contact law,
         affine in ``y``), for the Floquet analysis of :mod:`gearjax.dynamics.stability`."""
         if self.formulation == "reference":
             raise ModelError("formulation", "reference", "the contact law is not linear; the "
                              "linearisation about the quasi-static contact is the te formulation")
-        return self.vector_field(theta, y, omega) - self.vector_field(theta, jnp.zeros_like(y), omega)
+        f = lambda y: self.vector_field(theta, y, omega, contact=False)  # noqa: E731
+        return f(y) - f(jnp.zeros_like(y))
 
     @property
     def periodic_start(self) -> bool:
@@ -613,16 +620,12 @@ class Geared3DModel(AbstractGearModel):
                 and self.table_knots is not None)
 
     def harmonic_state(self, omega, theta0=0.0, n_harmonics: int | None = None):
-        """Periodic steady state of Eq. (48a) at ``theta0``, exact in the frequency domain.
-
-        Without NLTE and eccentricity terms Eq. (48a) is linear with *constant* coefficients
-        and a periodic forcing ``k_m cos(b_b) d(theta) V``, ``d = TE_S - w_x0`` (tabulated):
-        each harmonic of the excitation period answers independently
-        (:func:`gearjax.excitation.mesh3d.harmonic_response`). ``d_h`` are the discrete
-        Fourier coefficients of the tabulated ``d`` sampled 8 times finer than the table
-        (``n_harmonics`` kept, default 128 per mesh period); ``d`` has kinks, so ``d_h =
-        O(h^-2)`` and ``z_h = O(h^-4)`` above the modes. Returns the scaled state.
-        """
+        """Periodic steady state of Eq. (48a) at ``theta0`` (scaled state), exact in the
+        frequency domain while contact holds: without NLTE and eccentricity terms Eq. (48a)
+        has *constant* coefficients and the forcing ``k_m cos(b_b) d(theta) V``, ``d = TE_S
+        - w_x0``, so each harmonic answers alone (:func:`gearjax.excitation.mesh3d.
+        harmonic_response`; ``d`` sampled 8x finer than the table, ``n_harmonics`` kept,
+        default 128 per mesh period: ``d_h = O(h^-2)``, ``z_h = O(h^-4)``)."""
         if not self._constant_coefficients:
             raise ModelError("formulation", self.formulation,
                              "harmonic_state needs the perturbation formulation without NLTE "
@@ -638,9 +641,8 @@ class Geared3DModel(AbstractGearModel):
         return jnp.concatenate([z / m.scale_a, zp / (rr * m.scale_a)])
 
     def initial_state(self, omega, theta0=0.0):
-        """Scaled state at ``theta0``: the periodic steady state when
-        :attr:`periodic_start` (:meth:`harmonic_state`), else the quasi-static solution
-        (X_D = X_D' = 0)."""
+        """Scaled state at ``theta0``: :meth:`harmonic_state` when :attr:`periodic_start`,
+        else the quasi-static solution (X_D = X_D' = 0)."""
         if self.periodic_start:
             return self.harmonic_state(omega, theta0)
         theta0 = jnp.asarray(theta0, dtype=float)  # simulation angle s0
@@ -672,8 +674,7 @@ class Geared3DModel(AbstractGearModel):
         return ModelOutputs(mesh_force_N=f_d, dte_m=dte, accel_m_s2=omega**2 * (self.acc_r @ qpp))
 
     def decay_rate_per_rad(self, omega):
-        """``zeta omega_min / Omega`` with ``omega_min`` the slowest mode that takes part in
-        the mesh deflection (``participation_tol`` at build)."""
+        """``zeta omega_min / Omega``, ``omega_min`` the slowest mode in the mesh deflection."""
         return self.damping_ratio * self.decay_omega_rad_s / omega
 
     def transient_start(self, omega):

@@ -19,7 +19,10 @@ Eqs. (17)-(19))::
         = k(theta) cos^2(b_b) (TE_S - NLTE) - Omega^2 (J2 / Rb2^2) NLTE''
 
 ``"perturbation"`` -- main-order perturbation Eq. (47a): the same with the constant
-``k_m``, the mean of ``(sum k_i)^S`` over one period.
+``k_m``, the mean of ``(sum k_i)^S`` over one period. Contact algorithm (Section 6.2) in
+(20)/(47a): the mesh term (stiffness and TE forcing together) acts while its force ``F_S +
+k cos(b_b) x_D`` is compressive and is zero when that would be tensile
+(:func:`gearjax.gears.contact.te_contact`; unchanged, bit for bit, while contact holds).
 
 Here ``m_eq = J1 J2 / (J1 Rb2^2 + J2 Rb1^2)`` (kg), ``F_t = C_m0 / Rb1`` (N) and the viscous
 damping is ``c = 2 zeta sqrt(k_m cos^2(b_b) m_eq)`` (N s/m), the same ``k_m`` for all three
@@ -28,12 +31,10 @@ formulations so that they differ only in their mesh terms.
 Dynamic mesh force
 ------------------
 * reference: the sum of the cell forces, Eq. (22), ``F_D = sum_i k_i max(0, x cos b_b - de_i)``.
-* te and perturbation: Eq. (24), ``F_D = F_S + k(theta) cos(b_b) x_D`` with ``x_D = x - x_S``
-  and the *loaded* quasi-static stiffness ``k(theta)`` for both. For the perturbation
-  formulation this is the paper's choice (Section 6.2 evaluates the tooth load of Eq. (48a)
-  through Eq. (41), which holds with the actual mesh stiffness); the alternative
-  ``F_S + k_m cos(b_b) x_D`` (the force that appears in Eq. (47a) itself) differs by
-  ``alpha g k_m cos(b_b) x_D``, i.e. at order alpha, the order that Eq. (47a) neglects.
+* te and perturbation: Eq. (24), ``F_D = F_S + k(theta) cos(b_b) x_D`` (0 while separated)
+  with ``x_D = x - x_S`` and the *loaded* quasi-static stiffness ``k(theta)`` for both; for
+  Eq. (47a) the paper's choice (Section 6.2 reads the tooth load of Eq. (48a) through Eq.
+  (41)); ``F_S + k_m cos(b_b) x_D`` would differ at order alpha, which (47a) neglects.
 
 Excitations: a jump-aware periodic table (default) or inline solves
 ------------------------------------------------------------------
@@ -121,7 +122,7 @@ import numpy as np
 from ..gears.geometry import GearPair
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
-from ..gears.contact import solve_unilateral, unilateral_solve_pairwise
+from ..gears.contact import solve_unilateral, te_contact, unilateral_solve_pairwise
 from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..excitation.events import (
     EV_FIXED,
@@ -611,8 +612,9 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         x_static = q[_X_S] if self.nlte_terms else q[_X_S] + q[_NLTE]
         return x_static, q[_K_S]
 
-    def _mesh_terms(self, theta, x, exc):
-        """((F_elastic - F_t) / F_t, F_D (N)) at theta for the transverse approach x."""
+    def _mesh_terms(self, theta, x, exc, contact=True):
+        """((F_elastic - F_t) / F_t, F_D (N)) at theta for the transverse approach x; te
+        and perturbation linear, as printed, with ``contact=False``."""
         f_s = self.static_force_N
         if self.formulation == "reference":
             cells, delta_e, _ = contact_gaps(self.mesh, self.mods, theta)
@@ -622,30 +624,31 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         x_static, k_s = self._static_part(theta, exc)
         x_d = x - x_static
         stiff = k_s if self.formulation == "te" else self.k_m
-        f_d = f_s + k_s * self.cos_bb * x_d  # Eq. (24), loaded stiffness for both
-        return stiff * self.cos_bb * x_d / f_s, f_d
+        # Eq. (24) with the loaded stiffness for both; contact law: gears.contact.te_contact
+        cut, f_d = te_contact(f_s + stiff * self.cos_bb * x_d, f_s + k_s * self.cos_bb * x_d)
+        if not contact:
+            cut, f_d = 0.0, f_s + k_s * self.cos_bb * x_d
+        return (stiff * self.cos_bb * x_d - cut) / f_s, f_d
 
     def _exc(self, s):
         needs = self._substitution or (self.formulation != "reference" and self.excitation == "table")
         return self._table(s) if needs else None
 
-    def vector_field(self, s, y, omega):
+    def vector_field(self, s, y, omega, contact: bool = True):
         """dy/ds for the scaled state ``y = (z/x_ref, z'/(r x_ref))``, Eqs. (16), (20),
-        (47a) (see module docstring): ``phi'(s)`` times dy/dtheta at ``theta = phi(s)``
-        (``s = theta`` at the build-time design); ``omega`` is the pinion speed Omega1
-        (rad/s)."""
+        (47a) (module docstring; ``contact=False``: te/perturbation without the contact
+        law): ``phi'(s)`` times dy/dtheta at ``theta = phi(s)`` (``s = theta`` at the
+        build-time design); ``omega`` is the pinion speed Omega1 (rad/s)."""
         theta, dth = self.angle(s)
-        dydth = self._vector_field_theta(theta, y, omega, self._exc(s))
-        return dydth if dth is None else dydth * dth
-
-    def _vector_field_theta(self, theta, y, omega, exc):
+        exc = self._exc(s)
         r = self.omega_n / omega
         x, xp = self._x_and_slope(theta, y, omega, exc)
-        resid, _ = self._mesh_terms(theta, x, exc)
+        resid, _ = self._mesh_terms(theta, x, exc, contact)
         acc = -r * (resid + 2.0 * self.damping_ratio * xp / (r * self.x_ref))
         if self.nlte_terms and self.nlte_method == "spectral":
             acc = acc - self.nlte_inertia_ratio * self._nlte_dd(theta) / (r * self.x_ref)
-        return jnp.stack([r * y[1], acc])
+        dydth = jnp.stack([r * y[1], acc])
+        return dydth if dth is None else dydth * dth
 
     def initial_state(self, omega, theta0=0.0):
         """Scaled state at ``theta0`` on the quasi-static solution: x = x_S, x' = x_S'
@@ -674,8 +677,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
 
     @property
     def state_size(self) -> int:
-        """Number of (scaled) state components, 2."""
-        return 2
+        return 2  # (z / x_ref, z' / (r x_ref))
 
     def homogeneous_vector_field(self, theta, y, omega):
         """Linear homogeneous part of the equation of motion for the dynamic part
