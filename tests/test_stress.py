@@ -134,9 +134,9 @@ def test_extreme_tip_reliefs(spur):
     band (2 L_c - 1) g is longer than the base pitch (two teeth in it at once), L_c >
     (1 + 1/eps_alpha) / 2 = 0.7906 for this pair (measured: 0.78 builds, 0.80 was NaN).
     The largest accepted 1 mm relief (pinion over 0.6 of the path, gear over the whole
-    path: unequal slopes, NLTE ptp 0.23 mm) gives finite, flagged results: te tensile
-    forces (contact_loss, DF 163 and 1920 measured: the linear model is outside its
-    validity), reference separated teeth (contact_loss, converged False)."""
+    path: unequal slopes, NLTE ptp 0.23 mm) gives finite, flagged results: separated teeth
+    in both formulations (contact_loss; before the te contact law the linear te equation
+    gave tensile forces and DF 163 and 1920), the reference not converged."""
     from gearjax import quasi_static, static_mesh_force
 
     with pytest.raises(ModificationError):

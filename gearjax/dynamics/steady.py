@@ -19,6 +19,11 @@ of the model's ``vector_field`` (exact for an affine vector field, and the same 
 full vector field, hence the linearisation here). Both share one error control and the
 jump angles of the model (:class:`gearjax.dynamics.simulate.PeriodicJumpController`).
 
+That holds while the mesh stays in contact along the orbit: where the linear orbit's
+force turns tensile, the contact law (:func:`gearjax.gears.contact.te_contact`) makes te
+and perturbation piecewise linear like the reference, and :func:`steady_sweep` continues
+those speeds with ``simulate`` as it does the reference's.
+
 The reference formulation (Eq. (14) / (16)) is piecewise linear in ``y``: the same
 step is a Newton iteration ``y <- y + (I - Phi(y))^-1 (y_P(y) - y)`` on the periodicity
 residual (quadratic convergence while the set of loaded cells along the orbit stays the
@@ -190,7 +195,7 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
     solver, rtol, atol : diffrax solver and tolerances of the period integration (default
         Dopri8, 1e-9, 1e-11 on the model's dimensionless state).
     max_newton, newton_tol : Newton iterations for the (nonlinear) reference formulation;
-        te/perturbation take exactly one step (exact for an affine vector field).
+        te/perturbation take exactly one step (exact while contact holds on the orbit).
     max_steps : step limit of each period integration.
     """
     solver, rtol, atol = _solver_options(solver, rtol, atol)
@@ -303,14 +308,15 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     shape), returning the :class:`~gearjax.dynamics.results.SweepResult` fields of
     :func:`gearjax.dynamics.sweep.sweep` with the same meaning.
 
-    Reference formulation: at every speed where the periodic orbit shows contact loss,
-    is unstable (``spectral_radius >= 1``) or was not found (Newton not converged), the
-    metrics are replaced by a :func:`gearjax.dynamics.simulate.simulate` run from the quasi-static
-    start with its automatic transient (``continuation_kwargs`` go to it), so that those
-    speeds are exactly what ``sweep`` computes (after contact loss several attractors can
-    coexist; a continuation started on the unstable orbit reached another one). te/perturbation are never
-    continued: their steady response is unique; inside a parametric instability zone
-    they read ``converged=False`` with ``spectral_radius >= 1``.
+    Every formulation: at every speed where the periodic orbit shows contact loss, is
+    unstable (``spectral_radius >= 1``) or was not found (Newton not converged, or the
+    one-step te/perturbation orbit not periodic because the contact law cut its force),
+    the metrics are replaced by a :func:`gearjax.dynamics.simulate.simulate` run from the
+    quasi-static start with its automatic transient (``continuation_kwargs`` go to it), so
+    that those speeds are exactly what ``sweep`` computes (after contact loss several
+    attractors can coexist; a continuation started on the unstable orbit reached another
+    one). Inside a parametric instability zone of the linear te equation the transient
+    grows until the teeth separate and the contact law bounds it.
 
     ``chunk_size``: speeds per vmapped call; default such that a chunk holds about 80 000
     monodromy entries (sdof: all speeds; the 3D rig with 182 states: 2 speeds), because
@@ -360,7 +366,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     out["transient_periods"][:] = 0.0
     continued = np.zeros(speeds.size, dtype=bool)
     formulation = model.formulation
-    if continuation and formulation not in LINEAR_FORMULATIONS:
+    if continuation:  # te/perturbation too: with the contact law they are nonlinear there
         need = ((out["contact_loss"] > 0) | ~(rho < 1.0) | ~(out["converged"] > 0))
         idx = np.flatnonzero(need)
         if idx.size:
