@@ -96,6 +96,15 @@ CASES = [
      ["--max-frequency=1.0", "keeps no vibration mode", "lowest natural frequency"]),
     (["sweep", "--max-frequency", "1", "--speeds", "100:100:1", "--out", "{tmp}/mf"],
      ["--max-frequency=1.0", "keeps no vibration mode"]),
+    # issue 15: the NLTE'' reaction at the pinion is a torsional-model option; the 3D model
+    # puts it at its torque node (the drive), refused before anything is written
+    (["sweep", "--nlte-reaction", "pinion", "--out", "{tmp}/nr"],
+     ["--nlte-reaction='pinion'", "3D model", "torque node"]),
+    (["stability", "--model", "3d", "--nlte-reaction", "pinion"],
+     ["--nlte-reaction='pinion'", "3D model"]),
+    (["harris-map", "--model", "3d", "--nlte-reaction", "pinion", "--out", "{tmp}/nr"],
+     ["--nlte-reaction='pinion'", "3D model"]),
+    (["sweep", "--model", "torsional", "--nlte-reaction", "motor"], ["--nlte-reaction", "motor"]),
 ]
 
 

@@ -209,3 +209,85 @@ def test_3d_sweep_reports_its_cutoff(capsys, tmp_path):
     f_full = np.asarray(full.omega_r) / (2 * math.pi)
     assert summary["n_modes"] == int(np.sum(f_full <= fc))
     assert json.load(open(tmp_path / "summary.json"))["max_frequency_hz"] == fc
+
+
+# ---------------------------------------------------------------- NLTE'' reaction (issue 15)
+def _stopped_at_build(monkeypatch, module, name, argv, real=None):
+    """Run ``argv`` until ``module.name`` (the model or objective factory) is called; return
+    its keyword arguments (and the model ``real`` builds, if given). The sweep records its
+    case before building and reads the stop as Ctrl-C (exit 130, summary.json written)."""
+    seen = {}
+
+    def fake(*a, **kw):
+        seen.update(kw)
+        if real is not None:
+            seen["_model"] = real(*a, **kw)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(module, name, fake)
+    assert main(argv) == 130
+    return seen
+
+
+def test_every_command_defaults_to_the_drive_reaction(monkeypatch, tmp_path, capsys):
+    """One convention: sweep, stability and optimise build their models with the NLTE''
+    reaction at the drive unless told otherwise, and sweep records it in case.json and
+    summary.json (the optimiser's optimum.json records the same key, see test_design)."""
+    import inspect
+
+    import gearjax.cli.dynamics as cd
+    import gearjax.design as design
+
+    out = tmp_path / "sw"
+    sw = _stopped_at_build(monkeypatch, cd, "build_model", [
+        "sweep", "--model", "torsional", "--speeds", "300:400:2", "--formulations", "te",
+        "--out", str(out), "--json"])
+    st = _stopped_at_build(monkeypatch, cd, "build_model", [
+        "stability", "--model", "torsional", "--speeds", "300:400:2", "--json"])
+    opt = _stopped_at_build(monkeypatch, design, "make_objective", [
+        "optimise", "--speeds", "300:400:2", "--out", str(tmp_path / "opt"), "--json"])
+    assert sw["nlte_reaction"] == st["nlte_reaction"] == opt["nlte_reaction"] == "drive"
+    assert json.loads((out / "case.json").read_text())["nlte_reaction"] == "drive"
+    assert json.loads((out / "summary.json").read_text())["nlte_reaction"] == "drive"
+    # ... which is also the library's default, so the CLI and a plain build agree
+    default = inspect.signature(TorsionalModel.build).parameters["nlte_reaction"].default
+    assert default == "drive"
+    assert inspect.signature(build_model).parameters["nlte_reaction"].default == "drive"
+
+
+def test_pinion_reaction_kappa_and_resume_check(monkeypatch, tmp_path, capsys):
+    """``--nlte-reaction pinion`` on the torsional model: kappa = J2 / (Rb2^2 m_eq) = 1 +
+    J2 Rb1^2 / (J1 Rb2^2) (Eq. (16)), from the default inertias (solid steel cylinders at
+    the pitch radii) and the base radii computed here; 1 at the drive (the default). The
+    case records the convention, so a resume with the other one is refused."""
+    import gearjax.cli.dynamics as cd
+
+    pair = baud_velex_pair(False)
+    (r1, r2), (b1, b2) = pair.pitch_radii_m, (pair.face_width1_m, pair.face_width2_m)
+    j1, j2 = 7800.0 * math.pi * b1 * r1**4 / 2, 7800.0 * math.pi * b2 * r2**4 / 2
+    rb1, rb2 = pair.base_radii_m
+    kappa = 1.0 + j2 * rb1**2 / (j1 * rb2**2)
+    assert 25 < kappa < 35  # "about 30" for the Baud-Velex bodies
+    out = tmp_path / "sw"
+    base = ["sweep", "--model", "torsional", "--speeds", "300:400:2", "--formulations",
+            "perturbation", "--out", str(out), "--json"]
+    seen = _stopped_at_build(monkeypatch, cd, "build_model", base + ["--nlte-reaction", "pinion"],
+                             real=build_model)
+    model = seen["_model"]
+    assert model.nlte_reaction == "pinion"
+    assert float(model.nlte_inertia_ratio) == pytest.approx(kappa, rel=1e-12)
+    assert json.loads((out / "case.json").read_text())["nlte_reaction"] == "pinion"
+    import dataclasses
+
+    drive = dataclasses.replace(model, nlte_reaction="drive")
+    assert float(drive.nlte_inertia_ratio) == 1.0
+    monkeypatch.undo()
+    assert main(base + ["--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "another case" in err and "nlte" in err
+    # the default folder name tells the conventions apart
+    monkeypatch.chdir(tmp_path)
+    seen = _stopped_at_build(monkeypatch, cd, "build_model", base[:-3] + [
+        "--nlte-reaction", "pinion"])
+    assert (tmp_path / "gearjax-out" / "baud-velex-spur-torsional-short-zeta0.1-nlte-pinion"
+            / "case.json").exists()

@@ -409,6 +409,7 @@ def test_cli_optimise_smoke(tmp_path, capsys):
     assert rc == 0
     out = json.loads(capsys.readouterr().out)
     assert set(("amplitude_m", "extent", "objective_before", "objective_after")) <= set(out)
+    assert out["nlte_reaction"] == "drive"  # the convention of every command (issue 15)
     assert out["objective_after"] <= out["objective_before"]
     assert (tmp_path / "history.png").exists() and (tmp_path / "map.png").exists()
 

@@ -210,10 +210,13 @@ def test_quasi_static_matches_torsional(torsional_setup):
     pytest.param("perturbation", marks=pytest.mark.slow)])
 def test_torsional_structure_matches_sdof_model(torsional_setup, formulation):
     """Two inertias with a soft resisting spring = the sdof model of Section 3 (Eqs. (16),
-    (20), (47a)), long relief so that the NLTE'' terms (E of Eq. (14)) are active."""
+    (20), (47a)), long relief so that the NLTE'' terms (E of Eq. (14)) are active. The
+    torque node is the pinion node, so E puts the NLTE'' reaction on the pinion: Eq. (15),
+    the sdof model's ``nlte_reaction="pinion"``."""
     mesh, mods, inert, s, fixed = torsional_setup
     kw = dict(damping_ratio=0.05, formulation=formulation)
-    m1 = TorsionalModel.build(mesh, mods, inertias_kg_m2=inert, excitation="inline", **kw)
+    m1 = TorsionalModel.build(mesh, mods, inertias_kg_m2=inert, excitation="inline",
+                              nlte_reaction="pinion", **kw)
     # same k_m (damping, Eq. (47a)); the sdof model may average k(theta) differently
     k_m = float(m1.mean_stiffness_N_per_m())
     m3 = Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, n_table=64, mean_stiffness_N_per_m=k_m,

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..dynamics import watchdog
 from ..errors import DesignError
+from .scenario import add_nlte_reaction, nlte_reaction_of
 
 __all__ = ["register"]
 
@@ -50,9 +51,7 @@ def _common(p, add_rig):
     p.add_argument("--inertias", default="bodies", metavar="J1,J2",
                    help="sdof inertias (kg m^2): 'bodies' (default: the gear bodies, solid "
                         "cylinders at the pitch radii) or two values, e.g. 4.48e-3,4.76")
-    p.add_argument("--nlte-reaction", default="drive", choices=["drive", "pinion"],
-                   help="where the NLTE'' reaction torque acts: drive (default, as in the "
-                        "3D rig) or pinion (Eq. (15))")
+    add_nlte_reaction(p)
     p.add_argument("--formulation", default="perturbation", choices=["perturbation", "te", "reference"],
                    help="sdof formulation (default perturbation, Eq. (47a); te can be "
                         "parametrically unstable near the critical speed)")
@@ -92,6 +91,7 @@ def _setup(args, separate=False):
 
     if not (0.0 <= args.damping < 1.0):
         raise DesignError(f"--damping={args.damping!r}: must lie in [0, 1)")
+    reaction = nlte_reaction_of(args)
     prepare_output_dir("--out", args.out)  # before any computing: created and writable
     speeds = _range(args.speeds, "--speeds", 1e-6, 1e6)
     amps = _range(args.amplitudes, "--amplitudes", 0.0, 40e-6)
@@ -117,7 +117,7 @@ def _setup(args, separate=False):
             kw.update(rig=rig, max_frequency_hz=("auto" if args.max_frequency is None
                                                  else args.max_frequency or None))
         else:
-            kw.update(inertias_kg_m2=inertias, nlte_reaction=args.nlte_reaction)
+            kw.update(inertias_kg_m2=inertias, nlte_reaction=reaction)
     elif args.model == "3d":
         kw = dict(model="3d", rig=rig)
     obj = make_objective(args.objective, mesh, space, speeds_rad_s=speeds,
@@ -142,7 +142,8 @@ def _cmd_harris_map(args) -> int:
                           marks={"short": (13.3e-6, 0.2), "long": (13.3e-6, 0.5)},
                           title=f"{rig.name}: {args.objective}")
     i, j = np.unravel_index(np.nanargmin(hmap.exact), hmap.exact.shape)
-    out = {"rig": rig.name, "objective": args.objective, "amplitudes_m": amps.tolist(),
+    out = {"rig": rig.name, "model": args.model, "objective": args.objective,
+           "nlte_reaction": args.nlte_reaction, "amplitudes_m": amps.tolist(),
            "extents": exts.tolist(), "exact": hmap.exact.tolist(), "smooth": hmap.smooth.tolist(),
            "best_amplitude_m": float(amps[i]), "best_extent": float(exts[j]),
            "best_objective": float(hmap.exact[i, j]), "wall_time_s": hmap.wall_time_s,
@@ -189,7 +190,7 @@ def _cmd_optimise(args) -> int:
     watchdog.progress("optimiser done, Harris map next", expect_s=3.0 * amps.size * exts.size * slowest)
     os.makedirs(args.out, exist_ok=True)
     out = {"rig": rig.name, "model": args.model, "objective": args.objective,
-           "shape": args.shape, "shared": not args.separate}
+           "nlte_reaction": args.nlte_reaction, "shape": args.shape, "shared": not args.separate}
     out.update(best.as_dict(obj.space))
     out["runs"] = [r.as_dict(obj.space) for r in runs]
     out["history_png"] = plot_history(runs, os.path.join(args.out, "history.png"), args.objective)
@@ -205,8 +206,8 @@ def _cmd_optimise(args) -> int:
         print(json.dumps(out, indent=2))
         return 0
     names = obj.space.names
-    print(f"  {rig.name}: {args.objective} ({args.model}, {args.shape} relief), "
-          f"{len(runs)} starts")
+    print(f"  {rig.name}: {args.objective} ({args.model}, {args.shape} relief, NLTE'' "
+          f"reaction at the {args.nlte_reaction}), {len(runs)} starts")
     for n in names:
         print(f"  {n:14s} {out[n]:.6g}")
     print(f"  objective before {best.exact0:.6g}  after {best.exact:.6g} "

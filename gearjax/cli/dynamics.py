@@ -26,6 +26,11 @@ every device of every process and process 0 writes the outputs.
 harmonics of the highest requested speed times 1.5, at least 6 kHz
 (:func:`default_max_frequency_hz`; 16.8 kHz for the default sweep to 900 rad/s, 27.9 kHz
 for the default stability range to 1500 rad/s); ``--max-frequency 0`` keeps all modes.
+
+NLTE'' reaction: at the drive by default, as in the 3D model and the design commands
+(``--nlte-reaction``, :func:`gearjax.cli.scenario.add_nlte_reaction`); ``--nlte-reaction
+pinion`` (torsional model only) gives Eqs. (15)-(16) as written. ``case.json`` and
+``summary.json`` record it.
 """
 
 from __future__ import annotations
@@ -48,6 +53,7 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
 from ..dynamics import watchdog
 from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
+from .scenario import add_nlte_reaction, nlte_reaction_of
 
 __all__ = ["register", "case_name", "summarise_sweep",
            "default_max_frequency_hz", "modal_cutoff"]
@@ -133,6 +139,7 @@ def _add_dynamics(p: argparse.ArgumentParser):
     p.add_argument("--model", default="3d", choices=["torsional", "3d"],
                    help="3d (default: shafts, bearings, pinion-gear element, Eqs. (14), (42), "
                         "(48a)) or torsional (sdof, Eqs. (16), (20), (47a))")
+    add_nlte_reaction(p)
     p.add_argument("--damping", type=float, default=0.1, metavar="ZETA",
                    help="modal damping factor (default 0.1; the paper also uses 0.03)")
     p.add_argument("--encoders", type=int, default=1, choices=[1, 2, 3],
@@ -189,6 +196,8 @@ def case_name(args, scenario=None) -> str:
     parts.append(f"zeta{args.damping:g}")
     if args.no_nlte_terms:
         parts.append("no-nlte")
+    if args.nlte_reaction != "drive":
+        parts.append(f"nlte-{args.nlte_reaction}")
     if args.model == "3d":
         parts.append(f"enc{args.encoders}")
     return "-".join(parts)
@@ -290,6 +299,7 @@ def cmd_sweep(args) -> int:
     _check_damping(args.damping)
     if args.model == "torsional" and args.encoders != 1:
         raise ValueError("--encoders: the torsional model has no encoder positions (3d only)")
+    reaction = nlte_reaction_of(args)
     if args.resume and args.overwrite:
         raise ValueError("--resume --overwrite: choose one (continue the run, or replace it)")
     if args.chunk is not None and args.chunk < 1:
@@ -306,8 +316,8 @@ def cmd_sweep(args) -> int:
     record = {
         "case": case, "rig": rig.name, "model": args.model, "stiffness_law": args.stiffness,
         **scen.summary(), "damping": args.damping,
-        "nlte_terms": not args.no_nlte_terms, "encoders": args.encoders,
-        "max_frequency_hz": cutoff_hz, "formulations": forms,
+        "nlte_terms": not args.no_nlte_terms, "nlte_reaction": reaction,
+        "encoders": args.encoders, "max_frequency_hz": cutoff_hz, "formulations": forms,
         "speeds_rad_s": [float(w) for w in speeds],
     }
     done: dict = {}
@@ -324,7 +334,8 @@ def cmd_sweep(args) -> int:
         "case": case, "rig": rig.name, "model": args.model,
         "stiffness_law": args.stiffness, "relief": args.relief or scen.key, **scen.summary(),
         "damping": args.damping,
-        "nlte_terms": not args.no_nlte_terms, "encoders": args.encoders,
+        "nlte_terms": not args.no_nlte_terms, "nlte_reaction": reaction,
+        "encoders": args.encoders,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
         "formulations": {},
@@ -343,7 +354,7 @@ def cmd_sweep(args) -> int:
             model = build_model(rig, mods, model=args.model, formulation=form,
                                 law=args.stiffness, damping_ratio=args.damping,
                                 encoder_position=args.encoders, nlte_terms=nlte,
-                                max_frequency_hz=cutoff_hz)
+                                max_frequency_hz=cutoff_hz, nlte_reaction=reaction)
             _check_modes(args, model, cutoff_hz)
             t_build = time.perf_counter() - t0
             if "predicted" not in summary:
@@ -463,7 +474,7 @@ def _print_summary(rig, summary, out):
     pred = summary["predicted"]
     print(f"\n  {rig.description}")
     print(f"  {summary['model']} model, {summary['relief_label']} [{summary['relief_source']}], "
-          f"damping {summary['damping']}, "
+          f"damping {summary['damping']}, NLTE'' reaction at the {summary['nlte_reaction']}, "
           f"speeds {summary['speeds_rad_s'][0]:.0f}-{summary['speeds_rad_s'][1]:.0f} rad/s "
           f"({summary['speeds_rad_s'][2]})")
     if summary["model"] == "3d":
@@ -503,6 +514,7 @@ def cmd_stability(args) -> int:
 
     speeds = _parse_speeds(args.speeds)
     _check_damping(args.damping)
+    reaction = nlte_reaction_of(args)
     rig = get_rig(args.rig)
     scen = scenario_modifications(rig, args)
     mods = scen.mods
@@ -512,7 +524,7 @@ def cmd_stability(args) -> int:
                         law=args.stiffness, damping_ratio=args.damping,
                         encoder_position=args.encoders,
                         nlte_terms=False if args.no_nlte_terms else None,
-                        max_frequency_hz=cutoff_hz)
+                        max_frequency_hz=cutoff_hz, nlte_reaction=reaction)
     _check_modes(args, model, cutoff_hz)
     t0 = time.perf_counter()
     rho = np.asarray(spectral_radius(model, speeds), dtype=float)
@@ -524,7 +536,7 @@ def cmd_stability(args) -> int:
     out = {
         "rig": rig.name, "model": args.model, "formulation": args.formulation,
         "relief": args.relief or scen.key, **scen.summary(), "damping": args.damping,
-        "stiffness_law": args.stiffness,
+        "stiffness_law": args.stiffness, "nlte_reaction": reaction,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "wall_time_s": time.perf_counter() - t0,
         "neutral_tolerance": tol,
@@ -536,7 +548,7 @@ def cmd_stability(args) -> int:
         print(json.dumps(out, indent=2))
         return 0
     print(f"  {rig.description}; {args.model} {args.formulation}, {scen.label}, "
-          f"damping {args.damping}")
+          f"damping {args.damping}, NLTE'' reaction at the {reaction}")
     if args.model == "3d":
         print(f"  modes {'below %.0f Hz' % cutoff_hz if cutoff_hz else 'all'} ({cutoff_source})")
     if tol:

@@ -4,6 +4,11 @@ Precedence: a rig file's ``[modifications]`` table is the rig's default relief; 
 relief options override it (``--relief`` replaces it by a Table 1 relief, then
 ``--relief-amplitude`` / ``--relief-extent`` / ``--relief-shape`` replace single fields).
 Without a ``[modifications]`` table the default is Table 1's short relief.
+
+The NLTE'' reaction convention (``--nlte-reaction``) is part of the scenario too: one
+option, one default (``drive``, the 3D model's: :mod:`gearjax.models.torsional`, "Where
+the NLTE'' reaction torque acts") for ``sweep``, ``stability``, ``optimise`` and
+``harris-map``, so that every command runs the same model unless told otherwise.
 """
 
 from __future__ import annotations
@@ -12,7 +17,7 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["Scenario", "scenario_modifications"]
+__all__ = ["Scenario", "scenario_modifications", "add_nlte_reaction", "nlte_reaction_of"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -103,3 +108,25 @@ def scenario_modifications(rig, args) -> Scenario:
         key = ("file" if file_mods is not None and not changed
                else f"relief{amp[0]:g}x{ext[0]:g}" + ("" if shape == "linear" else f"-{shape}"))
     return Scenario(mods=mods, source=source, label=label, key=key)
+
+
+def add_nlte_reaction(p) -> None:
+    """Add ``--nlte-reaction {drive,pinion}`` (default drive) to the parser ``p``."""
+    from ..models.torsional import NLTE_REACTIONS
+
+    p.add_argument("--nlte-reaction", default=NLTE_REACTIONS[0], choices=list(NLTE_REACTIONS),
+                   help="torsional model: where the NLTE'' reaction torque acts: drive (default, "
+                        "as in the 3D model: kappa = 1) or pinion (Eqs. (15)-(16): kappa = 1 + "
+                        "J2 Rb1^2 / (J1 Rb2^2)); the 3D model takes drive only")
+
+
+def nlte_reaction_of(args) -> str:
+    """The NLTE'' reaction convention of parsed ``args`` (``model``, ``nlte_reaction``);
+    refuses ``pinion`` with the 3D model (which puts it at its torque node) before any
+    computing."""
+    from ..errors import GearjaxError
+    from ..rigs.factory import NLTE_REACTION_3D
+
+    if args.model == "3d" and args.nlte_reaction != "drive":
+        raise GearjaxError("--nlte-reaction", args.nlte_reaction, NLTE_REACTION_3D)
+    return args.nlte_reaction

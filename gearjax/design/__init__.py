@@ -52,7 +52,8 @@ The sdof design model uses the gear *bodies* (:data:`DESIGN_INERTIAS`: the torsi
 model's default solid cylinders at the pitch radii, J1 = 4.48e-3, J2 = 4.76 kg m^2 for the
 spur Baud-Velex pair, i.e. the annular bodies of the 3D rig, 4.0e-3 and 4.76, plus the
 shaft core under the face width, 5e-4 and 1.3e-3) and puts the NLTE'' reaction torque on
-the drive (``nlte_reaction="drive"``, kappa = 1, see :mod:`gearjax.models.torsional`).
+the drive (``nlte_reaction="drive"``, kappa = 1, the default of every model and command,
+see :mod:`gearjax.models.torsional`).
 Reason: the shafts are torsionally far softer than the mesh (pinion shaft to the motor
 coupling G pi d^4 / 32 / L ~ 9e4 N m/rad; mesh k_m Rb1^2 = 7.4e8 x 0.0489^2 = 1.8e6
 N m/rad), so at the mesh modes (3.4 kHz) the shafts, hubs and motor are decoupled from

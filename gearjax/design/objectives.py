@@ -116,6 +116,10 @@ class QuasiStaticObjective:
             raise DesignError("model", model, f"must be one of {DESIGN_MODELS}")
         if model == "3d" and rig is None:
             raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.registry.get_rig)")
+        if model == "3d" and nlte_reaction != "drive":
+            from ..rigs.factory import NLTE_REACTION_3D
+
+            raise DesignError("nlte_reaction", nlte_reaction, NLTE_REACTION_3D)
         torques = np.atleast_1d(np.asarray(torques_Nm, dtype=float))
         if torques.ndim != 1 or not np.all(np.isfinite(torques)) or np.any(torques <= 0):
             raise DesignError("torques_Nm", torques.tolist(), "need finite torques > 0 (N m)")
@@ -199,8 +203,8 @@ class DynamicObjective:
         at the build design (module docstring, "3D model").
     pinion_torque_Nm, inertias_kg_m2, damping_ratio : model data (defaults: 254.8 N m,
         :data:`DESIGN_INERTIAS` (the gear bodies, sdof only), 0.03).
-    nlte_reaction : ``"drive"`` (default) or ``"pinion"`` (module docstring, "Inertias";
-        sdof only).
+    nlte_reaction : ``"drive"`` (default, as every command and model) or ``"pinion"``
+        (module docstring, "Inertias"; sdof only: the 3D model refuses it).
     max_frequency_hz : modal cut-off of the 3D model (Hz; None: all modes); default
         ``"auto"``: :func:`gearjax.models.geared3d.default_max_frequency_hz` of the highest
         speed (3 mesh harmonics x 1.5, at least 6 kHz: 16.8 kHz up to 900 rad/s on the
@@ -232,6 +236,10 @@ class DynamicObjective:
             raise DesignError("model", model, f"must be one of {DESIGN_MODELS}")
         if model == "3d" and rig is None:
             raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.registry.get_rig)")
+        if model == "3d" and nlte_reaction != "drive":
+            from ..rigs.factory import NLTE_REACTION_3D
+
+            raise DesignError("nlte_reaction", nlte_reaction, NLTE_REACTION_3D)
         method = ("steady" if model == "3d" else "transient") if method is None else method
         if method not in ("transient", "steady"):
             raise DesignError("method", method, "must be 'transient' or 'steady'")

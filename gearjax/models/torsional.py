@@ -52,8 +52,8 @@ NLTE' and NLTE'' (no-load transmission error derivatives)
 NLTE (a minimum over cells of the removed material) has kinks, so NLTE'' holds Dirac terms
 that AD of the sampled function misses, and a spectral NLTE'' with H harmonics converges
 slowly: well above resonance the response to ``-Omega^2 (J2/Rb2^2) NLTE''`` is ``x_h = -kappa
-NLTE_h``, ``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (about 30 for the
-Baud-Velex pair), so the error of x is ``kappa`` times the NLTE spectrum tail (O(1/H)).
+NLTE_h`` (kappa: see "Where the NLTE'' reaction torque acts"; 1 by default, about 30 with
+``"pinion"``), so the error of x is ``kappa`` times the NLTE spectrum tail (O(1/H)).
 We therefore remove NLTE'' *exactly* by a change of variable (``nlte_method="substitution"``,
 the default)::
 
@@ -89,13 +89,14 @@ Default inertias: solid steel cylinders of the pitch radii and face widths
 
 Where the NLTE'' reaction torque acts (``nlte_reaction``)
 -------------------------------------------------------
-Eq. (15) puts the torque ``J2 Rb1 / Rb2^2 Omega^2 NLTE''`` that keeps the pinion speed
-constant (Eq. (5)) on the pinion inertia, so the forcing of x is ``-Omega^2 kappa m_eq
-NLTE''`` with ``kappa = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (about 30 with the bodies' inertias).
-In the 3D model that torque goes to the torque node (the motor rotor), behind the pinion
-shaft and the flexible coupling (torsional natural frequency of the hub and shaft about
-500 Hz, far below the 3.4 kHz mesh modes), so at mesh frequencies the pinion does not feel
-it and only the gear term remains: ``kappa = 1`` (``nlte_reaction="drive"``).
+The torque ``J2 Rb1 / Rb2^2 Omega^2 NLTE''`` keeps the pinion speed constant (Eq. (5)); the
+forcing of x is ``-Omega^2 kappa m_eq NLTE''``. ``"drive"`` (default, the convention of
+every command and of the 3D model, whose Eq. (14) puts it on the torque node: the motor,
+behind the pinion shaft and the flexible coupling, torsional mode about 500 Hz, far below
+the 3.4 kHz mesh modes): the pinion does not feel it at mesh frequencies, ``kappa = 1``.
+``"pinion"`` (option): Eqs. (15)-(16) as written, the torque on the pinion inertia,
+``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (about 30 for the Baud-Velex
+bodies: the whole gear rigidly coupled to the mesh; ``--nlte-reaction pinion``).
 
 Derivatives with respect to the design (moving switching angles)
 ----------------------------------------------------------------
@@ -146,7 +147,7 @@ __all__ = ["TorsionalModel", "ModelOutputs", "ModelError", "FORMULATIONS",
 Formulation = Literal["reference", "te", "perturbation"]
 NLTE_METHODS = ("substitution", "spectral")
 EXCITATIONS = ("table", "inline")
-NLTE_REACTIONS = ("pinion", "drive")
+NLTE_REACTIONS = ("drive", "pinion")  # default first
 STEEL_DENSITY_KG_M3 = 7800.0
 
 
@@ -190,7 +191,7 @@ class _TorsionalInputs(eqx.Module):
     table_max_extra: int = eqx.field(static=True)
     jump_kinds: tuple = eqx.field(static=True, default=())
     jump_cells: tuple = eqx.field(static=True, default=())
-    nlte_reaction: str = eqx.field(static=True, default="pinion")
+    nlte_reaction: str = eqx.field(static=True, default="drive")
     table_codes: jax.Array | None = None
 
     @property
@@ -220,9 +221,9 @@ class _TorsionalInputs(eqx.Module):
 
     @property
     def nlte_inertia_ratio(self):
-        """kappa: NLTE'' coefficient over m_eq (dimensionless). ``nlte_reaction="pinion"``
-        (Eq. (16)): ``J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)``; ``"drive"``: 1 (see
-        the module docstring, "Where the NLTE'' reaction torque acts")."""
+        """kappa: NLTE'' coefficient over m_eq (dimensionless). ``nlte_reaction="drive"``
+        (default): 1; ``"pinion"`` (Eq. (16)): ``J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1
+        Rb2^2)`` (module docstring, "Where the NLTE'' reaction torque acts")."""
         rb2 = self.pair.base_radii_m[1]
         if self.nlte_reaction == "drive":
             return jnp.ones_like(self.inertias_kg_m2[1])
@@ -432,7 +433,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         excitation: str = "table",
         n_table: int = 256,
         merge_spur_lines: bool = True,
-        nlte_reaction: str = "pinion",
+        nlte_reaction: str = "drive",
     ) -> "TorsionalModel":
         """Build a torsional model (outside ``jit``: inputs are checked, jump angles found).
 
@@ -451,9 +452,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         excitation : ``"table"`` or ``"inline"`` (see module docstring).
         n_table : uniform table knots per mesh period (also the scan used to find jumps).
         nlte_reaction : where the torque ``J2 Rb1 / Rb2^2 Omega^2 NLTE''`` that keeps the
-            pinion speed (Eq. (5)) acts: ``"pinion"`` (Eq. (15)-(16), default) or ``"drive"``
-            (on a motor behind a compliant drive line, as in the 3D model: kappa = 1; see
-            the module docstring).
+            pinion speed (Eq. (5)) acts: ``"drive"`` (default, as in the 3D model: kappa =
+            1) or ``"pinion"`` (Eqs. (15)-(16)); see the module docstring.
         merge_spur_lines : for a spur pair without crowning every cell of a contact line
             has the same position on the profile, stiffness per length and gap, so the
             line is merged into one cell (``cells_per_line=1``, same total stiffness):

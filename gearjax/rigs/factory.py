@@ -11,12 +11,15 @@ from ..errors import ModelError
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..models.geared3d import Geared3DModel
-from ..models.torsional import TorsionalModel
+from ..models.torsional import NLTE_REACTIONS, TorsionalModel
 from .rig import Rig
 
-__all__ = ["MODELS", "build_model"]
+__all__ = ["MODELS", "NLTE_REACTION_3D", "build_model"]
 
 MODELS = ("3d", "torsional")
+# why the 3D model refuses nlte_reaction="pinion" (the command line says the same)
+NLTE_REACTION_3D = ("the 3D model puts the NLTE'' reaction torque at its torque node (the "
+                    "rig's motor: 'drive', Eq. (14)); 'pinion' is a torsional-model option")
 
 
 def build_model(
@@ -29,6 +32,7 @@ def build_model(
     mesh: Mesh | None = None,
     encoder_position: int = 1,
     max_frequency_hz: float | None = None,
+    nlte_reaction: str = "drive",
     **kwargs,
 ) -> TorsionalModel | Geared3DModel:
     """The dynamic model of ``rig`` with tooth modifications ``mods`` (default none).
@@ -46,6 +50,9 @@ def build_model(
     max_frequency_hz : 3D: modal cut-off (Hz) of the reduced model, None: all modes
         (:func:`gearjax.models.geared3d.default_max_frequency_hz` gives the rule used by the
         command line); must stay None for the torsional model.
+    nlte_reaction : where the NLTE'' reaction torque acts (:mod:`gearjax.models.torsional`):
+        ``"drive"`` (default, every model and command) or, torsional model only,
+        ``"pinion"`` (Eqs. (15)-(16)); the 3D model puts it at its torque node (Eq. (14)).
     kwargs : go to the model's ``build`` (``formulation``, ``damping_ratio``,
         ``nlte_terms``, ``max_frequency_hz``, ...). Defaults taken from the rig:
         ``pinion_torque_Nm`` (C_m0, N m) and, 3D, ``torque_node`` (the motor node) and
@@ -60,7 +67,11 @@ def build_model(
         if max_frequency_hz is not None:
             raise ModelError("max_frequency_hz", max_frequency_hz,
                              "the torsional model has no modal cut-off")
-        return TorsionalModel.build(mesh, mods, **kwargs)
+        return TorsionalModel.build(mesh, mods, nlte_reaction=nlte_reaction, **kwargs)
+    if nlte_reaction not in NLTE_REACTIONS:
+        raise ModelError("nlte_reaction", nlte_reaction, f"must be one of {NLTE_REACTIONS}")
+    if nlte_reaction != "drive":
+        raise ModelError("nlte_reaction", nlte_reaction, NLTE_REACTION_3D)
     kwargs.setdefault("torque_node", rig.torque_node)
     if "encoder_nodes" not in kwargs:
         kwargs["encoder_nodes"] = rig.encoder_nodes(encoder_position)
