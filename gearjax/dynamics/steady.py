@@ -85,8 +85,6 @@ __all__ = [
     "spectral_radius_of",
 ]
 
-LINEAR_FORMULATIONS = ("te", "perturbation")
-
 # Shooting solver: Dopri8 at rtol 1e-9 (benchmarks/bench_work_precision.py: the periodic
 # start is amplified by 1/(1 - rho), so the single period is integrated tighter than a
 # transient needs).
@@ -105,9 +103,9 @@ class PeriodicState(eqx.Module):
         state).
     spectral_radius : max |Floquet multiplier| of the monodromy matrix at ``y0``
         (< 1: the periodic orbit attracts; >= 1: parametric instability).
-    residual : norm of the last shooting step (dimensionless state); for affine
-        formulations the single step is exact and ``residual`` is the norm of that step.
-    newton_iterations : shooting steps taken (1 for te/perturbation).
+    residual : norm of the last shooting step (dimensionless state).
+    newton_iterations : shooting steps taken (te/perturbation while contact holds: 2, one
+        to solve and one to verify).
     ok : the period integrations succeeded and ``y0`` is finite.
     n_steps : integration steps of all shooting solves.
     """
@@ -194,8 +192,9 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
     omega : pinion speed Omega1 (rad/s).
     solver, rtol, atol : diffrax solver and tolerances of the period integration (default
         Dopri8, 1e-9, 1e-11 on the model's dimensionless state).
-    max_newton, newton_tol : Newton iterations for the (nonlinear) reference formulation;
-        te/perturbation take exactly one step (exact while contact holds on the orbit).
+    max_newton, newton_tol : Newton iterations on the periodicity residual (te and
+        perturbation converge in one step while contact holds on the orbit; a second step
+        verifies it).
     max_steps : step limit of each period integration.
     """
     solver, rtol, atol = _solver_options(solver, rtol, atol)
@@ -211,8 +210,10 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
 
     y1, phi, ok, steps, res = step(y_s)
     it = jnp.ones((), dtype=jnp.int32)
-    linear = model.formulation in LINEAR_FORMULATIONS
-    if not linear and max_newton > 1:
+    # every formulation iterates: te/perturbation converge in one step while contact holds
+    # (the second step verifies it), and are piecewise linear like the reference where the
+    # contact law cuts their force
+    if max_newton > 1:
         def cond(c):
             y, phi, ok, steps, res, it = c
             return ok & (res > newton_tol * (1.0 + jnp.sqrt(jnp.sum(y * y)))) & (it < max_newton)
@@ -256,8 +257,7 @@ def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
                    n_measured_periods=n_measured_periods, solver=measure_solver,
                    rtol=measure_rtol, atol=measure_atol, convergence_tol=convergence_tol,
                    **simulate_kwargs)
-    linear = model.formulation in LINEAR_FORMULATIONS
-    newton_ok = True if linear else ps.residual <= newton_tol * (1.0 + jnp.sqrt(jnp.sum(ps.y0**2)))
+    newton_ok = ps.residual <= newton_tol * (1.0 + jnp.sqrt(jnp.sum(ps.y0**2)))
     good = ps.ok & res.solver_ok
     nan = jnp.asarray(jnp.nan)
     bad = lambda v: jnp.where(good, v, nan)  # noqa: E731
