@@ -52,9 +52,10 @@ def _common(p, add_rig):
                    help="sdof inertias (kg m^2): 'bodies' (default: the gear bodies, solid "
                         "cylinders at the pitch radii) or two values, e.g. 4.48e-3,4.76")
     add_nlte_reaction(p)
-    p.add_argument("--formulation", default="perturbation", choices=["perturbation", "te", "reference"],
-                   help="sdof formulation (default perturbation, Eq. (47a); te can be "
-                        "parametrically unstable near the critical speed)")
+    p.add_argument("--formulation", default="te", choices=["te", "reference", "perturbation"],
+                   help="formulation (default te, Eq. (20)/(42), with the contact law; "
+                        "reference, Eq. (16)/(14): cell-by-cell contact; perturbation, "
+                        "Eq. (47a)/(48a))")
     p.add_argument("--shape", default="linear", choices=["linear", "parabolic"])
     p.add_argument("--damping", type=float, default=0.03, help="damping ratio zeta (default 0.03)")
     p.add_argument("--amplitudes", default="2e-6:30e-6:7", metavar="A:B:N",

@@ -71,15 +71,25 @@ shaft-line inertias (kappa = 8.3) 6.2/5.3/4.9/4.7 and 5.4/3.7/3.6/3.6. Both are 
 
 Formulation (dynamic objectives)
 --------------------------------
-Default perturbation (Eq. (47a): constant mean stiffness, linear, always stable, smooth
-in the design). The te formulation (Eq. (20)) with the loaded stiffness of the long
-relief is parametrically unstable around the main critical speed: Floquet spectral
-radius (:func:`gearjax.dynamics.stability.spectral_radius`) up to 1.074, > 1 over 770-810 rad/s
-(0.97-1.02 of its omega_n / z1 = 795 rad/s), dynamic factor 457 at 800 rad/s; the sdof
-multipliers depend on Omega / omega_n and zeta only, so this holds for any inertias. The
-reference formulation (Eq. (16)) is the physical check, but contact loss makes it
-non-smooth in the design; the optimum is checked against it by forward sweeps
+Default te (Eq. (20) / (42)) with the contact law of Section 6.2
+(:func:`gearjax.gears.contact.te_contact`): the closest of the TE-based formulations to the
+reference, and bounded through contact loss. Without the contact law the linear te
+equation of the long relief was parametrically unstable around the main critical speed
+(Floquet radius up to 1.074 over 770-810 rad/s, dynamic factor 457 at 800 rad/s), and the
+optimiser chased that non-physical resonance. The reference formulation (Eq. (16), cell by
+cell contact) and the perturbation formulation (Eq. (47a), constant k_m) are options; the
+optimum of any of them is checked by forward sweeps of the reference
 (``notebooks/tip_relief_design.ipynb``).
+
+Kinks: with contact loss the objective is continuous but has kinks in the design where a
+contact-loss interval appears or vanishes at the speed and instant of the maximum (the
+mesh force touches zero tangentially), where the speed or instant of the maximum switches
+(a smooth maximum over speeds removes the first; the second stays), and where the discrete
+quasi-static structure changes (rebuild, :class:`DynamicObjective`). Between them the
+forward-mode derivative through the integrator's steps is the derivative of the orbit
+(the vector field is continuous across contact loss, so no saltation term is missing):
+``tests/test_design.py`` checks it against central differences at a speed with contact
+loss.
 
 3D model
 --------

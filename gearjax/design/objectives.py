@@ -197,10 +197,10 @@ class DynamicObjective:
         ``rig``, Eqs. (14), (42), (48a), reduced to the modes below ``max_frequency_hz``).
     rig : the :class:`gearjax.rigs.registry.Rig` of a 3D objective (structure, torque node,
         encoder position 1).
-    formulation : ``"perturbation"`` (Eq. (47a) / (48a), default), ``"te"`` (Eq. (20) /
-        (42)) or ``"reference"`` (Eq. (16) / (14)); see the module docstring,
-        "Formulation". The 3D perturbation formulation holds its splitting constant k_m
-        at the build design (module docstring, "3D model").
+    formulation : ``"te"`` (Eq. (20) / (42) with the contact law, default),
+        ``"reference"`` (Eq. (16) / (14)) or ``"perturbation"`` (Eq. (47a) / (48a)); see
+        the module docstring, "Formulation". The 3D perturbation formulation holds its
+        splitting constant k_m at the build design (module docstring, "3D model").
     pinion_torque_Nm, inertias_kg_m2, damping_ratio : model data (defaults: 254.8 N m,
         :data:`DESIGN_INERTIAS` (the gear bodies, sdof only), 0.03).
     nlte_reaction : ``"drive"`` (default, as every command and model) or ``"pinion"``
@@ -224,7 +224,7 @@ class DynamicObjective:
 
     def __init__(self, mesh: Mesh, space: ReliefSpace, speeds_rad_s, kind: str = "peak-force", *,
                  model: str = "torsional", rig=None,
-                 formulation: str = "perturbation", pinion_torque_Nm: float = 254.8,
+                 formulation: str = "te", pinion_torque_Nm: float = 254.8,
                  inertias_kg_m2=DESIGN_INERTIAS, damping_ratio: float = 0.03,
                  nlte_reaction: str = "drive", max_frequency_hz: float | str | None = "auto",
                  method: str | None = None,
