@@ -133,10 +133,10 @@ def test_energy_balance_through_an_impact():
 
 
 def test_section_631_sdof_no_tension_and_te_close_to_reference(spur):
-    """Sdof, short relief, zeta 0.03, 640-1000 rad/s through the main critical speed: no
+    """Sdof, short relief, zeta 0.03, 600-1000 rad/s through the main critical speed: no
     tensile mesh force in any formulation (min >= -1e-6 F_S) and the TE-based peak dynamic
     factors within 2x of the reference (issue criterion); contact loss is reported by all."""
-    speeds = np.arange(640.0, 1001.0, 40.0)
+    speeds = np.arange(600.0, 1001.0, 80.0)
     peaks = {}
     for f in ("reference", "te", "perturbation"):
         m = TorsionalModel.build(spur, table1_relief("short"), formulation=f, damping_ratio=0.03)
