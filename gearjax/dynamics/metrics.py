@@ -31,7 +31,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["JUMP_SIDE", "OutputGrid", "output_grid", "refined_extrema"]
+__all__ = ["JUMP_SIDE", "OutputGrid", "output_grid", "refined_extrema", "refine_windows",
+           "window_extrema"]
 
 JUMP_SIDE = 1e-9  # one-sided points at s_j -/+ JUMP_SIDE * period
 
@@ -117,6 +118,19 @@ def refined_extrema(outputs, flow, ts, ys, n_refine: int = 64):
     grid alone.
     """
     vals = jax.vmap(outputs)(ts, ys)
+    j0, tf = refine_windows(vals, ts, n_refine)
+    cols = jnp.repeat(jnp.arange(vals.shape[1]), 2)
+    wvals = jax.vmap(lambda j, c, t: jax.vmap(outputs)(t, flow(ts[j], ys[j], t))[:, c])(
+        j0, cols, tf)
+    return (vals,) + window_extrema(vals, ts, j0, wvals)
+
+
+def refine_windows(vals, ts, n_refine: int = 64):
+    """The refinement windows of :func:`refined_extrema`: for each output ``c`` (in the
+    order max of 0, min of 0, max of 1, ...), the index ``j0`` of the window's first grid
+    point (the window is ``[ts[j0], ts[j0 + 2]]`` around the interior grid extreme
+    ``j0 + 1``) and its ``2 n_refine`` interior angles ``tf`` (sorted). Returns
+    ``(j0 (2q,), tf (2q, 2 n_refine))``."""
     n, q = vals.shape
     # windows [t_j-1, t_j+1] around the interior grid extreme j: an extreme at the first or
     # last grid point may lie outside the measured span, where no window reaches; its
@@ -127,24 +141,39 @@ def refined_extrema(outputs, flow, ts, ys, n_refine: int = 64):
         starts += [jnp.argmax(inner[:, c]), jnp.argmin(inner[:, c])]
     j0 = jnp.stack(starts)  # window [t_j0, t_j0+2] around each interior extreme j0 + 1
     u = (jnp.arange(n_refine) + 1.0) / (n_refine + 1.0)
+
+    def angles(j):
+        a = ts[j] + u * (ts[j + 1] - ts[j])
+        b = ts[j + 1] + u * (ts[j + 2] - ts[j + 1])
+        return jnp.concatenate([a, b])
+
+    return j0, jax.vmap(angles)(j0)
+
+
+def window_extrema(vals, ts, j0, wvals):
+    """Max and min of each output over the grid values ``vals`` (N, q) and the refined
+    window values ``wvals`` (2q, 2 n_refine) read at the angles of :func:`refine_windows`
+    (window k refines output k // 2, its max for even k, its min for odd k). Returns
+    ``(maxima (q,), minima (q,))``."""
+    n, q = vals.shape
+    n_refine = wvals.shape[1] // 2
+    u = (jnp.arange(n_refine) + 1.0) / (n_refine + 1.0)
     short = 1e-6 * (ts[-1] - ts[0]) / n  # intervals this short straddle a jump
 
-    def window(j, c):
+    def window(j, c, out):
         """Times and values of output c on [t_j, t_j+2]: grid points and refined ones."""
         a = ts[j] + u * (ts[j + 1] - ts[j])
         b = ts[j + 1] + u * (ts[j + 2] - ts[j + 1])
-        tf = jnp.concatenate([a, b])
-        out = jax.vmap(outputs)(tf, flow(ts[j], ys[j], tf))[:, c]
         tw = jnp.concatenate([ts[j][None], a, ts[j + 1][None], b, ts[j + 2][None]])
         vw = jnp.concatenate([vals[j, c][None], out[:n_refine], vals[j + 1, c][None],
                               out[n_refine:], vals[j + 2, c][None]])
         return tw, vw
 
     cols = jnp.repeat(jnp.arange(q), 2)  # window k refines output k // 2
-    tw, vw = jax.vmap(window)(j0, cols)  # (2q, 2 n_refine + 3)
+    tw, vw = jax.vmap(window)(j0, cols, wvals)  # (2q, 2 n_refine + 3)
     sign = jnp.tile(jnp.asarray([1.0, -1.0]), q)  # max windows, min windows
     best = jax.vmap(lambda tt, vv, sg: sg * _vertex_max(tt, sg * vv, short / (n_refine + 1)))(
         tw, vw, sign)
     maxima = [jnp.maximum(jnp.max(vals[:, c]), best[2 * c]) for c in range(q)]
     minima = [jnp.minimum(jnp.min(vals[:, c]), best[2 * c + 1]) for c in range(q)]
-    return vals, jnp.stack(maxima), jnp.stack(minima)
+    return jnp.stack(maxima), jnp.stack(minima)

@@ -29,7 +29,9 @@ Metrics
 The state is saved on the output grid of :mod:`gearjax.dynamics.metrics` (mid-cell
 samples plus both sides of every jump, by the solver's dense interpolant, which does not
 constrain the steps); max and min mesh force, DTE and acceleration are read there and
-refined between grid points, so they are exact to the integration tolerance. Per speed:
+refined between grid points, so they are exact to the integration tolerance (the
+refinement windows are further legs of the same ``diffeqsolve`` call, in a ``lax.scan``:
+one solver in the compiled program, not two). Per speed:
 max and min mesh force F_D (N, Eqs. (22)/(24)), dynamic factor ``max F_D / F_S``, DTE and
 acceleration peak-to-peak, ``contact_loss`` (``min F_D <= 0``: separation for the reference
 formulation, a tensile -- unphysical -- force for the linear te/perturbation ones), the
@@ -64,7 +66,7 @@ import jax.numpy as jnp
 import numpy as np
 from ..errors import SimulationError
 from ..models.base import AbstractGearModel
-from .metrics import output_grid, refined_extrema
+from .metrics import output_grid, refine_windows, window_extrema
 
 __all__ = [
     "simulate",
@@ -95,6 +97,7 @@ _SOLVERS = {
 
 
 _MANY_JUMPS = 20  # jumps per mesh period above which steps are forced short
+N_REFINE = 64  # refined points per grid interval of the extremum windows (metrics)
 
 
 def jump_density(model) -> float:
@@ -365,28 +368,59 @@ def simulate(
         raise SimulationError("start", start, 'must be "auto" or "initial"')
     if y0 is None:
         y0 = model.transient_start(omega) if start == "auto" else model.initial_state(omega)
-    sol = diffrax.diffeqsolve(
-        term, solver, t0=0.0, t1=t_end, dt0=None, y0=y0, args=omega,
-        saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=ctrl,
-        max_steps=max_steps, adjoint=adjoint, throw=False,
-    )
-    ys = sol.ys
-    ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(ys))
-    steps = sol.stats["num_steps"]
+    y0 = jnp.asarray(y0)
 
     def observed(t, y):
         o = model.outputs(t, y, omega)
         cols = [o.mesh_force_N, o.dte_m] + ([] if o.accel_m_s2 is None else [o.accel_m_s2])
         return jnp.stack(cols)
 
-    def flow(t0, y_start, t_out):  # the same integration, again from a grid point
-        return diffrax.diffeqsolve(
-            term, solver, t0=t0, t1=t_out[-1], dt0=None, y0=y_start, args=omega,
-            saveat=diffrax.SaveAt(ts=t_out), stepsize_controller=ctrl,
-            max_steps=max(4096, max_steps // 100), adjoint=adjoint, throw=False).ys
+    # one diffeqsolve call site for the measured run (leg 0) and the refinement windows of
+    # gearjax.dynamics.metrics (legs 1..2q, each integrated again from its first grid
+    # point): a second call site (a vmapped solve over the windows) doubled the tracing
+    # and XLA compile time of simulate. The legs share one output length (padded with
+    # their last angle) and run one after the other in a scan; the window inputs are
+    # computed once, after leg 0 (a cond on the unbatched leg index, also under vmap).
+    n_grid = ts.shape[0]
+    n_win = 2 * jax.eval_shape(observed, ts[0], y0).shape[0]  # a max and a min per output
+    n_out = max(n_grid, 2 * N_REFINE)
 
-    vals, v_max, v_min = refined_extrema(observed, flow, ts, ys)
+    def pad(t):  # (m,) -> (n_out,): the last angle repeated
+        return jnp.concatenate([t, jnp.broadcast_to(t[-1], (n_out - t.shape[0],))])
+
+    def leg(carry, k):
+        w_t0, w_y0, w_ts = carry
+        main = k == 0
+        i = jnp.maximum(k - 1, 0)
+        # a window of a failed run starts from a finite state (its values are not used)
+        y_w = jnp.where(jnp.isfinite(w_y0[i]), w_y0[i], 0.0)
+        sol = diffrax.diffeqsolve(
+            term, solver, t0=jnp.where(main, 0.0, w_t0[i]),
+            t1=jnp.where(main, t_end, w_ts[i, -1]), dt0=None,
+            y0=jnp.where(main, y0, y_w), args=omega,
+            saveat=diffrax.SaveAt(ts=jnp.where(main, pad(ts), w_ts[i])),
+            stepsize_controller=ctrl, max_steps=max_steps, adjoint=adjoint, throw=False,
+        )
+
+        def windows(_):
+            g = sol.ys[:n_grid]
+            j0, tf = refine_windows(jax.vmap(observed)(ts, g), ts, N_REFINE)
+            return ts[j0], g[j0], jax.vmap(pad)(tf)
+
+        carry = jax.lax.cond(main, windows, lambda _: carry, None)
+        return carry, (sol.ys, sol.result == diffrax.RESULTS.successful, sol.stats["num_steps"])
+
+    init = (jnp.zeros(n_win), jnp.zeros((n_win,) + y0.shape, y0.dtype), jnp.zeros((n_win, n_out)))
+    _, (legs, success, n_steps) = jax.lax.scan(leg, init, jnp.arange(1 + n_win))
+    ys = legs[0, :n_grid]
+    ok = success[0] & jnp.all(jnp.isfinite(ys))
+    steps = n_steps[0]
+    vals = jax.vmap(observed)(ts, ys)
+    j0, tf = refine_windows(vals, ts, N_REFINE)
+    cols = jnp.repeat(jnp.arange(vals.shape[1]), 2)  # window k refines output k // 2
+    wvals = jax.vmap(lambda y, c, t: jax.vmap(observed)(t, y)[:, c])(
+        legs[1:, : 2 * N_REFINE], cols, tf)
+    v_max, v_min = window_extrema(vals, ts, j0, wvals)
     has_acc = vals.shape[1] > 2
     per = vals.reshape(n_measured_periods, grid.per_period, -1)
     ext = jnp.stack([per.max(1), per.min(1)], axis=2).reshape(n_measured_periods, -1)
