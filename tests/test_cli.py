@@ -82,17 +82,17 @@ def test_info_3d_reports_appendix_a_relations(capsys, encoders):
     assert f[0] > 0 and np.all(np.diff(f) >= 0)  # K_bar invertible: no rigid-body mode left
 
 
-def test_sweep_writes_csv_json_and_figure(capsys, tmp_path):
-    out_dir = tmp_path / "sw"
-    summary = _json(capsys, ["sweep", "--model", "torsional", "--speeds", "30:600:3",
-                             "--formulations", "reference,te", "--out", str(out_dir), "--json"])
+def test_sweep_writes_csv_json_and_figure(torsional_cli_sweep):
+    # `gearjax sweep --model torsional --speeds 40:700:3 --formulations te,reference ...`,
+    # shared with tests/test_cli_dynamics.py (tests/conftest.py)
+    summary, out_dir = torsional_cli_sweep
     data = np.genfromtxt(out_dir / "results.csv", delimiter=",", names=True, dtype=None,
                          encoding="utf-8")
     assert data.dtype.names == ("speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor",
                                 "dte_ptp_m", "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss",
                                 "converged")
     assert len(data) == 6 and set(data["formulation"]) == {"reference", "te"}
-    # Eq. (24): max F_D / F_S is the dynamic factor; the quasi-static limit gives ~1 at 30 rad/s
+    # Eq. (24): max F_D / F_S is the dynamic factor
     f_s = 254.8 / baud_velex_pair(False).base_radii_m[0]
     np.testing.assert_allclose(data["max_mesh_force_N"] / data["dynamic_factor"], f_s, rtol=1e-9)
     assert set(summary["formulations"]) == {"reference", "te"}

@@ -44,11 +44,10 @@ def test_info_torsional_figures_closed_form(capsys):
     assert 0.8 < out["iso6336_resonance_speed_rad_s"] / (w / 26) < 1.3
 
 
-def test_torsional_sweep_with_signals(capsys, tmp_path):
-    out_dir = tmp_path / "sw"
-    summary = _json(capsys, ["sweep", "--model", "torsional", "--speeds", "40:700:3",
-                             "--formulations", "te,reference", "--signals", "300",
-                             "--out", str(out_dir), "--json"])
+def test_torsional_sweep_with_signals(torsional_cli_sweep):
+    # `gearjax sweep --model torsional --speeds 40:700:3 --formulations te,reference
+    # --signals 300 --json` (tests/conftest.py; its CSV/JSON/figure: tests/test_cli.py)
+    summary, out_dir = torsional_cli_sweep
     data = _csv(out_dir / "results.csv")
     assert data.dtype.names == CSV_COLUMNS
     assert len(data) == 6
@@ -66,9 +65,11 @@ def test_torsional_sweep_with_signals(capsys, tmp_path):
     # differ only in the number of measured periods: equal at steady state)
     r = TorsionalModel.build(Mesh.build(baud_velex_pair(False), "iso6336"), get_rig(
         "baud-velex-spur").modifications("short"), damping_ratio=0.1, formulation="te")
+    import equinox as eqx
+
     from gearjax.dynamics.simulate import simulate
 
-    one = simulate(r, 300.0)
+    one = eqx.filter_jit(simulate)(r, 300.0)  # compiled: op by op costs 2.5x the compilation
     f_te = sig["mesh_force_N"][sig["formulation"] == "te"]
     assert f_te.max() == pytest.approx(float(one.max_mesh_force_N), rel=1e-4)
     assert (out_dir / "mesh_force_signals.png").stat().st_size > 10_000
