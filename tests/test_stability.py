@@ -18,6 +18,7 @@ import pytest
 from scipy.linalg import expm
 
 from gearjax import Mesh, ToothModifications, baud_velex_pair, table1_relief
+from gearjax.models.base import WithoutContactLaw
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import SimulationError, simulate
 from gearjax.dynamics.stability import floquet_multipliers, monodromy, spectral_radius
@@ -85,7 +86,8 @@ def test_growth_inside_principal_zone_and_decay_outside(square_wave):
     run = eqx.filter_jit(eqx.filter_vmap(
         lambda m, w: simulate(m, w, n_transient_periods=80, n_measured_periods=4,
                               save_signals=True), in_axes=(None, 0)))
-    res = run(model, jnp.asarray([w_bad, 1000.0]))
+    # Eq. (20) as printed (linear, no contact law): the force may turn tensile and grow
+    res = run(WithoutContactLaw(model), jnp.asarray([w_bad, 1000.0]))
     # per-period peak-to-peak of DTE after 80 periods: the growing Floquet solution dominates
     dte = np.asarray(res.signals.dte_m[0]).reshape(4, -1)
     ptp = np.ptp(dte, axis=1)
@@ -94,6 +96,12 @@ def test_growth_inside_principal_zone_and_decay_outside(square_wave):
     assert not bool(res.converged[0])
     # outside: rho = 0.90 per period, 0.9^80 = 2e-4 below the convergence threshold 1e-3
     assert bool(res.converged[1]) and float(spectral_radius(model, [1000.0])[0]) < 0.91
+    # with the contact law (the model's default) the teeth separate and the growth stops:
+    # the force never turns tensile and stays within a few times the static force
+    bounded = run(model, jnp.asarray([w_bad]))
+    assert float(res.min_mesh_force_N[0]) < 0.0 < float(bounded.contact_loss[0])
+    assert float(bounded.min_mesh_force_N[0]) == 0.0
+    assert float(bounded.max_mesh_force_N[0]) < 10.0 * float(model.static_force_N)
 
 
 def test_perturbation_multipliers_are_constant_coefficient(square_wave):

@@ -116,10 +116,6 @@ class QuasiStaticObjective:
             raise DesignError("model", model, f"must be one of {DESIGN_MODELS}")
         if model == "3d" and rig is None:
             raise DesignError("rig", rig, "the 3D model needs a rig (gearjax.rigs.registry.get_rig)")
-        if model == "3d" and nlte_reaction != "drive":
-            from ..rigs.factory import NLTE_REACTION_3D
-
-            raise DesignError("nlte_reaction", nlte_reaction, NLTE_REACTION_3D)
         torques = np.atleast_1d(np.asarray(torques_Nm, dtype=float))
         if torques.ndim != 1 or not np.all(np.isfinite(torques)) or np.any(torques <= 0):
             raise DesignError("torques_Nm", torques.tolist(), "need finite torques > 0 (N m)")

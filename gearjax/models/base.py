@@ -24,8 +24,8 @@ import jax.numpy as jnp
 
 from ..errors import ModelError
 
-__all__ = ["AbstractGearModel", "ModelOutputs", "FORMULATIONS", "modal_transient_start",
-           "modal_slowest_output_mode"]
+__all__ = ["AbstractGearModel", "ModelOutputs", "FORMULATIONS", "WithoutContactLaw",
+           "modal_transient_start", "modal_slowest_output_mode"]
 
 # the three dynamic formulations of the paper: reference Eq. (14)/(16), transmission-error
 # based Eq. (42)/(20), main-order perturbation Eq. (48a)/(47a)
@@ -108,7 +108,7 @@ class AbstractGearModel(eqx.Module):
         """Scaled state at ``theta0`` on the quasi-static solution (dynamic part zero)."""
 
     @abc.abstractmethod
-    def vector_field(self, s, y, omega):
+    def vector_field(self, s, y, omega, contact: bool = True):
         """``dy/ds`` of the equation of motion (Eq. (14)/(42)/(48a) or their sdof forms
         (16)/(20)/(47a)) at the simulation angle ``s`` for pinion speed ``omega`` (rad/s)."""
 
@@ -118,9 +118,10 @@ class AbstractGearModel(eqx.Module):
         state (for the Floquet analysis of :mod:`gearjax.dynamics.stability`)."""
 
     @abc.abstractmethod
-    def outputs(self, theta, y, omega) -> ModelOutputs:
+    def outputs(self, theta, y, omega, contact: bool = True) -> ModelOutputs:
         """Mesh force F_D (N, Eqs. (22)/(24)), DTE (m) and, where the model has one, an
-        acceleration (m/s^2) at the simulation angle ``theta``."""
+        acceleration (m/s^2) at the simulation angle ``theta`` (``contact=False``: te and
+        perturbation without the contact law, as :meth:`vector_field`)."""
 
     @abc.abstractmethod
     def decay_rate_per_rad(self, omega):
@@ -156,6 +157,89 @@ class AbstractGearModel(eqx.Module):
         whose :attr:`periodic_start` is True; the default has none."""
         raise ModelError("harmonic_state", type(self).__name__,
                          "this model has no frequency-domain periodic state")
+
+
+class WithoutContactLaw(AbstractGearModel):
+    """The te or perturbation model ``model`` with its equations exactly as printed,
+    Eqs. (20)/(42) and (47a)/(48a): linear in the state, without the contact law of
+    :func:`gearjax.gears.contact.te_contact`, so the mesh force may turn tensile.
+
+    Everything is the wrapped model's, except :meth:`vector_field` and :meth:`outputs`,
+    which call the model's with ``contact=False``. Use it to compare with a linear
+    frequency-domain solution or to watch a parametric instability grow (the contact law
+    bounds both); a physical response needs the contact law.
+    """
+
+    model: AbstractGearModel
+    formulation: str
+    period_rad: float
+    jump_thetas: tuple
+    damping_ratio: jax.Array
+    structure_ok: jax.Array
+
+    def __init__(self, model: AbstractGearModel):
+        if model.formulation == "reference":
+            raise ModelError("formulation", "reference", "the reference formulation's contact "
+                             "is per cell and always on; WithoutContactLaw is for te/perturbation")
+        self.model = model
+        self.formulation, self.period_rad = model.formulation, model.period_rad
+        self.jump_thetas, self.damping_ratio = model.jump_thetas, model.damping_ratio
+        self.structure_ok = model.structure_ok
+
+    def __getattr__(self, name):  # model-specific extras (inertias, mesh, mods, ...)
+        return getattr(self.model, name)
+
+    @property
+    def mesh_period_rad(self):
+        return self.model.mesh_period_rad
+
+    @property
+    def static_force_N(self):
+        return self.model.static_force_N
+
+    @property
+    def state_size(self):
+        return self.model.state_size
+
+    @property
+    def periodic_start(self):
+        return self.model.periodic_start
+
+
+    def with_modifications(self, mods):
+        return WithoutContactLaw(self.model.with_modifications(mods))
+
+    def angle(self, s):
+        return self.model.angle(s)
+
+    def initial_state(self, omega, theta0=0.0):
+        return self.model.initial_state(omega, theta0)
+
+    def vector_field(self, s, y, omega, contact: bool = False):
+        """The model's ``dy/ds`` with ``contact=False``."""
+        return self.model.vector_field(s, y, omega, contact=False)
+
+    def homogeneous_vector_field(self, theta, y, omega):
+        return self.model.homogeneous_vector_field(theta, y, omega)
+
+    def outputs(self, theta, y, omega, contact: bool = False) -> ModelOutputs:
+        """The model's outputs with ``contact=False`` (the linear mesh force, N)."""
+        return self.model.outputs(theta, y, omega, contact=False)
+
+    def decay_rate_per_rad(self, omega):
+        return self.model.decay_rate_per_rad(omega)
+
+    def natural_frequency_rad_s(self):
+        return self.model.natural_frequency_rad_s()
+
+    def transient_start(self, omega):
+        return self.model.transient_start(omega)
+
+    def slowest_output_mode(self):
+        return self.model.slowest_output_mode()
+
+    def harmonic_state(self, omega, theta0=0.0):
+        return self.model.harmonic_state(omega, theta0)
 
 
 def modal_transient_start(model: AbstractGearModel, omega, omega_r, n_average: int = 64):

@@ -657,11 +657,11 @@ class Geared3DModel(AbstractGearModel):
         r = self.omega_r / omega
         return jnp.concatenate([(qs - self.q0) / self.scale_a, u / (r * self.scale_a)])
 
-    def outputs(self, theta, y, omega) -> ModelOutputs:
+    def outputs(self, theta, y, omega, contact: bool = True) -> ModelOutputs:
         """Mesh force F_D (N), DTE = W^T X + NLTE (m) and the pinion-centre acceleration
         along s (m/s^2) at one angle."""
-        q, qp, up = self._accel(theta, y, omega)  # theta: the simulation angle s
-        _, f_d = self._elastic(theta, q)
+        q, qp, up = self._accel(theta, y, omega, contact)  # theta: the simulation angle s
+        _, f_d = self._elastic(theta, q, contact)
         e, ep, _, _ = self._inertial(self.angle(theta)[0])
         qpp = up
         if e is not None:

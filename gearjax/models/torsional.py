@@ -663,12 +663,12 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             x_s_p = x_s_p + self.kappa * der[_NLTE]
         return jnp.stack([x_s / self.x_ref, x_s_p / (r * self.x_ref)])
 
-    def outputs(self, theta, y, omega) -> ModelOutputs:
+    def outputs(self, theta, y, omega, contact: bool = True) -> ModelOutputs:
         """Mesh force F_D (N, Eq. (22) or (24)) and DTE = x + NLTE (m) at one angle."""
         exc = self._table(theta)
         theta, _ = self.angle(theta)  # pinion angle of the simulation angle
         x, _ = self._x_and_slope(theta, y, omega, exc)
-        _, f_d = self._mesh_terms(theta, x, exc)
+        _, f_d = self._mesh_terms(theta, x, exc, contact)
         if self.formulation != "reference" and not self.nlte_terms:
             dte = x  # NLTE = 0 in this model (paper Fig. 10)
         else:
