@@ -164,8 +164,9 @@ class WithoutContactLaw(AbstractGearModel):
     Eqs. (20)/(42) and (47a)/(48a): linear in the state, without the contact law of
     :func:`gearjax.gears.contact.te_contact`, so the mesh force may turn tensile.
 
-    Everything is the wrapped model's, except :meth:`vector_field` and :meth:`outputs`,
-    which call the model's with ``contact=False``. Use it to compare with a linear
+    The solver interface is the wrapped model's (model-specific attributes: ``.model``),
+    except :meth:`vector_field` and :meth:`outputs`, which call the model's with
+    ``contact=False``. Use it to compare with a linear
     frequency-domain solution or to watch a parametric instability grow (the contact law
     bounds both); a physical response needs the contact law.
     """
@@ -185,9 +186,6 @@ class WithoutContactLaw(AbstractGearModel):
         self.formulation, self.period_rad = model.formulation, model.period_rad
         self.jump_thetas, self.damping_ratio = model.jump_thetas, model.damping_ratio
         self.structure_ok = model.structure_ok
-
-    def __getattr__(self, name):  # model-specific extras (inertias, mesh, mods, ...)
-        return getattr(self.model, name)
 
     @property
     def mesh_period_rad(self):
