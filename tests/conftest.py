@@ -1,9 +1,34 @@
 """Strict numerics for every test: float64 and no silent rank promotion (as diffrax does)."""
 
+import atexit
+import os
+import shutil
+import tempfile
+
 import jax
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_rank_promotion", "raise")
+
+
+def _share_compilations_in_this_session():
+    """One JAX persistent compilation cache for the whole test session: the pytest-xdist
+    workers, the notebook kernels and the CLI subprocesses inherit its folder
+    (JAX_COMPILATION_CACHE_DIR, set by the first process, the controller) and reuse each
+    other's XLA executables of identical programs (e.g. the builds of the 3D te model,
+    ~20 s of compilation in every fresh process, ~4 s from the cache). A fresh, empty
+    folder per session, removed at its end: nothing carries over between runs, and no test
+    checks compilation itself (trace counts are unaffected). A folder chosen by the
+    caller is used as it is."""
+    folder = os.environ.get("JAX_COMPILATION_CACHE_DIR")
+    if not folder:
+        folder = tempfile.mkdtemp(prefix="gearjax-tests-xla-cache-")
+        os.environ["JAX_COMPILATION_CACHE_DIR"] = folder
+        atexit.register(shutil.rmtree, folder, True)
+    jax.config.update("jax_compilation_cache_dir", folder)
+
+
+_share_compilations_in_this_session()
 
 
 import pytest  # noqa: E402
