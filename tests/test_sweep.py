@@ -118,8 +118,14 @@ _SHARDED = textwrap.dedent(
 
 def test_sharded_equals_unsharded():
     """Four fake CPU devices (shard_map over the speed axis, interleaved, padded to a
-    multiple of the device count) give exactly the single-device results (same batch per
-    call), in order."""
+    multiple of the device count) give the single-device results, in order, to rounding.
+
+    Not bit for bit: the shard_map program is compiled differently from the single-device
+    one (the same batch of 2 per call in both), and the last-bit differences can change
+    which steps the adaptive control accepts, so the two agree to the integration
+    tolerance (rtol 1e-7; measured <= 2e-8 where contact holds) and, where the contact law
+    separates the teeth (700 and 860 rad/s), to what the impacts make of that (1e-7 to
+    4e-7 of the forces, n_steps within 2 %)."""
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4")
     out = subprocess.run([sys.executable, "-c", _SHARDED], env=env, capture_output=True,
                          text=True, timeout=600)
@@ -127,10 +133,18 @@ def test_sharded_equals_unsharded():
     data = json.loads(out.stdout.strip().splitlines()[-1])
     a, b = data["speed_rad_s"]
     assert a == b == [700.0, 90.0, 1200.0, 310.0, 520.0, 860.0, 150.0]
-    for f in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m", "convergence", "n_steps"):
-        np.testing.assert_array_equal(*data[f], err_msg=f)
     for pair in data["flags"]:
         assert pair[0] == pair[1]
+    lost = np.asarray(data["flags"][1][0], bool)
+    assert lost.any() and not lost.all()
+    for f in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m"):
+        a, b = (np.asarray(v) for v in data[f])
+        np.testing.assert_allclose(a[~lost], b[~lost], rtol=1e-7, err_msg=f)
+        np.testing.assert_allclose(a[lost], b[lost], rtol=1e-5, err_msg=f)
+    a, b = (np.asarray(v) for v in data["convergence"])
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-8)
+    a, b = (np.asarray(v) for v in data["n_steps"])
+    np.testing.assert_allclose(a, b, rtol=0.05)
 
 
 _MULTI_PROCESS = textwrap.dedent(
