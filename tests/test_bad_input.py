@@ -277,7 +277,11 @@ def test_ctrl_c_keeps_results_and_resume_finishes(tmp_path):
     argv = [sys.executable, "-m", "gearjax.cli.main"] + SWEEP + [
         "--speeds", "100:900:40", "--chunk", "1", "--out", str(out)]
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    # a process started in the background by a non-interactive shell (CI scripts, `cmd &`)
+    # inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler: give
+    # the CLI the disposition of an interactive terminal
+    p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     csv_path = out / "results.csv"
     t0 = time.monotonic()
     while time.monotonic() - t0 < 240 and p.poll() is None:
