@@ -111,7 +111,7 @@ def _scipy_method(model):
 
 def _numpy_rhs(mp, omega):
     """Pure-NumPy right-hand side of the te/perturbation formulations (substitution-free
-    case: NLTE = 0), reading the model's Hermite table."""
+    case: NLTE = 0) with their contact law, reading the model's Hermite table."""
     if mp.formulation == "reference" or mp.nlte_terms:
         raise ValueError("NumPy RHS only for te/perturbation without NLTE terms")
     d = mp
@@ -137,7 +137,8 @@ def _numpy_rhs(mp, omega):
         x_s, k_s = v[0], v[1]
         x = y[0] * x_ref
         stiff = k_s if te else k_m
-        resid = stiff * cos_b * (x - x_s) / f_s
+        # contact law (gearjax.gears.contact.te_contact): no mesh force once it would be tensile
+        resid = max(stiff * cos_b * (x - x_s) / f_s, -1.0)
         return np.array([r * y[1], -r * (resid + 2 * zeta * y[1])])
 
     return rhs

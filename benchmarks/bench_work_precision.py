@@ -218,8 +218,9 @@ def run_newmark(model, speeds, steps_per_mesh, n_measured=3, samples=128):
     """Newmark-beta, average acceleration (beta = 1/4, gamma = 1/2), in theta, NumPy,
     vectorised over the speeds, on the scaled equation
     ``u'' + 2 zeta r u' + r^2 (F(theta, u) / F_S - 1) = 0`` (``u = x / x_ref``,
-    ``r = omega_n / Omega``); te/perturbation linear per step, reference by Newton
-    (the contact law is piecewise linear: exact after the active set settles)."""
+    ``r = omega_n / Omega``); every formulation by Newton per step (the reference's cell
+    law and the te/perturbation mesh contact law are piecewise linear: exact after the
+    active set settles)."""
     t_start = time.perf_counter()
     speeds = np.asarray(speeds, dtype=float)
     mp = model
@@ -248,7 +249,9 @@ def run_newmark(model, speeds, steps_per_mesh, n_measured=3, samples=128):
             df = np.sum(np.where(act, tab["k"][j][None, :], 0.0), axis=1) * x_ref * cb
             return f / f_s - 1.0, df / f_s
         k = stiff_tab[j]
-        return k * cb * (u * x_ref - tab["x_s"][j]) / f_s, np.full_like(u, k * cb * x_ref / f_s)
+        # contact law (gearjax.gears.contact.te_contact): no mesh force once it would be tensile
+        g = k * cb * (u * x_ref - tab["x_s"][j]) / f_s
+        return np.maximum(g, -1.0), np.where(g > -1.0, k * cb * x_ref / f_s, 0.0)
 
     y0 = np.stack([np.asarray(mp.initial_state(w)) for w in speeds])
     u, v = y0[:, 0], y0[:, 1] * r  # v = u'
@@ -265,7 +268,7 @@ def run_newmark(model, speeds, steps_per_mesh, n_measured=3, samples=128):
         up = u + h * v + h * h / 4 * a
         vp = v + h / 2 * a
         un = up.copy()
-        for _ in range(1 if not ref else 20):
+        for _ in range(20):  # Newton: piecewise linear (every formulation has a contact law)
             g, dg = force(j, un)
             an = 4 / (h * h) * (un - up)
             vn = vp + h / 2 * an
@@ -289,7 +292,9 @@ def run_newmark(model, speeds, steps_per_mesh, n_measured=3, samples=128):
                     pen = x[:, None] * cb - tab["de"][j][None, :]
                     fd = np.sum(tab["k"][j][None, :] * np.maximum(pen, 0.0), axis=1)
                 else:
-                    fd = f_s + tab["k_s"][j] * cb * (x - tab["x_s"][j])
+                    in_contact = f_s + stiff_tab[j] * cb * (x - tab["x_s"][j]) > 0.0
+                    fd = np.where(in_contact, np.maximum(f_s + tab["k_s"][j] * cb
+                                                         * (x - tab["x_s"][j]), 0.0), 0.0)
                 fmax = np.where(meas, np.maximum(fmax, fd), fmax)
                 dmax = np.where(meas, np.maximum(dmax, x), dmax)
                 dmin = np.where(meas, np.minimum(dmin, x), dmin)
