@@ -274,14 +274,16 @@ def test_rerun_refuses_then_overwrite(capsys, tmp_path):
 
 def test_ctrl_c_keeps_results_and_resume_finishes(tmp_path):
     out = tmp_path / "int"
-    argv = [sys.executable, "-m", "gearjax.cli.main"] + SWEEP + [
+    # a process started in the background by a non-interactive shell (CI scripts, `cmd &`)
+    # inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler: the
+    # CLI gets the handler of an interactive terminal (set in the child, not by a
+    # preexec_fn, which would run Python between fork and exec of a multithreaded parent)
+    argv = [sys.executable, "-c", "import runpy, signal; signal.signal(signal.SIGINT, "
+            "signal.default_int_handler); runpy.run_module('gearjax.cli.main', "
+            "run_name='__main__')"] + SWEEP + [
         "--speeds", "100:900:40", "--chunk", "1", "--out", str(out)]
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    # a process started in the background by a non-interactive shell (CI scripts, `cmd &`)
-    # inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler: give
-    # the CLI the disposition of an interactive terminal
-    p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     csv_path = out / "results.csv"
     t0 = time.monotonic()
     while time.monotonic() - t0 < 240 and p.poll() is None:
