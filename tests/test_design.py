@@ -181,6 +181,7 @@ def _set_relief(m, x):
     return eqx.tree_at(lambda m: m.mods.relief_extent, m, jnp.stack([x[1], x[1]]))
 
 
+@pytest.mark.slow  # 72 s; the default suite keeps the sdof twin and the 3D structure check
 def test_3d_event_angles_follow_the_design():
     """3D te model (Eq. (42)), short relief: the event angles of the model built once,
     moved by Newton on the switching functions (3D quasi-static approach = gap, relief
@@ -321,7 +322,7 @@ def test_3d_structure_check_matches_rebuilt_events():
     assert seen == {True, False}  # both outcomes exercised
 
 
-@pytest.mark.parametrize("model", ["torsional", "3d"])
+@pytest.mark.parametrize("model", ["torsional", pytest.param("3d", marks=pytest.mark.slow)])
 def test_frozen_build_drops_the_angle_map(model):
     """The frozen model of DynamicObjective.grid (harris_map): no moving event, no angle
     map, structure flag True, and at its own design the same table and k_m as the model

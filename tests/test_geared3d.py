@@ -235,6 +235,8 @@ def test_torsional_structure_matches_sdof_model(torsional_setup, formulation):
 
 
 # ---------------------------------------------------------------------- Eq. (42) vs (14)
+@pytest.mark.slow  # the default suite has the same identity on the vector fields, in contact
+# and separated: tests/test_contact_law.py::test_3d_te_contact_law_is_the_cell_law_for_perfect_teeth
 def test_te_formulation_equals_reference_without_contact_changes():
     """Perfect spur gears (all gaps zero) and the averaged V: the dynamic active set is the
     quasi-static one, so Eq. (42) is an exact rewriting of Eq. (14) at any speed."""
