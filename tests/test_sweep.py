@@ -205,8 +205,12 @@ def test_multi_process_sweep_equals_single_device(tmp_path):
     outs = [p.communicate(timeout=600) for p in procs]
     for p, (o, e) in zip(procs, outs):
         assert p.returncode == 0, e[-3000:]
-    # process 1 prints nothing (gloo's own connection lines aside) and no progress
-    assert [ln for ln in outs[1][0].splitlines() if not ln.startswith("[Gloo]")] == []
+    # process 1 prints nothing (gloo's own connection lines aside: its C++ threads write
+    # them unsynchronised, so one can arrive split, e.g. "2 is connected to 3 peer ranks.
+    # Expected number of connected peer ranks is : 3" without its "[Gloo] Rank" prefix)
+    # and no progress
+    gloo = lambda ln: "[Gloo]" in ln or "peer ranks" in ln or not ln.strip()  # noqa: E731
+    assert [ln for ln in outs[1][0].splitlines() if not gloo(ln)] == []
     assert "[gearjax.dynamics.sweep]" not in outs[1][1]
     data = json.loads(outs[0][0].strip().splitlines()[-1])
     rows = sorted(data["rows"], key=lambda r: float(r["speed_rad_s"]))
