@@ -165,10 +165,12 @@ class WithoutContactLaw(AbstractGearModel):
     :func:`gearjax.gears.contact.te_contact`, so the mesh force may turn tensile.
 
     The solver interface is the wrapped model's (model-specific attributes: ``.model``),
-    except :meth:`vector_field` and :meth:`outputs`, which call the model's with
-    ``contact=False``. Use it to compare with a linear
-    frequency-domain solution or to watch a parametric instability grow (the contact law
-    bounds both); a physical response needs the contact law.
+    except :meth:`vector_field` and :meth:`outputs`, which always call the model's with
+    ``contact=False`` (their ``contact`` argument is there for the interface and ignored).
+    Use it to compare with a linear frequency-domain solution or to watch a parametric
+    instability grow (the contact law bounds both); a physical response needs the contact
+    law. The five solver attributes are copied from ``model`` at construction (equinox
+    abstract variables must be fields), so wrap the model after changing it.
     """
 
     model: AbstractGearModel
