@@ -31,14 +31,14 @@ import pytest
 from scipy.linalg import expm
 
 from gearjax import Mesh, ToothModifications, baud_velex_pair, static_mesh_force, table1_relief
-from gearjax.dynamics.harmonic import harmonic_steady_state, harmonic_sweep
+from gearjax.dynamics.harmonic import harmonic_steady_states, harmonic_sweep
 from gearjax.errors import SimulationError
 from gearjax.models.torsional import TorsionalModel
 from oscillators import HarmonicOscillator
 from test_dynamics_sdof import _closed_form_perturbation
 from test_metrics import TORQUE, ZETA, exact_force_extrema
 
-hb = eqx.filter_jit(eqx.filter_vmap(harmonic_steady_state, in_axes=(None, 0, None)))
+hb = eqx.filter_jit(harmonic_steady_states)
 
 
 def _one_period(model, omega, y0, ts, rtol=1e-12):

@@ -78,12 +78,14 @@ from .results import SweepResult
 from .stability import monodromy
 from .steady import spectral_radius_of
 
-__all__ = ["HarmonicOrbit", "HarmonicResult", "harmonic_steady_state", "harmonic_sweep",
-           "HarmonicSweepResult", "LINEAR_FORMULATIONS"]
+__all__ = ["HarmonicOrbit", "HarmonicResult", "harmonic_steady_state",
+           "harmonic_steady_states", "harmonic_sweep", "HarmonicSweepResult",
+           "LINEAR_FORMULATIONS"]
 
 LINEAR_FORMULATIONS = ("te", "perturbation")
 _JUMP_SIDE = 1e-9  # one-sided evaluation at theta_j -/+ _JUMP_SIDE * period
 _N_REFINE = 64  # points per grid interval in the refinement windows (parabolic vertex)
+_FORCING_RANK = 48  # columns kept for the forcing b (its rank: a few; checked)
 _PHI_TERMS = 18  # Taylor terms of phi_k(z) for |z| < 1 (error 1/19! ~ 8e-18)
 
 
@@ -94,9 +96,12 @@ def _phi123(z):
     from ``phi_0 = e^z``. Returns (e^z, phi_1, phi_2, phi_3)."""
     small = jnp.abs(z) < 1.0
     zs = jnp.where(small, z, 0.0)
-    pw = zs[..., None] ** np.arange(_PHI_TERMS).reshape((1,) * zs.ndim + (-1,))
-    ser = [pw @ np.array([1.0 / math.factorial(i + k) for i in range(_PHI_TERMS)])
-           for k in (1, 2, 3)]
+    ser = []
+    for k in (1, 2, 3):  # Horner: no complex powers (a log and an exp each)
+        acc = jnp.full_like(zs, 1.0 / math.factorial(_PHI_TERMS - 1 + k))
+        for i in range(_PHI_TERMS - 2, -1, -1):
+            acc = acc * zs + 1.0 / math.factorial(i + k)
+        ser.append(acc)
     zl = jnp.where(small, 1.0, z)
     ez = jnp.exp(z)
     p1 = jnp.expm1(zl) / zl
@@ -122,13 +127,32 @@ def _saw_coeffs(h, period):
 
 # ---------------------------------------------------------------------- the linear split
 class _Split(eqx.Module):
-    """``A0`` (n, n) and the unit vectors ``p``, ``w`` (n,) of Eq. (1) at one speed, and
-    the largest relative residual of the split over the samples (round-off if valid)."""
+    """``A0`` (n, n) and the unit vectors ``p``, ``w`` (n,) of Eq. (1) at one speed, the
+    basis (n, k) of the forcing ``b`` (:func:`_forcing_basis`), and the largest relative
+    residual of the split and of that basis over the samples (round-off if valid)."""
 
     a0: jax.Array
     p: jax.Array
     w: jax.Array
+    basis: jax.Array
     rank_one_error: jax.Array
+
+
+def _forcing_basis(b):
+    """Orthonormal basis ``U`` (n, k) of the span of the forcing samples ``b`` (N, n),
+    ``k = min(n, _FORCING_RANK)``, and the relative residual of ``b ~ (b U) U^T``. The
+    forcing of the models is a few fixed vectors times functions of theta (3D: the mesh
+    vector, E and C E from NLTE, eccentricity vectors), so the modal transforms of its
+    coefficients cost ``k`` columns instead of ``n``; found by a seeded random sketch."""
+    n = b.shape[1]
+    if n <= _FORCING_RANK:
+        return jnp.eye(n), jnp.zeros(())
+    sketch = jax.random.normal(jax.random.PRNGKey(0), (n, _FORCING_RANK), dtype=b.dtype)
+    qn, _ = jnp.linalg.qr(b @ sketch)  # range of the samples
+    _, _, vt = jnp.linalg.svd(qn.T @ b, full_matrices=False)
+    basis = vt.T
+    res = jnp.max(jnp.abs(b - (b @ basis) @ basis.T))
+    return basis, res / jnp.maximum(jnp.max(jnp.abs(b)), 1e-300)
 
 
 def _field(model, omega):
@@ -148,9 +172,9 @@ def _reference(model, omega):
 
 def _prepare(model, omega, n_h: int):
     """The split of Eq. (1) from the model's vector field (module docstring) and the
-    data of the harmonic balance: jump angles, one-sided values and slopes of ``(b, c)``
-    there, and the jump-corrected Fourier coefficients of ``(b, c)`` at -2H..2H
-    (``(4H+1, n+1)``, from ``4H`` samples). Every evaluation of the model is batched in
+    data of the harmonic balance: jump angles, one-sided values and slopes of ``(U^T b,
+    c)`` there, and the jump-corrected Fourier coefficients of ``(U^T b, c)`` at -2H..2H
+    (``(4H+1, k+1)``, from ``4H`` samples; ``U`` the forcing basis). Every evaluation of the model is batched in
     three vmapped calls (probe, two Jacobians, ``(b, c)`` everywhere)."""
     period = float(model.period_rad)
     nu = 2.0 * math.pi / period
@@ -192,8 +216,10 @@ def _prepare(model, omega, n_h: int):
     cbar = jnp.mean(v[:n_s, n])
     resid = g - (j1 @ xi)[None, :] - v[:n_s, n][:, None] * p[None, :] * (w @ xi)
     err = jnp.max(jnp.abs(resid)) / jnp.maximum(jnp.max(jnp.abs(g)), 1e-300)
-    split = _Split(a0=j1 + cbar * jnp.outer(p, w), p=p, w=w, rank_one_error=err)
-    v = v.at[:, n].add(-cbar)
+    basis, b_err = _forcing_basis(v[:, :n])
+    split = _Split(a0=j1 + cbar * jnp.outer(p, w), p=p, w=w, basis=basis,
+                   rank_one_error=jnp.maximum(err, b_err))
+    v = jnp.concatenate([v[:, :n] @ basis, v[:, n:] - cbar], axis=1)  # (.., k + 1)
     n_j = thj_np.size
     vl2, vl1, vr1, vr2 = (v[n_s + i * n_j: n_s + (i + 1) * n_j] for i in range(4))
     dl, dr = (vl1 - vl2) / step, (vr2 - vr1) / step
@@ -289,7 +315,7 @@ def _jump_part(lam, thj, dg0, dg1, period):
 
 def _conv(c_full, s, n_h):
     """(c * s)_h for |h| <= n_h: ``c_full`` (4 n_h + 1,) at -2n_h..2n_h, ``s`` (2 n_h + 1,)."""
-    m = 4 * n_h + 2  # no wrap-around into |h| <= n_h (sums span -3H..3H)
+    m = 5 * n_h  # > 4H: no wrap-around into |h| <= H (sums span -3H..3H); 5 * 2^k: fast FFT
 
     def wrap(x, k):  # x at -k..k -> circular layout of length m
         return jnp.concatenate([x[k:], jnp.zeros(m - 2 * k - 1, x.dtype), x[:k]])
@@ -297,6 +323,35 @@ def _conv(c_full, s, n_h):
     a, b = wrap(c_full, 2 * n_h), wrap(s, n_h)
     out = jnp.fft.ifft(jnp.fft.fft(a) * jnp.fft.fft(b))
     return out[jnp.arange(-n_h, n_h + 1) % m]
+
+
+def _hessenberg_lstsq(hm, g):
+    """``argmin |hm y - g|`` for the (m+1, m) upper Hessenberg ``hm`` of GMRES: Givens
+    rotations and back substitution in plain jax (no LAPACK call: jaxlib 0.10.2's batched
+    CPU LAPACK kernels wait on the intra-op pool they run on, and two of them under vmap
+    deadlock a 2-worker pool; reproduced with two vmapped ``jnp.linalg.solve``)."""
+    m = hm.shape[1]
+
+    def rotate(j, rg):
+        r, g = rg
+        a, b = r[j, j], r[j + 1, j]
+        nrm = jnp.sqrt(jnp.abs(a) ** 2 + jnp.abs(b) ** 2)
+        c, s = jnp.where(nrm > 0, a / jnp.where(nrm > 0, nrm, 1.0), 1.0), b / jnp.where(
+            nrm > 0, nrm, 1.0)
+        rj, rk = r[j], r[j + 1]
+        r = r.at[j].set(jnp.conj(c) * rj + jnp.conj(s) * rk).at[j + 1].set(-s * rj + c * rk)
+        gj, gk = g[j], g[j + 1]
+        return r, g.at[j].set(jnp.conj(c) * gj + jnp.conj(s) * gk).at[j + 1].set(-s * gj + c * gk)
+
+    r, g = jax.lax.fori_loop(0, m, rotate, (hm, g))
+
+    def back(i, y):
+        j = m - 1 - i
+        d = r[j, j]
+        yj = (g[j] - r[j, :m] @ y) / jnp.where(d != 0, d, 1.0)
+        return y.at[j].set(jnp.where(jnp.abs(d) > 0, yj, 0.0))
+
+    return jax.lax.fori_loop(0, m, back, jnp.zeros(m, hm.dtype))
 
 
 def _gmres(op, b, tol, restart: int = 30, max_cycles: int = 12):
@@ -327,8 +382,7 @@ def _gmres(op, b, tol, restart: int = 30, max_cycles: int = 12):
 
         v, hm = jax.lax.fori_loop(0, restart, arnoldi, (v, hm))
         e1 = jnp.zeros(restart + 1, b.dtype).at[0].set(beta)
-        y = jnp.linalg.lstsq(hm, e1)[0]
-        return x + v[:restart].T @ y
+        return x + v[:restart].T @ _hessenberg_lstsq(hm, e1)
 
     def cond(c):
         x, res, k = c
@@ -343,23 +397,23 @@ def _gmres(op, b, tol, restart: int = 30, max_cycles: int = 12):
     return x, res
 
 
-def _orbit(model, omega, n_h: int, keep, data, split, gmres_tol):
+def _orbit(model, omega, n_h: int, keep, data, split, modal, gmres_tol):
     """HarmonicOrbit with the harmonics ``|h| <= keep`` (traced, ``<= n_h``) from the
-    sampled (b, c) data; the harmonics above ``keep`` are zero (so that one compiled
-    function serves ``H`` and the error estimate at ``H/2``)."""
+    sampled (b, c) data and the eigendecomposition ``modal = (lambda, Q, Q^-1)`` of A0;
+    the harmonics above ``keep`` are zero (so that one compiled function serves ``H`` and
+    the error estimate at ``H/2``)."""
     period = float(model.period_rad)
     nu = 2.0 * math.pi / period
-    thj, (lo, hi, dlo, dhi), coeffs = data  # coeffs: (4H+1, n+1) at -2H..2H
-    n = model.state_size
+    thj, (lo, hi, dlo, dhi), coeffs = data  # coeffs: (4H+1, k+1) at -2H..2H
+    n, k = model.state_size, split.basis.shape[1]
     h = jnp.arange(-n_h, n_h + 1)
     inside = jnp.abs(h) <= keep
-    lam, q = jnp.linalg.eig(split.a0)
-    qinv = jnp.linalg.solve(q, jnp.eye(n, dtype=q.dtype))
-    pt, wt = qinv @ split.p, q.T @ split.w
+    lam, q, qinv = modal
+    pt, wt, ub = qinv @ split.p, q.T @ split.w, (qinv @ split.basis).T  # ub: (k, n)
     res = jnp.where(inside[:, None], 1.0 / (1j * h[:, None] * nu - lam[None, :]), 0.0)
     g = res @ (wt * pt)  # receptance of sigma to the parametric force, Eq. (2)
-    beta = coeffs[n_h: 3 * n_h + 1, :n] @ qinv.T  # (2H+1, n) modal b_h
-    c_full = coeffs[:, n]
+    beta = coeffs[n_h: 3 * n_h + 1, :k] @ ub  # (2H+1, n) modal b_h
+    c_full = coeffs[:, k]
     f = jnp.sum(res * beta * wt[None, :], axis=1)
     sig, gm_res = _gmres(lambda s: s - g * _conv(c_full, s, n_h), f, gmres_tol)
     qh = jnp.where(inside, _conv(c_full, sig, n_h), 0.0)
@@ -368,10 +422,10 @@ def _orbit(model, omega, n_h: int, keep, data, split, gmres_tol):
     e = jnp.exp(1j * nu * jnp.outer(thj, h))  # (J, 2H+1)
     sj = jnp.real(e @ sig)
     dsj = jnp.real(e @ (1j * h * nu * sig))  # mean of both one-sided slopes
-    dg0 = (hi - lo)[:, n][:, None] * sj[:, None] * pt[None, :] + (hi - lo)[:, :n] @ qinv.T
+    dg0 = (hi - lo)[:, k][:, None] * sj[:, None] * pt[None, :] + (hi - lo)[:, :k] @ ub
     dsig = dg0 @ wt  # jump of sigma' = w^T y'
-    dcs = hi[:, n] * (dsj + dsig / 2) - lo[:, n] * (dsj - dsig / 2)
-    dg1 = dcs[:, None] * pt[None, :] + (dhi - dlo)[:, :n] @ qinv.T
+    dcs = hi[:, k] * (dsj + dsig / 2) - lo[:, k] * (dsj - dsig / 2)
+    dg1 = dcs[:, None] * pt[None, :] + (dhi - dlo)[:, :k] @ ub
     s0, s1 = _saw_coeffs(h, period)
     ph = jnp.conj(e).T  # (2H+1, J): e^{-i h nu theta_j}
     gam = gam - (ph * s0[:, None]) @ dg0 - (ph * s1[:, None]) @ dg1
@@ -399,7 +453,8 @@ class HarmonicResult(eqx.Module):
     contact_holds : min mesh force > 0: the linear regime holds, the orbit is the model's.
     error_estimate : largest change of the state on the output grid between ``H`` and
         ``H/2`` harmonics over its largest component (an upper estimate for ``H/2``).
-    rank_one_error : relative residual of the split of Eq. (1) (round-off when valid).
+    rank_one_error : relative residual of the split of Eq. (1) and of the forcing basis
+        over the samples (round-off when valid).
     spectral_radius : Floquet spectral radius (NaN when not computed).
     ok : finite results.
     """
@@ -435,7 +490,8 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
                           gmres_tol: float = 1e-13) -> HarmonicResult:
     """Periodic steady state at pinion speed ``omega`` (rad/s) by harmonic balance with
     ``n_harmonics`` harmonics of the excitation period (module docstring). Jit- and
-    vmap-compatible in ``omega`` and the model's arrays; ``n_harmonics`` (a power of two
+    vmap-compatible in ``omega`` and the model's arrays (on CPU, batch speeds with
+    :func:`harmonic_steady_states`, not vmap); ``n_harmonics`` (a power of two
     >= 8), ``samples_per_mesh_period`` (output grid of the metrics, as in ``simulate``)
     and ``floquet`` (also compute the Floquet spectral radius by
     :func:`gearjax.dynamics.stability.monodromy`, one period of ``n`` columns) are static.
@@ -454,8 +510,12 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
     omega = jnp.asarray(omega, dtype=float)
     period = float(model.period_rad)
     split, data = _prepare(model, omega, n_h)
-    # H and H/2 in one batch: the error estimate costs no second compilation
-    both, gm_res = jax.vmap(lambda k: _orbit(model, omega, n_h, k, data, split, gmres_tol))(
+    lam, q = jnp.linalg.eig(split.a0)
+    modal = (lam, q, jnp.linalg.solve(q, jnp.eye(q.shape[0], dtype=q.dtype)))
+    # H and H/2 in one batch (no LAPACK call inside): the error estimate costs no second
+    # compilation
+    both, gm_res = jax.vmap(
+        lambda k: _orbit(model, omega, n_h, k, data, split, modal, gmres_tol))(
         jnp.asarray([n_h, n_h // 2]))
     orbit = jax.tree_util.tree_map(lambda a: a[0], both)
     half = jax.tree_util.tree_map(lambda a: a[1], both)
@@ -515,16 +575,30 @@ class HarmonicSweepResult(SweepResult):
     y0: np.ndarray
 
 
+def harmonic_steady_states(model, speeds_rad_s, n_harmonics: int = 256,
+                           **kwargs) -> HarmonicResult:
+    """:func:`harmonic_steady_state` at each of ``speeds_rad_s`` (a 1-D array; the
+    result has a leading speed axis). Jittable. On the CPU backend the speeds are mapped
+    one after the other (``jax.lax.map``), elsewhere vmapped: jaxlib 0.10.2's CPU LAPACK
+    kernels (eig, solve, qr) split a batch over the intra-op thread pool and wait for it
+    from inside that pool, so two batched kernels running at once deadlock a 2-worker
+    pool (reproduced: two vmapped ``jnp.linalg.solve`` in one program hang; unbatched
+    they do not), and vmapping :func:`harmonic_steady_state` on CPU would batch them."""
+    one = lambda w: harmonic_steady_state(model, w, n_harmonics, **kwargs)  # noqa: E731
+    speeds = jnp.asarray(speeds_rad_s, dtype=float)
+    if jax.default_backend() == "cpu":
+        return jax.lax.map(one, speeds)
+    return jax.vmap(one)(speeds)
+
+
 _FIELDS = ("max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
            "accel_ptp_m_s2", "contact_holds", "error_estimate", "rank_one_error", "ok", "y0")
 
 
 @eqx.filter_jit
 def _hb_batch(model, speeds, n_h, kwargs):
-    def one(w):
-        r = harmonic_steady_state(model, w, n_h, **dict(kwargs))
-        return tuple(getattr(r, f) for f in _FIELDS)
-    return jax.vmap(one)(speeds)
+    r = harmonic_steady_states(model, speeds, n_h, **dict(kwargs))
+    return tuple(getattr(r, f) for f in _FIELDS)
 
 
 @eqx.filter_jit
@@ -532,7 +606,7 @@ def _rho_batch(model, speeds):
     return jax.vmap(lambda w: spectral_radius_of(monodromy(model, w)))(speeds)
 
 
-def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-8, min_harmonics: int = 64,
+def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: int = 256,
                    max_harmonics: int = 4096, floquet: bool = True,
                    samples_per_mesh_period: int = 128, progress: bool = False,
                    rank_one_tol: float = 1e-8) -> HarmonicSweepResult:
@@ -585,8 +659,9 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-8, min_harmonics: in
         if np.any(out["rank_one_error"][todo] > rank_one_tol):
             raise SimulationError(
                 "model", f"rank_one_error={np.max(out['rank_one_error'][todo]):.1e}",
-                "the parametric part of the vector field is not rank one (a design whose "
-                "switching angles moved?): use gearjax.dynamics.steady (shooting)")
+                "the parametric part of the vector field is not rank one or its forcing "
+                "spans more than 48 directions (a design whose switching angles moved?): use "
+                "gearjax.dynamics.steady (shooting)")
         if progress:
             print(f"[gearjax.dynamics.harmonic] {todo.size} speed(s) at H={n_h}: "
                   f"{time.perf_counter() - t0:.2f} s", flush=True)
