@@ -44,11 +44,11 @@ around the period closed by periodicity: :func:`_jump_part`). So the orbit is::
 
     eta_k(theta) = sum_|h|<=H gt_kh e^{i h nu theta} / (i h nu - lambda_k) + zeta_k(theta)
 
-with ``gt`` the coefficients of the smooth remainder of the forcing ``p c sigma + b``.
-The error of the truncation is ``O(H^-3)`` (measured in ``tests/test_harmonic.py`` and
-``benchmarks/results/harmonic.md``); :func:`harmonic_sweep` doubles ``H`` until the orbit
-changes by less than ``rtol`` (``error_estimate``: the largest change of the state on the
-output grid between ``H`` and ``H/2``, relative to its largest component).
+with ``gt`` the coefficients of the smooth remainder of the forcing ``p c sigma + b``
+(``b`` kept in a basis of its few directions: :func:`_forcing_basis`). The truncation
+error is ``O(H^-3)`` (``benchmarks/results/harmonic.md``); :func:`harmonic_sweep` raises
+``H`` until ``error_estimate`` (the largest change of the state on the output grid
+between ``H`` and ``H/2``, relative to its largest component) is below ``rtol``.
 
 Metrics: the orbit is a callable of theta, so the exact extrema of
 :mod:`gearjax.dynamics.metrics` (both sides of every jump, refined between grid points)
