@@ -82,6 +82,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ModelError
+from ..excitation.events import distinct_angles
 from ..excitation.mesh3d import (QuasiStaticMesh3D, fourier_coefficients, harmonic_response,
                                  jump_angles, table_layout, tabulate)
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
@@ -340,8 +341,7 @@ class Geared3DModel(AbstractGearModel):
             qs_max_iter=int(qs_max_iter), nlte_terms=bool(nlte_terms),
             loaded_codes=formulation != "reference")
 
-        # speed-independent jumps of the right-hand side; te/perturbation: the table
-        # layout, its events (moving with the design) and the table of the build design
+        # speed-independent RHS jumps (te/perturbation: + table events: NLTE' jumps at zone kinks)
         jumps = jump_angles(qsm, theta_tab, period)
         layout = dict(table_knots=None, table_cell_first=None, table_side=None, table_codes=None,
                       table=None, angle_map=None, structure_ok=jnp.asarray(True),
@@ -349,6 +349,7 @@ class Geared3DModel(AbstractGearModel):
                       event_thetas=(), event_kinds=(), event_cells=())
         if formulation != "reference" and excitation == "table":
             lay = table_layout(qsm, theta_tab, period, jumps)
+            jumps = distinct_angles(np.concatenate([jumps, lay.event_thetas]), period)
             ev = dict(event_thetas=lay.event_thetas, event_kinds=lay.event_kinds, event_cells=lay.event_cells)
             table, amap, ok = _tabulate(
                 qsm, lay.knots, lay.side, lay.cell_first, origin=lay.origin, period=float(period),

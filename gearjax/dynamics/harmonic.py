@@ -1,0 +1,692 @@
+"""Periodic steady state of the linear formulations in the frequency domain.
+
+The te (Eq. (42), sdof Eq. (20)) and perturbation (Eq. (48a), sdof Eq. (47a))
+formulations are, wherever the mesh force stays compressive, linear time-periodic systems
+in the angle ``theta = Omega1 t`` (rad)::
+
+    y' = A(theta) y + b(theta),     A(theta) = A0 + c(theta) p w^T,              (1)
+
+with a *rank-one* parametric part: the mesh stiffness fluctuation ``k(theta) - k_m`` acts
+along the mesh vector only (``(k - k_m) V V^T`` in Eq. (42); ``k(theta)/k_m`` in the
+single row of Eq. (20)); ``c = 0`` for Eq. (48a)/(47a). Only the scalar ``sigma = w^T y``
+(the mesh deflection) is parametrically coupled.
+
+What the solver asks of the model: nothing but the interface of
+:class:`gearjax.models.base.AbstractGearModel`. ``A0, p, w, c(theta)`` and ``b(theta)``
+are read from ``model.vector_field`` by forward-mode linearisation about the quasi-static
+state ``model.initial_state(omega, theta)`` (in contact, so that the split stays valid for
+a contact law that clips tensile forces): ``A(theta) xi`` for a probe ``xi`` at every
+sample shows the varying direction ``p``; the difference of two Jacobians gives ``w``;
+every forcing term the model contains (TE_S, NLTE and its derivatives after the models'
+substitutions, eccentricity) is in ``b`` without naming it. The split is verified on all
+samples (``rank_one_error``); an angle map of a moved design, for instance, breaks it and
+is reported, not silently solved.
+
+Harmonic balance (``H`` harmonics of the excitation period ``P``, ``nu = 2 pi / P``),
+modal form of ``A0 = Q diag(lambda) Q^-1`` (one eigendecomposition per speed; ``eta =
+Q^-1 y``), with ``g_h`` the receptance ``sum_k (w^T Q)_k (Q^-1 p)_k / (i h nu -
+lambda_k)`` and ``f_h`` the response of ``sigma`` to ``b`` alone::
+
+    sigma_h - g_h (c * sigma)_h = f_h,          |h| <= H                          (2)
+
+(``*`` the convolution of the coefficient sequences, applied by FFT: Hill's equation of
+the scalar, solved by GMRES). ``k(theta)`` jumps (cell engagement, active-set changes:
+``model.jump_thetas``), so ``b`` and ``c`` have Fourier coefficients ``O(1/h)`` and a
+plain truncated series has Gibbs errors ``O(1)`` at the jumps in the velocity and
+``O(1/H)`` between them. Both are removed exactly: every function that jumps is split
+into its jumps and kinks at the known angles (the one-sided values and slopes there, by
+forward-mode AD) times the periodic Bernoulli functions ``S0, S1`` (a sawtooth and its
+zero-mean antiderivative, whose Fourier coefficients are known), plus a ``C^1``
+remainder. The remainder is sampled (DFT, aliasing ``O(N^-3)``); between two jump
+angles the jump part of the forcing is a quadratic in theta, so each mode's periodic
+response to it is exact by the exponential integrator (``phi_1..phi_3``, one turn
+around the period closed by periodicity: :func:`_jump_part`). So the orbit is::
+
+    eta_k(theta) = sum_|h|<=H gt_kh e^{i h nu theta} / (i h nu - lambda_k) + zeta_k(theta)
+
+with ``gt`` the coefficients of the smooth remainder of the forcing ``p c sigma + b``
+(``b`` kept in a basis of its few directions: :func:`_forcing_basis`). The truncation
+error is ``O(H^-3)`` (``benchmarks/results/harmonic.md``); :func:`harmonic_sweep` raises
+``H`` until ``error_estimate`` (the largest change of the state on the output grid
+between ``H`` and ``H/2``, relative to its largest component) is below ``rtol``.
+
+Metrics: the orbit is a callable of theta, so the exact extrema of
+:mod:`gearjax.dynamics.metrics` (both sides of every jump, refined between grid points)
+read it directly instead of an integration: no transient and no ODE solve at all.
+``contact_holds`` (minimum mesh force over the period > 0) says whether the linear
+regime holds; where it does not, the caller must fall back to a nonlinear solver
+(shooting or transient). Stability: the periodic orbit of an LTP system exists inside a
+parametric instability zone too; with ``floquet=True`` the Floquet spectral radius of
+the monodromy matrix (:func:`gearjax.dynamics.stability.monodromy`) sets ``stable``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import SimulationError
+from ..excitation.events import distinct_angles
+from ..models.base import AbstractGearModel
+from .metrics import output_grid, refined_extrema
+from .results import SweepResult
+from .stability import monodromy
+from .steady import spectral_radius_of
+
+__all__ = ["HarmonicOrbit", "HarmonicResult", "harmonic_steady_state",
+           "harmonic_steady_states", "harmonic_sweep", "HarmonicSweepResult",
+           "LINEAR_FORMULATIONS"]
+
+LINEAR_FORMULATIONS = ("te", "perturbation")
+_JUMP_SIDE = 1e-9  # one-sided evaluation at theta_j -/+ _JUMP_SIDE * period
+_N_REFINE = 64  # points per grid interval in the refinement windows (parabolic vertex)
+_FORCING_RANK = 48  # columns kept for the forcing b (its rank: a few; checked)
+_PHI_TERMS = 18  # Taylor terms of phi_k(z) for |z| < 1 (error 1/19! ~ 8e-18)
+
+
+def _phi123(z):
+    """phi_1, phi_2, phi_3 of the exponential integrators, ``phi_k(z) = sum_i z^i /
+    (i + k)!`` (so ``int_0^x e^(lambda (x - s)) s^m ds = m! x^(m+1) phi_(m+1)(lambda x)``):
+    Taylor series for ``|z| < 1``, else the recurrence ``phi_(k+1) = (phi_k - 1/k!) / z``
+    from ``phi_0 = e^z``. Returns (e^z, phi_1, phi_2, phi_3)."""
+    small = jnp.abs(z) < 1.0
+    zs = jnp.where(small, z, 0.0)
+    ser = []
+    for k in (1, 2, 3):  # Horner: no complex powers (a log and an exp each)
+        acc = jnp.full_like(zs, 1.0 / math.factorial(_PHI_TERMS - 1 + k))
+        for i in range(_PHI_TERMS - 2, -1, -1):
+            acc = acc * zs + 1.0 / math.factorial(i + k)
+        ser.append(acc)
+    zl = jnp.where(small, 1.0, z)
+    ez = jnp.exp(z)
+    p1 = jnp.expm1(zl) / zl
+    p2 = (p1 - 1.0) / zl
+    p3 = (p2 - 0.5) / zl
+    return (ez, jnp.where(small, ser[0], p1), jnp.where(small, ser[1], p2),
+            jnp.where(small, ser[2], p3))
+
+
+def _saw(x, period):
+    """(S0, S1) at angles ``x`` (rad): unit sawtooth and its zero-mean antiderivative."""
+    t = jnp.mod(x / period, 1.0)
+    return 0.5 - t, -period * (t * t - t + 1.0 / 6.0) / 2.0
+
+
+def _saw_coeffs(h, period):
+    """Fourier coefficients of S0, S1 at harmonics ``h`` (integers, any shape)."""
+    hs = jnp.where(h == 0, 1, h)
+    s0 = jnp.where(h == 0, 0.0, 1.0 / (2j * jnp.pi * hs))
+    s1 = jnp.where(h == 0, 0.0, s0 / (1j * hs * (2.0 * jnp.pi / period)))
+    return s0, s1
+
+
+# ---------------------------------------------------------------------- the linear split
+class _Split(eqx.Module):
+    """``A0`` (n, n) and the unit vectors ``p``, ``w`` (n,) of Eq. (1) at one speed, the
+    basis (n, k) of the forcing ``b`` (:func:`_forcing_basis`), and the largest relative
+    residual of the split and of that basis over the samples (round-off if valid)."""
+
+    a0: jax.Array
+    p: jax.Array
+    w: jax.Array
+    basis: jax.Array
+    rank_one_error: jax.Array
+
+
+def _forcing_basis(b):
+    """Orthonormal basis ``U`` (n, k) of the span of the forcing samples ``b`` (N, n),
+    ``k = min(n, _FORCING_RANK)``, and the relative residual of ``b ~ (b U) U^T``. The
+    forcing of the models is a few fixed vectors times functions of theta (3D: the mesh
+    vector, E and C E from NLTE, eccentricity vectors), so the modal transforms of its
+    coefficients cost ``k`` columns instead of ``n``; found by a seeded random sketch."""
+    n = b.shape[1]
+    if n <= _FORCING_RANK:
+        return jnp.eye(n), jnp.zeros(())
+    sketch = jax.random.normal(jax.random.PRNGKey(0), (n, _FORCING_RANK), dtype=b.dtype)
+    qn, _ = jnp.linalg.qr(b @ sketch)  # range of the samples
+    _, _, vt = jnp.linalg.svd(qn.T @ b, full_matrices=False)
+    basis = vt.T
+    res = jnp.max(jnp.abs(b - (b @ basis) @ basis.T))
+    return basis, res / jnp.maximum(jnp.max(jnp.abs(b)), 1e-300)
+
+
+def _field(model, omega):
+    return lambda th, y: model.vector_field(th, y, omega)
+
+
+def _reference(model, omega):
+    """theta -> a state in contact at theta, about which the vector field is linearised:
+    the quasi-static state (``model.initial_state``); for a model whose initial state is
+    already its periodic orbit (``periodic_start``, computed in the frequency domain at
+    each call), that orbit's state at theta = 0."""
+    if model.periodic_start:
+        y0 = model.initial_state(omega)
+        return lambda th: y0
+    return lambda th: model.initial_state(omega, th)
+
+
+def _prepare(model, omega, n_h: int):
+    """The split of Eq. (1) from the model's vector field (module docstring) and the
+    data of the harmonic balance: jump angles, one-sided values and slopes of ``(U^T b,
+    c)`` there, and the jump-corrected Fourier coefficients of ``(U^T b, c)`` at -2H..2H
+    (``(4H+1, k+1)``, from ``4H`` samples; ``U`` the forcing basis). Every evaluation of the model is batched in
+    three vmapped calls (probe, two Jacobians, ``(b, c)`` everywhere)."""
+    period = float(model.period_rad)
+    nu = 2.0 * math.pi / period
+    n, n_s = model.state_size, 4 * n_h
+    th = (jnp.arange(n_s) + 0.5) * (period / n_s)
+    thj_np = distinct_angles(model.jump_thetas, period)
+    d = _JUMP_SIDE * period
+    # one-sided slopes by differences over ``step`` (< a quarter of the closest jumps)
+    gaps = np.diff(np.concatenate([thj_np, thj_np[:1] + period])) if thj_np.size else [period]
+    step = min(1e-6 * period, 0.25 * float(np.min(gaps)))
+    thj = jnp.asarray(thj_np)
+    t_all = jnp.concatenate([th, thj - d - step, thj - d, thj + d, thj + d + step])
+    f = _field(model, omega)
+    ref = jax.vmap(_reference(model, omega))(t_all)
+
+    def a_dot(t, yr, v):
+        return jax.jvp(lambda y: f(t, y), (yr,), (v,))[1]
+
+    xi = jnp.cos(1.7 * jnp.arange(n) + 0.3)  # a probe without structure
+    g = jax.vmap(a_dot, in_axes=(0, 0, None))(th, ref[:n_s], xi)
+    dev = g - jnp.mean(g, axis=0)[None, :]
+    norms = jnp.sqrt(jnp.sum(dev * dev, axis=1))
+    m1 = jnp.argmax(norms)
+    p = dev[m1] / jnp.maximum(norms[m1], 1e-300)
+    m2 = jnp.argmin(dev @ p)
+    idx = jnp.concatenate([jnp.full(n, m1), jnp.full(n, m2)])
+    jacs = jax.vmap(a_dot, out_axes=1)(th[idx], ref[idx], jnp.concatenate([jnp.eye(n)] * 2))
+    j1 = jacs[:, :n]
+    row = p @ (j1 - jacs[:, n:])
+    w = row / jnp.maximum(jnp.sqrt(jnp.sum(row * row)), 1e-300)
+    p = jnp.where(jnp.any(row != 0), p, 0.0)
+
+    def bc(t, yr):  # (b, c) with A0 = j1, c shifted below (b does not change)
+        fr, aw = jax.jvp(lambda y: f(t, y), (yr,), (w,))
+        c = p @ (aw - j1 @ w)
+        return jnp.concatenate([fr - j1 @ yr - c * p * (w @ yr), c[None]])
+
+    v = jax.vmap(bc)(t_all, ref)
+    cbar = jnp.mean(v[:n_s, n])
+    resid = g - (j1 @ xi)[None, :] - v[:n_s, n][:, None] * p[None, :] * (w @ xi)
+    err = jnp.max(jnp.abs(resid)) / jnp.maximum(jnp.max(jnp.abs(g)), 1e-300)
+    basis, b_err = _forcing_basis(v[:, :n])
+    split = _Split(a0=j1 + cbar * jnp.outer(p, w), p=p, w=w, basis=basis,
+                   rank_one_error=jnp.maximum(err, b_err))
+    v = jnp.concatenate([v[:, :n] @ basis, v[:, n:] - cbar], axis=1)  # (.., k + 1)
+    n_j = thj_np.size
+    vl2, vl1, vr1, vr2 = (v[n_s + i * n_j: n_s + (i + 1) * n_j] for i in range(4))
+    dl, dr = (vl1 - vl2) / step, (vr2 - vr1) / step
+    lo, hi = vl1 + d * dl, vr1 - d * dr  # one-sided limits at theta_j
+    j0, j1s = hi - lo, dr - dl
+    s0, s1 = _saw(th[:, None] - thj[None, :], period)  # (N, J)
+    smooth = v[:n_s] - s0 @ j0 - s1 @ j1s  # C^1 remainder
+    k = jnp.arange(-2 * n_h, 2 * n_h + 1)
+    dft = jnp.fft.fft(smooth, axis=0)[k % n_s] / n_s
+    dft = dft * jnp.exp(-1j * jnp.pi * k / n_s)[:, None]  # samples at (m + 1/2) P / N
+    c0, c1 = _saw_coeffs(k, period)
+    ph = jnp.exp(-1j * nu * jnp.outer(k, thj))  # (4H+1, J)
+    coeffs = dft + (ph * c0[:, None]) @ j0 + (ph * c1[:, None]) @ j1s
+    return split, (thj, (lo, hi, dl, dr), coeffs)
+
+
+# ---------------------------------------------------------------------- the orbit
+class HarmonicOrbit(eqx.Module):
+    """The periodic orbit of Eq. (1) at one speed: ``orbit(theta)`` is the model's state
+    at the simulation angle(s) ``theta`` (rad), shape ``theta.shape + (n,)``.
+
+    ``y = Re[sum_|h|<=H Y_h e^(i h nu theta) + Q zeta(theta)]``: the truncated series of
+    the smooth part, and the modal responses ``zeta`` to the jumps and kinks of the
+    forcing (piecewise quadratic between the jump angles), exact by the exponential
+    integrator from the periodic values ``zeta_a`` at the jump angles.
+
+    Attributes
+    ----------
+    lam, q : eigenvalues and eigenvectors of A0 (theta units).
+    coef : (H+1, n) coefficients of the smooth part, harmonics 0..H (those of -h are
+        their conjugates: ``y = Re sum_h coef_h e^(i h nu theta)``, doubled for h > 0).
+    seg_start : (J,) sorted jump angles in [0, P) (rad), the segment starts.
+    zeta0 : (J, n) modal jump responses at the segment starts.
+    fpoly : (J, 3, n) modal forcing of each segment, ``F0 + F1 x + F2 x^2`` (x from its
+        start).
+    period : P (rad).
+    """
+
+    lam: jax.Array
+    q: jax.Array
+    coef: jax.Array
+    seg_start: jax.Array
+    zeta0: jax.Array
+    fpoly: jax.Array
+    period: float = eqx.field(static=True)
+
+    def __call__(self, theta):
+        theta = jnp.asarray(theta, dtype=float)
+        th = theta.reshape(-1)
+        # the series of a real orbit from its harmonics h >= 0: cos / sin and two GEMMs
+        h = jnp.arange(self.coef.shape[0])
+        ph = (2.0 * math.pi / self.period) * th[:, None] * h[None, :]
+        y = jnp.cos(ph) @ jnp.real(self.coef) - jnp.sin(ph) @ jnp.imag(self.coef)
+        if self.seg_start.shape[0]:
+            y = y + jax.vmap(self._jumps)(th)
+        return y.reshape(theta.shape + (self.q.shape[0],))
+
+    def _jumps(self, th):
+        t = jnp.mod(th, self.period)
+        a = jnp.searchsorted(self.seg_start, t, side="right") - 1
+        x = jnp.where(a < 0, t + self.period - self.seg_start[-1], t - self.seg_start[a])
+        ez, p1, p2, p3 = _phi123(self.lam * x)
+        f = self.fpoly[a]
+        zeta = ez * self.zeta0[a] + x * p1 * f[0] + x**2 * p2 * f[1] + 2.0 * x**3 * p3 * f[2]
+        return jnp.real(self.q @ zeta)
+
+
+def _jump_part(lam, thj, dg0, dg1, period):
+    """Segment data (zeta0, fpoly) of :class:`HarmonicOrbit` for the modal jumps ``dg0``
+    and slope jumps ``dg1`` (J, n) at the sorted angles ``thj``: the forcing
+    ``sum_j dg0_j S0(theta - theta_j) + dg1_j S1(theta - theta_j)`` as a quadratic in
+    each segment, and the periodic response at the segment starts (one turn of the
+    exponential integrator, closed by ``zeta_0 = z_P / (1 - e^(lambda P))``)."""
+    length = jnp.diff(jnp.concatenate([thj, thj[:1] + period]))  # (J,)
+    tau = jnp.mod((thj[:, None] - thj[None, :]) / period, 1.0)  # (segment, jump)
+    f0 = (0.5 - tau) @ dg0 - (period / 2) * (tau * tau - tau + 1.0 / 6.0) @ dg1
+    f1 = -jnp.sum(dg0, axis=0)[None, :] / period - ((2.0 * tau - 1.0) / 2.0) @ dg1
+    f2 = jnp.broadcast_to(-jnp.sum(dg1, axis=0) / (2.0 * period), f0.shape)
+    fpoly = jnp.stack([f0, f1, f2], axis=1)  # (J, 3, n)
+    ez, p1, p2, p3 = _phi123(lam[None, :] * length[:, None])
+    ln = length[:, None]
+    psi = ln * p1 * f0 + ln**2 * p2 * f1 + 2.0 * ln**3 * p3 * f2  # (J, n)
+
+    def step(z, ep):
+        e, ps = ep
+        return e * z + ps, z
+
+    z_end, z_starts = jax.lax.scan(step, jnp.zeros_like(lam), (ez, psi))
+    zeta_first = z_end / -jnp.expm1(lam * period)
+    zeta0 = z_starts + jnp.exp(lam[None, :] * (thj - thj[0])[:, None]) * zeta_first[None, :]
+    return zeta0, fpoly
+
+
+def _conv(c_full, s, n_h):
+    """(c * s)_h for |h| <= n_h: ``c_full`` (4 n_h + 1,) at -2n_h..2n_h, ``s`` (2 n_h + 1,)."""
+    m = 5 * n_h  # > 4H: no wrap-around into |h| <= H (sums span -3H..3H); 5 * 2^k: fast FFT
+
+    def wrap(x, k):  # x at -k..k -> circular layout of length m
+        return jnp.concatenate([x[k:], jnp.zeros(m - 2 * k - 1, x.dtype), x[:k]])
+
+    a, b = wrap(c_full, 2 * n_h), wrap(s, n_h)
+    out = jnp.fft.ifft(jnp.fft.fft(a) * jnp.fft.fft(b))
+    return out[jnp.arange(-n_h, n_h + 1) % m]
+
+
+def _hessenberg_lstsq(hm, g):
+    """``argmin |hm y - g|`` for the (m+1, m) upper Hessenberg ``hm`` of GMRES: Givens
+    rotations and back substitution in plain jax (no LAPACK call: jaxlib 0.10.2's batched
+    CPU LAPACK kernels wait on the intra-op pool they run on, and two of them under vmap
+    deadlock a 2-worker pool; reproduced with two vmapped ``jnp.linalg.solve``)."""
+    m = hm.shape[1]
+
+    def rotate(j, rg):
+        r, g = rg
+        a, b = r[j, j], r[j + 1, j]
+        nrm = jnp.sqrt(jnp.abs(a) ** 2 + jnp.abs(b) ** 2)
+        c, s = jnp.where(nrm > 0, a / jnp.where(nrm > 0, nrm, 1.0), 1.0), b / jnp.where(
+            nrm > 0, nrm, 1.0)
+        rj, rk = r[j], r[j + 1]
+        r = r.at[j].set(jnp.conj(c) * rj + jnp.conj(s) * rk).at[j + 1].set(-s * rj + c * rk)
+        gj, gk = g[j], g[j + 1]
+        return r, g.at[j].set(jnp.conj(c) * gj + jnp.conj(s) * gk).at[j + 1].set(-s * gj + c * gk)
+
+    r, g = jax.lax.fori_loop(0, m, rotate, (hm, g))
+
+    def back(i, y):
+        j = m - 1 - i
+        d = r[j, j]
+        yj = (g[j] - r[j, :m] @ y) / jnp.where(d != 0, d, 1.0)
+        return y.at[j].set(jnp.where(jnp.abs(d) > 0, yj, 0.0))
+
+    return jax.lax.fori_loop(0, m, back, jnp.zeros(m, hm.dtype))
+
+
+def _gmres(op, b, tol, restart: int = 30, max_cycles: int = 12):
+    """Restarted GMRES for ``op(x) = b`` (complex vectors): Arnoldi with classical
+    Gram-Schmidt done twice, a small least-squares solve per cycle, stopped when the
+    residual is below ``tol |b|``. Returns (x, relative residual)."""
+    n = b.shape[0]
+    bn = jnp.maximum(jnp.linalg.norm(b), 1e-300)
+
+    def cycle(x):
+        r = b - op(x)
+        beta = jnp.linalg.norm(r)
+        v = jnp.zeros((restart + 1, n), b.dtype).at[0].set(r / jnp.maximum(beta, 1e-300))
+        hm = jnp.zeros((restart + 1, restart), b.dtype)
+
+        def arnoldi(j, vh):
+            v, hm = vh
+            w = op(v[j])
+            mask = (jnp.arange(restart + 1) <= j)[:, None]
+            h1 = (jnp.conj(v) * mask) @ w
+            w = w - v.T @ h1
+            h2 = (jnp.conj(v) * mask) @ w
+            w = w - v.T @ h2
+            nw = jnp.linalg.norm(w)
+            hm = hm.at[:, j].set(h1 + h2).at[j + 1, j].set(nw)
+            v = v.at[j + 1].set(jnp.where(nw > 0, w / jnp.where(nw > 0, nw, 1.0), 0.0))
+            return v, hm
+
+        v, hm = jax.lax.fori_loop(0, restart, arnoldi, (v, hm))
+        e1 = jnp.zeros(restart + 1, b.dtype).at[0].set(beta)
+        return x + v[:restart].T @ _hessenberg_lstsq(hm, e1)
+
+    def cond(c):
+        x, res, k = c
+        return (res > tol) & (k < max_cycles)
+
+    def body(c):
+        x, _, k = c
+        x = cycle(x)
+        return x, jnp.linalg.norm(b - op(x)) / bn, k + 1
+
+    x, res, _ = jax.lax.while_loop(cond, body, (b, jnp.linalg.norm(b - op(b)) / bn, 0))
+    return x, res
+
+
+def _orbit(model, omega, n_h: int, keep, data, split, modal, gmres_tol):
+    """HarmonicOrbit with the harmonics ``|h| <= keep`` (traced, ``<= n_h``) from the
+    sampled (b, c) data and the eigendecomposition ``modal = (lambda, Q, Q^-1)`` of A0;
+    the harmonics above ``keep`` are zero (so that one compiled function serves ``H`` and
+    the error estimate at ``H/2``)."""
+    period = float(model.period_rad)
+    nu = 2.0 * math.pi / period
+    thj, (lo, hi, dlo, dhi), coeffs = data  # coeffs: (4H+1, k+1) at -2H..2H
+    n, k = model.state_size, split.basis.shape[1]
+    h = jnp.arange(-n_h, n_h + 1)
+    inside = jnp.abs(h) <= keep
+    lam, q, qinv = modal
+    pt, wt, ub = qinv @ split.p, q.T @ split.w, (qinv @ split.basis).T  # ub: (k, n)
+    res = jnp.where(inside[:, None], 1.0 / (1j * h[:, None] * nu - lam[None, :]), 0.0)
+    g = res @ (wt * pt)  # receptance of sigma to the parametric force, Eq. (2)
+    beta = coeffs[n_h: 3 * n_h + 1, :k] @ ub  # (2H+1, n) modal b_h
+    c_full = coeffs[:, k]
+    f = jnp.sum(res * beta * wt[None, :], axis=1)
+    sig, gm_res = _gmres(lambda s: s - g * _conv(c_full, s, n_h), f, gmres_tol)
+    qh = jnp.where(inside, _conv(c_full, sig, n_h), 0.0)
+    gam = pt[None, :] * qh[:, None] + beta  # modal forcing coefficients
+    # jumps of the forcing p c sigma + b at theta_j, and of its slope
+    e = jnp.exp(1j * nu * jnp.outer(thj, h))  # (J, 2H+1)
+    sj = jnp.real(e @ sig)
+    dsj = jnp.real(e @ (1j * h * nu * sig))  # mean of both one-sided slopes
+    dg0 = (hi - lo)[:, k][:, None] * sj[:, None] * pt[None, :] + (hi - lo)[:, :k] @ ub
+    dsig = dg0 @ wt  # jump of sigma' = w^T y'
+    dcs = hi[:, k] * (dsj + dsig / 2) - lo[:, k] * (dsj - dsig / 2)
+    dg1 = dcs[:, None] * pt[None, :] + (dhi - dlo)[:, :k] @ ub
+    s0, s1 = _saw_coeffs(h, period)
+    ph = jnp.conj(e).T  # (2H+1, J): e^{-i h nu theta_j}
+    gam = gam - (ph * s0[:, None]) @ dg0 - (ph * s1[:, None]) @ dg1
+    coef = ((res * gam) @ q.T)[n_h:] * jnp.where(h[n_h:] > 0, 2.0, 1.0)[:, None]  # h >= 0
+    if thj.shape[0]:
+        zeta0, fpoly = _jump_part(lam, thj, dg0, dg1, period)
+    else:
+        zeta0, fpoly = jnp.zeros((0, n), lam.dtype), jnp.zeros((0, 3, n), lam.dtype)
+    return HarmonicOrbit(lam=lam, q=q, coef=coef, seg_start=thj, zeta0=zeta0, fpoly=fpoly,
+                         period=period), gm_res
+
+
+# ---------------------------------------------------------------------- one speed
+class HarmonicResult(eqx.Module):
+    """Steady state at one speed from the frequency domain (scalars; a leading speed
+    axis after vmap).
+
+    Attributes
+    ----------
+    orbit : :class:`HarmonicOrbit`, the periodic state as a function of theta.
+    y0 : the model's state at theta = 0 on the orbit (a periodic start for
+        :func:`gearjax.dynamics.simulate.simulate` with ``y0=``).
+    max_mesh_force_N, min_mesh_force_N, dynamic_factor, dte_ptp_m, accel_ptp_m_s2 :
+        exact extrema over the period (as :class:`~gearjax.dynamics.simulate.SimulationResult`).
+    contact_holds : min mesh force > 0: the linear regime holds, the orbit is the model's.
+    error_estimate : largest change of the state on the output grid between ``H`` and
+        ``H/2`` harmonics over its largest component (an upper estimate for ``H/2``).
+    rank_one_error : relative residual of the split of Eq. (1) and of the forcing basis
+        over the samples (round-off when valid).
+    spectral_radius : Floquet spectral radius (NaN when not computed).
+    ok : finite results.
+    """
+
+    orbit: HarmonicOrbit
+    y0: jax.Array
+    max_mesh_force_N: jax.Array
+    min_mesh_force_N: jax.Array
+    dynamic_factor: jax.Array
+    dte_ptp_m: jax.Array
+    accel_ptp_m_s2: jax.Array
+    contact_holds: jax.Array
+    error_estimate: jax.Array
+    rank_one_error: jax.Array
+    spectral_radius: jax.Array
+    ok: jax.Array
+
+
+def _check_model(model):
+    if not isinstance(model, AbstractGearModel):
+        raise SimulationError("model", type(model).__name__,
+                              "must be a gear model (gearjax.models.base.AbstractGearModel)")
+    if model.formulation not in LINEAR_FORMULATIONS:
+        raise SimulationError(
+            "formulation", model.formulation,
+            "the frequency-domain solver needs a linear formulation (te, perturbation); the "
+            "reference contact law is nonlinear: use gearjax.dynamics.steady (shooting) or "
+            "simulate")
+
+
+def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
+                          samples_per_mesh_period: int = 128, floquet: bool = False,
+                          gmres_tol: float = 1e-13) -> HarmonicResult:
+    """Periodic steady state at pinion speed ``omega`` (rad/s) by harmonic balance with
+    ``n_harmonics`` harmonics of the excitation period (module docstring). Jit- and
+    vmap-compatible in ``omega`` and the model's arrays (on CPU, batch speeds with
+    :func:`harmonic_steady_states`, not vmap); ``n_harmonics`` (a power of two
+    >= 8), ``samples_per_mesh_period`` (output grid of the metrics, as in ``simulate``)
+    and ``floquet`` (also compute the Floquet spectral radius by
+    :func:`gearjax.dynamics.stability.monodromy`, one period of ``n`` columns) are static.
+    :func:`harmonic_sweep` chooses ``n_harmonics`` for a tolerance.
+
+    Raises
+    ------
+    SimulationError
+        for a model that is not a gear model, the reference formulation, or a bad
+        ``n_harmonics``.
+    """
+    _check_model(model)
+    n_h = int(n_harmonics)
+    if n_h < 8 or n_h & (n_h - 1):
+        raise SimulationError("n_harmonics", n_harmonics, "must be a power of two >= 8")
+    omega = jnp.asarray(omega, dtype=float)
+    period = float(model.period_rad)
+    split, data = _prepare(model, omega, n_h)
+    lam, q = jnp.linalg.eig(split.a0)
+    modal = (lam, q, jnp.linalg.solve(q, jnp.eye(q.shape[0], dtype=q.dtype)))
+    # H and H/2 in one batch (no LAPACK call inside): the error estimate costs no second
+    # compilation
+    both, gm_res = jax.vmap(
+        lambda k: _orbit(model, omega, n_h, k, data, split, modal, gmres_tol))(
+        jnp.asarray([n_h, n_h // 2]))
+    orbit = jax.tree_util.tree_map(lambda a: a[0], both)
+    half = jax.tree_util.tree_map(lambda a: a[1], both)
+
+    n_mesh = int(round(period / model.mesh_period_rad))
+    # the output grid of simulate (mid-cell samples, both sides of every jump) over one
+    # period, closed by the periodic neighbours of its ends so that every point is interior
+    offs = output_grid(period, samples_per_mesh_period * n_mesh, model.jump_thetas, 1).offsets
+    ts = jnp.asarray(np.concatenate([offs[-1:] - period, offs, offs[:1] + period]))
+    ys = orbit(ts)
+    err = jnp.max(jnp.abs(ys - half(ts))) / jnp.maximum(jnp.max(jnp.abs(ys)), 1e-300)
+
+    def observed(t, y):
+        o = model.outputs(t, y, omega)
+        cols = [o.mesh_force_N, o.dte_m] + ([] if o.accel_m_s2 is None else [o.accel_m_s2])
+        return jnp.stack(cols)
+
+    # the orbit is the flow: the refinement windows read it instead of integrating
+    _, v_max, v_min = refined_extrema(observed, lambda t0, y0, t: orbit(t), ts, ys,
+                                      n_refine=_N_REFINE)
+    f_s = model.static_force_N
+    nan = jnp.asarray(jnp.nan)
+    acc = v_max[2] - v_min[2] if v_max.shape[0] > 2 else nan
+    ok = (jnp.all(jnp.isfinite(ys)) & jnp.isfinite(v_max[0]) & jnp.isfinite(v_min[0])
+          & (gm_res[0] < 1e-8))
+    rho = spectral_radius_of(monodromy(model, omega)) if floquet else nan
+    bad = lambda v: jnp.where(ok, v, nan)  # noqa: E731
+    return HarmonicResult(
+        orbit=orbit, y0=bad(orbit(jnp.zeros(()))), max_mesh_force_N=bad(v_max[0]),
+        min_mesh_force_N=bad(v_min[0]), dynamic_factor=bad(v_max[0] / f_s),
+        dte_ptp_m=bad(v_max[1] - v_min[1]), accel_ptp_m_s2=bad(acc),
+        contact_holds=ok & (v_min[0] > 0.0), error_estimate=jnp.where(ok, err, jnp.inf),
+        rank_one_error=split.rank_one_error, spectral_radius=rho, ok=ok)
+
+
+# ---------------------------------------------------------------------- sweeps
+class HarmonicSweepResult(SweepResult):
+    """:class:`gearjax.dynamics.results.SweepResult` of :func:`harmonic_sweep` (same
+    meaning per field; ``convergence`` is ``error_estimate``, ``contact_loss`` is ``not
+    contact_holds``, ``n_steps`` and ``transient_periods`` are 0: nothing is integrated),
+    with per speed:
+
+    n_harmonics : harmonics used (the first power of two whose estimate met ``rtol``).
+    error_estimate : see :class:`HarmonicResult`.
+    contact_holds : the linear mesh force stays compressive over the period (else the
+        orbit is not the model's: fall back to shooting / transient).
+    spectral_radius, stable : Floquet radius and ``rho < 1`` (NaN / True when not
+        computed).
+    y0 : (n_speeds, n) periodic state at theta = 0 (a start for ``simulate(y0=...)``).
+    """
+
+    n_harmonics: np.ndarray
+    error_estimate: np.ndarray
+    contact_holds: np.ndarray
+    spectral_radius: np.ndarray
+    stable: np.ndarray
+    y0: np.ndarray
+
+
+def harmonic_steady_states(model, speeds_rad_s, n_harmonics: int = 256,
+                           **kwargs) -> HarmonicResult:
+    """:func:`harmonic_steady_state` at each of ``speeds_rad_s`` (a 1-D array; the
+    result has a leading speed axis). Jittable. On the CPU backend the speeds are mapped
+    one after the other (``jax.lax.map``), elsewhere vmapped: jaxlib 0.10.2's CPU LAPACK
+    kernels (eig, solve, qr) split a batch over the intra-op thread pool and wait for it
+    from inside that pool, so two batched kernels running at once deadlock a 2-worker
+    pool (reproduced: two vmapped ``jnp.linalg.solve`` in one program hang; unbatched
+    they do not), and vmapping :func:`harmonic_steady_state` on CPU would batch them."""
+    one = lambda w: harmonic_steady_state(model, w, n_harmonics, **kwargs)  # noqa: E731
+    speeds = jnp.asarray(speeds_rad_s, dtype=float)
+    if jax.default_backend() == "cpu":
+        return jax.lax.map(one, speeds)
+    return jax.vmap(one)(speeds)
+
+
+_FIELDS = ("max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
+           "accel_ptp_m_s2", "contact_holds", "error_estimate", "rank_one_error", "ok", "y0")
+
+
+@eqx.filter_jit
+def _hb_batch(model, speeds, n_h, kwargs):
+    r = harmonic_steady_states(model, speeds, n_h, **dict(kwargs))
+    return tuple(getattr(r, f) for f in _FIELDS)
+
+
+@eqx.filter_jit
+def _rho_batch(model, speeds):
+    return jax.vmap(lambda w: spectral_radius_of(monodromy(model, w)))(speeds)
+
+
+def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: int = 256,
+                   max_harmonics: int = 4096, floquet: bool = True,
+                   samples_per_mesh_period: int = 128, progress: bool = False,
+                   rank_one_tol: float = 1e-8) -> HarmonicSweepResult:
+    """Steady state of a linear formulation (te, perturbation; sdof or 3D) over pinion
+    speeds (rad/s) in the frequency domain (module docstring), vmapped over speeds.
+
+    The speeds are solved with ``min_harmonics``; those whose ``error_estimate`` exceeds
+    ``rtol`` again with the power of two that the ``H^-3`` decay of the estimate predicts
+    for the worst of them (at least twice as many; one compilation per number of
+    harmonics used), until ``max_harmonics``;
+    ``converged`` = that estimate met, the orbit finite and, with ``floquet``, stable
+    (Floquet ``spectral_radius < 1``: inside a parametric instability zone the periodic
+    orbit exists but a transient never reaches it). Where ``contact_holds`` is False the
+    linear orbit has a tensile mesh force: exact for the linear equations, not for a
+    contact law that clips it.
+
+    Raises
+    ------
+    SimulationError
+        for a non-model, the reference formulation, bad speeds or options, or a model
+        whose varying part is not rank one (e.g. a design whose switching angles moved:
+        its angle map scales the whole vector field).
+    """
+    _check_model(model)
+    speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
+    if speeds.size == 0 or not np.all(np.isfinite(speeds) & (speeds > 0)):
+        raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
+                              "need at least one finite pinion speed > 0 (rad/s)")
+    if not (0.0 < rtol < 1.0):
+        raise SimulationError("rtol", rtol, "must lie in (0, 1)")
+    lo, hi = int(min_harmonics), int(max_harmonics)
+    for name, v in (("min_harmonics", lo), ("max_harmonics", hi)):
+        if v < 8 or v & (v - 1):
+            raise SimulationError(name, v, "must be a power of two >= 8")
+    if hi < lo:
+        raise SimulationError("max_harmonics", hi, f"must be >= min_harmonics={lo}")
+    n = model.state_size
+    out = {f: np.full(speeds.size, np.nan) for f in _FIELDS if f != "y0"}
+    out["y0"] = np.full((speeds.size, n), np.nan)
+    n_used = np.zeros(speeds.size, dtype=np.int64)
+    todo = np.arange(speeds.size)
+    kw = (("samples_per_mesh_period", int(samples_per_mesh_period)),)
+    n_h = lo
+    t0 = time.perf_counter()
+    while todo.size:
+        res = jax.device_get(_hb_batch(model, jnp.asarray(speeds[todo]), n_h, kw))
+        for f, v in zip(_FIELDS, res):
+            out[f][todo] = np.asarray(v, dtype=float)
+        n_used[todo] = n_h
+        if np.any(out["rank_one_error"][todo] > rank_one_tol):
+            raise SimulationError(
+                "model", f"rank_one_error={np.max(out['rank_one_error'][todo]):.1e}",
+                "the parametric part of the vector field is not rank one or its forcing "
+                "spans more than 48 directions (a design whose switching angles moved?): use "
+                "gearjax.dynamics.steady (shooting)")
+        if progress:
+            print(f"[gearjax.dynamics.harmonic] {todo.size} speed(s) at H={n_h}: "
+                  f"{time.perf_counter() - t0:.2f} s", flush=True)
+        todo = todo[~(out["error_estimate"][todo] <= rtol)]
+        if n_h >= hi or not todo.size:
+            break
+        # the estimate falls like H^-3 (measured: benchmarks/results/harmonic.md): jump to
+        # the power of two predicted for the worst speed (one compilation, not a ladder)
+        est = out["error_estimate"][todo]
+        worst = float(np.max(est[np.isfinite(est)], initial=rtol))
+        need = n_h * 1.2 * (worst / rtol) ** (1.0 / 3.0)
+        n_h = int(min(hi, max(2 * n_h, 2 ** math.ceil(math.log2(need)))))
+    rho = np.full(speeds.size, np.nan)
+    if floquet:
+        rho = np.asarray(_rho_batch(model, jnp.asarray(speeds)), dtype=float)
+    ok = out["ok"] > 0
+    stable = ~(rho >= 1.0)  # NaN (not computed) reads stable
+    holds = out["contact_holds"] > 0
+    zero = np.zeros(speeds.size)
+    return HarmonicSweepResult(
+        speed_rad_s=speeds, max_mesh_force_N=out["max_mesh_force_N"],
+        min_mesh_force_N=out["min_mesh_force_N"], dynamic_factor=out["dynamic_factor"],
+        dte_ptp_m=out["dte_ptp_m"], accel_ptp_m_s2=out["accel_ptp_m_s2"],
+        contact_loss=ok & ~holds, convergence=out["error_estimate"],
+        converged=ok & (out["error_estimate"] <= rtol) & stable, solver_ok=ok,
+        n_steps=zero.astype(np.int64), transient_periods=zero, formulation=model.formulation,
+        n_harmonics=n_used, error_estimate=out["error_estimate"], contact_holds=holds,
+        spectral_radius=rho, stable=stable, y0=out["y0"])

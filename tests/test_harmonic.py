@@ -1,0 +1,222 @@
+"""Frequency-domain periodic solver (gearjax.dynamics.harmonic) against independent results.
+
+* a constant-stiffness oscillator under a pure harmonic 'TE' (no jumps): the periodic
+  state and the peak-to-peak against the closed-form receptance;
+* the sdof perturbation formulation (Eq. (47a)) with the Table 1 long relief (NLTE''
+  active, through the substitution z = x + kappa NLTE) against the closed-form steady
+  state built harmonic by harmonic from quasi_static() in tests/test_dynamics_sdof.py;
+* the sdof te formulation (Eq. (20)) with perfect spur teeth and the uniform stiffness law
+  (square-wave k) against the exact piecewise-exponential orbit of tests/test_metrics.py
+  (matrix exponentials), including where the linear force turns tensile
+  (``contact_holds``), and one diffrax period from the harmonic state (periodicity);
+* parametric instability: the same square wave, lightly damped, at the principal
+  parametric resonance: ``stable`` False and the Floquet radius of the exact monodromy
+  (products of matrix exponentials);
+* the 3D model (a seeded random rig: shafts, bearings, discs; te and perturbation, long
+  relief) against one diffrax period started on the harmonic state: the whole orbit, not
+  only its start (slow: the 3D builds dominate).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from gearjax import Mesh, ToothModifications, baud_velex_pair, static_mesh_force, table1_relief
+from gearjax.dynamics.harmonic import harmonic_steady_states, harmonic_sweep
+from gearjax.errors import SimulationError
+from gearjax.models.torsional import TorsionalModel
+from oscillators import HarmonicOscillator
+from test_dynamics_sdof import _closed_form_perturbation
+from test_metrics import TORQUE, ZETA, exact_force_extrema
+
+hb = eqx.filter_jit(harmonic_steady_states)
+
+
+def _one_period(model, omega, y0, ts, rtol=1e-12):
+    """States at the angles ``ts`` in [0, P] of the diffrax solution from ``y0`` at 0."""
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(lambda t, y, w: model.vector_field(t, y, w)), diffrax.Dopri8(), 0.0,
+        float(ts[-1]), None, jnp.asarray(y0), args=jnp.asarray(omega),
+        saveat=diffrax.SaveAt(ts=jnp.asarray(ts)),
+        stepsize_controller=diffrax.PIDController(
+            rtol=rtol, atol=rtol * 1e-2, jump_ts=jnp.asarray(np.asarray(model.jump_thetas))),
+        max_steps=500_000)
+    return np.asarray(sol.ys)
+
+
+# ---------------------------------------------------------------------- pure harmonic
+def test_oscillator_against_closed_form_receptance():
+    """m x_tt + c x_t + k x = k a cos(n theta): x(0) = a Re H, x'(0) = -n a Im H and
+    ptp(x) = 2 |H| a with H = k / (k - m nu^2 + i c nu); no jumps, so 8 harmonics of the
+    excitation period are exact to round-off."""
+    osc = HarmonicOscillator(mass=2.0, stiffness=8e8, damping_ratio=0.02, amplitude=1e-5, order=26)
+    w_n = osc.omega_n / osc.order
+    speeds = np.array([0.3 * w_n, w_n, 2.5 * w_n])
+    out = hb(osc, jnp.asarray(speeds), 8)
+    for i, w in enumerate(speeds):
+        nu = osc.order * w
+        c = 2 * osc.damping_ratio * math.sqrt(osc.stiffness * osc.mass)
+        h = osc.stiffness / (osc.stiffness - osc.mass * nu**2 + 1j * c * nu)
+        scale = abs(h) * osc.amplitude
+        y0 = np.asarray(out.y0[i])
+        assert abs(y0[0] - osc.amplitude * h.real) < 1e-12 * scale
+        assert abs(y0[1] + osc.order * osc.amplitude * h.imag) < 1e-12 * scale * osc.order
+        assert abs(float(out.dte_ptp_m[i]) / (2 * scale) - 1) < 1e-10
+        assert float(out.error_estimate[i]) < 1e-12 and bool(out.contact_holds[i])
+
+
+# ---------------------------------------------------------------------- Eq. (47a)
+def test_sdof_perturbation_with_nlte_against_closed_form():
+    """Eq. (47a), long relief: NLTE has kinks, NLTE' jumps (the substituted state carries
+    them); the closed form of test_dynamics_sdof (FFT of 4096 quasi-static samples per
+    mesh period) converges to this solution like its sample spacing squared (measured
+    against it: 3.7e-6, 5.5e-7 of the dynamic part at 16, 32 samples per grid point), so
+    1e-6 of the dynamic part; the transient's bound in test_dynamics_sdof is 1e-5. The
+    linear orbit here is strongly tensile (min F_D < 0): contact_holds is False."""
+    spur = Mesh.build(baud_velex_pair(False))
+    model = TorsionalModel.build(spur, table1_relief("long"), formulation="perturbation")
+    assert model.nlte_terms
+    speeds = np.array([300.0, 780.0])
+    res = harmonic_sweep(model, speeds, rtol=1e-9, min_harmonics=256, max_harmonics=256,
+                         floquet=False)
+    f_s = float(model.static_force_N)
+    for i, omega in enumerate(speeds):
+        f_d, dte = _closed_form_perturbation(model, omega)
+        scale = np.max(np.abs(f_d - f_s))
+        assert res.error_estimate[i] < 1e-9 and res.converged[i]
+        assert abs(res.max_mesh_force_N[i] - f_d.max()) < 1e-6 * scale
+        assert abs(res.min_mesh_force_N[i] - f_d.min()) < 1e-6 * scale
+        assert abs(res.dte_ptp_m[i] / np.ptp(dte) - 1) < 1e-6
+        assert res.contact_holds[i] == (f_d.min() > 0) and not res.contact_holds[i]
+    assert np.all(res.transient_periods == 0) and np.all(res.n_harmonics == 256)
+
+
+# ---------------------------------------------------------------------- Eq. (20)
+@pytest.fixture(scope="module")
+def square_wave():
+    """Perfect spur teeth, uniform stiffness law (test_metrics): te models at zeta 0.1 and
+    0.02 (same structure: one compilation serves both)."""
+    pair = baud_velex_pair(False)
+    mesh = Mesh.build(pair, "uniform")
+    p = pair.mesh_period_rad
+    eps = pair.transverse_contact_ratio
+    k2 = float(mesh.stiffness(0.5 * (eps - 1) * p))
+    k1 = float(mesh.stiffness(0.5 * (eps - 1) * p + 0.5 * p))
+    models = {z: TorsionalModel.build(mesh, ToothModifications.none(), formulation="te",
+                                      damping_ratio=z, pinion_torque_Nm=TORQUE)
+              for z in (ZETA, 0.02)}
+    return models, pair, k1, k2
+
+
+def test_sdof_te_against_exact_orbit(square_wave):
+    """Square-wave stiffness: max and min mesh force within 1e-7 F_S of the exact
+    piecewise-exponential orbit from the quasi-static range to above resonance (the
+    transient solver's target in issue 14 is 2e-4 F_S); ``contact_holds`` where the exact
+    orbit stays compressive; and the harmonic state at 0 comes back to itself after one
+    diffrax period at rtol 1e-12 (the orbit is periodic, not only close in its extrema)."""
+    models, pair, k1, k2 = square_wave
+    model = models[ZETA]
+    f_s = static_mesh_force(pair, TORQUE)
+    speeds = np.array([100.0, 226.0, 353.0, 800.0, 1200.0])
+    res = harmonic_sweep(model, speeds, rtol=1e-7, min_harmonics=1024, max_harmonics=1024,
+                         floquet=False)
+    inert = tuple(np.asarray(model.inertias_kg_m2))
+    for i, w in enumerate(speeds):
+        f_max, f_min = exact_force_extrema(pair, k1, k2, inert, w, f_s)
+        assert abs(res.max_mesh_force_N[i] - f_max) < 1e-7 * f_s, w
+        assert abs(res.min_mesh_force_N[i] - f_min) < 1e-7 * f_s, w
+        assert res.contact_holds[i] == (f_min > 0.0), w
+    assert not np.all(res.contact_holds)  # 353 and 800 rad/s turn tensile
+    assert np.all(res.converged)
+    period = model.period_rad
+    for i in (0, 3):
+        y_end = _one_period(model, speeds[i], res.y0[i], [period])[-1]
+        assert np.max(np.abs(y_end - res.y0[i])) < 1e-8 * np.max(np.abs(res.y0[i]))
+
+
+def _exact_spectral_radius(pair, k1, k2, inertias, zeta, omega):
+    """Floquet radius of m x'' + c x' + k(t) x = 0 over one mesh period (expm products)."""
+    j1, j2 = inertias
+    rb1, rb2 = pair.base_radii_m
+    m = j1 * j2 / (j1 * rb2**2 + j2 * rb1**2)
+    eps = pair.transverse_contact_ratio
+    c = 2 * zeta * math.sqrt(((eps - 1) * k2 + (2 - eps) * k1) * m)
+    t = pair.mesh_period_rad / omega
+    phi = np.eye(2)
+    for k, tau in ((k2, (eps - 1) * t), (k1, (2 - eps) * t)):
+        phi = expm(np.array([[0.0, 1.0], [-k / m, -c / m]]) * tau) @ phi
+    return float(np.max(np.abs(np.linalg.eigvals(phi))))
+
+
+def test_parametric_instability_is_flagged(square_wave):
+    """Light damping (zeta 0.02) at the principal parametric resonance ``z1 Omega = 2
+    omega_n``: the periodic orbit exists (and is found) but is unstable; the Floquet
+    radius equals the exact one and ``stable``/``converged`` are False. Away from the zone
+    (0.7 of that speed) the same model is stable."""
+    models, pair, k1, k2 = square_wave
+    model = models[0.02]
+    w_p = 2.0 * float(model.natural_frequency_rad_s()) / pair.z1
+    speeds = np.array([w_p, 0.7 * w_p])
+    res = harmonic_sweep(model, speeds, rtol=1e-6, min_harmonics=1024, max_harmonics=1024)
+    inert = tuple(np.asarray(model.inertias_kg_m2))
+    rho = [_exact_spectral_radius(pair, k1, k2, inert, 0.02, w) for w in speeds]
+    assert rho[0] > 1.05 and rho[1] < 1.0
+    np.testing.assert_allclose(res.spectral_radius, rho, rtol=1e-6)
+    np.testing.assert_array_equal(res.stable, [False, True])
+    np.testing.assert_array_equal(res.converged, [False, True])
+    assert np.all(res.solver_ok) and np.all(np.isfinite(res.max_mesh_force_N))
+
+
+def test_clear_errors(square_wave):
+    model = square_wave[0][ZETA]
+    with pytest.raises(SimulationError, match="formulation"):
+        harmonic_sweep(dataclasses.replace(model, formulation="reference"), [300.0])
+    with pytest.raises(SimulationError, match="gear model"):
+        harmonic_sweep(object(), [300.0])
+    with pytest.raises(SimulationError, match="speeds_rad_s"):
+        harmonic_sweep(model, [0.0])
+    with pytest.raises(SimulationError, match="power of two"):
+        harmonic_sweep(model, [300.0], min_harmonics=100)
+    with pytest.raises(SimulationError, match="rtol"):
+        harmonic_sweep(model, [300.0], rtol=0.0)
+
+
+# ---------------------------------------------------------------------- 3D
+@pytest.mark.slow
+@pytest.mark.parametrize("formulation", ["te", "perturbation"])
+def test_3d_orbit_against_time_integration(formulation):
+    """Eq. (42) / (48a) on a random rig (all dofs, reduced at 3 kHz), long relief (NLTE
+    terms and the jumps of NLTE' in the substituted state): the state of the harmonic
+    orbit along one period equals a diffrax integration from its start at rtol 1e-12,
+    to within the solver's own ``error_estimate`` (which must be small), at a speed below
+    and one above the main mesh mode. Measured (te): 8e-9 of the largest component at
+    256 harmonics, 5e-8 at 128, 2e-9 at 512; the estimate 4-8 times larger."""
+    from gearjax.models.geared3d import Geared3DModel
+    from test_geared3d import random_rig
+
+    mesh = Mesh.build(baud_velex_pair(False), "iso6336", cells_per_line=2)
+    s, motor, _, _ = random_rig(3)
+    model = Geared3DModel.build(s, mesh, table1_relief("long"), torque_node=motor,
+                                formulation=formulation, max_frequency_hz=3000.0, n_table=32,
+                                damping_ratio=0.05)
+    assert model.nlte_terms and model.state_size > 40
+    speeds = np.array([250.0, 700.0])
+    out = hb(model, jnp.asarray(speeds), 256)
+    assert np.all(np.asarray(out.rank_one_error) < 1e-10)
+    ts = np.linspace(0.0, model.period_rad, 41)[1:]
+    for i, w in enumerate(speeds):
+        orbit = jax.tree_util.tree_map(lambda a: a[i], out.orbit)
+        y_hb = np.asarray(orbit(jnp.asarray(ts)))
+        y_ode = _one_period(model, w, out.y0[i], ts)
+        err = np.max(np.abs(y_ode - y_hb)) / np.max(np.abs(y_hb))
+        est = float(out.error_estimate[i])
+        assert err <= est < 1e-7, (w, err, est)
