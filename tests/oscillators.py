@@ -70,12 +70,12 @@ class HarmonicOscillator(AbstractGearModel):
     def initial_state(self, omega, theta0=0.0):
         return jnp.stack([jnp.asarray(self.amplitude), jnp.zeros(())])
 
-    def vector_field(self, theta, y, omega):
+    def vector_field(self, theta, y, omega, contact: bool = True):  # linear: no contact law
         c = 2 * self.damping_ratio * math.sqrt(self.stiffness * self.mass)
         f = self.stiffness * (self._te_s(theta) - y[0])
         return jnp.stack([y[1], (f - omega * c * y[1]) / (omega**2 * self.mass)])
 
-    def outputs(self, theta, y, omega):
+    def outputs(self, theta, y, omega, contact: bool = True):
         x_s = self._te_s(theta)
         return ModelOutputs(mesh_force_N=self.static_force_N + self.stiffness * (y[0] - x_s),
                             dte_m=y[0])
