@@ -222,3 +222,33 @@ def test_3d_orbit_against_time_integration(formulation):
         err = np.max(np.abs(y_ode - y_hb)) / np.max(np.abs(y_hb))
         est = float(out.error_estimate[i])
         assert err <= est < 1e-7, (w, err, est)
+
+
+def test_small_gain_bound_proves_only_what_floquet_confirms(square_wave):
+    """The small-gain bound is sufficient for stability, so wherever it proves it the
+    exact Floquet radius must be < 1, and where it cannot decide the monodromy must be
+    computed. Square-wave te model: at damping 0.1 and 0.02 the bound (about
+    alpha / (2 zeta)) exceeds 1, so every speed gets its monodromy, equal to the exact
+    radius; at damping 0.4 it proves stability (no monodromy integrated) and the exact
+    radius agrees. The perturbation formulation has no parametric term: bound 0."""
+    models, pair, k1, k2 = square_wave
+    mesh = Mesh.build(pair, "uniform")
+    inert = tuple(np.asarray(models[ZETA].inertias_kg_m2))
+    speeds = np.array([150.0, 600.0])
+    for z in (ZETA, 0.02):
+        res = harmonic_sweep(models[z], speeds, rtol=1e-6, min_harmonics=512,
+                             max_harmonics=512)
+        assert np.all(res.small_gain > 1.0)  # the bound cannot decide here
+        exact = [_exact_spectral_radius(pair, k1, k2, inert, z, w) for w in speeds]
+        np.testing.assert_allclose(res.spectral_radius, exact, rtol=1e-6)
+        assert np.all(res.stability_known)
+    heavy = TorsionalModel.build(mesh, ToothModifications.none(), formulation="te",
+                                 damping_ratio=0.4, pinion_torque_Nm=TORQUE)
+    res = harmonic_sweep(heavy, speeds, rtol=1e-6, min_harmonics=512, max_harmonics=512)
+    assert np.all(res.small_gain < 0.95) and np.all(res.stable)
+    assert np.all(np.isnan(res.spectral_radius))  # proven: no monodromy integrated
+    assert all(_exact_spectral_radius(pair, k1, k2, inert, 0.4, w) < 1.0 for w in speeds)
+    pert = TorsionalModel.build(mesh, ToothModifications.none(), formulation="perturbation",
+                                damping_ratio=ZETA, pinion_torque_Nm=TORQUE)
+    res = harmonic_sweep(pert, speeds, rtol=1e-6)
+    assert np.all(res.small_gain == 0.0) and np.all(res.stable)
