@@ -105,6 +105,13 @@ def register(sub, add_rig, add_scenario):
                          "(checked against its case.json), speeds already in results.csv skipped")
     sw.add_argument("--overwrite", action="store_true",
                     help="replace the results of an earlier run in the --out folder")
+    sw.add_argument("--method", default="auto",
+                    choices=["auto", "harmonic", "steady", "transient"],
+                    help="periodic steady-state solver: harmonic (frequency domain, te and "
+                         "perturbation; speeds where the linear orbit loses contact or is not "
+                         "proven stable go to the transient), steady (shooting), transient; "
+                         "auto (default): harmonic for te/perturbation on the 3D model, "
+                         "transient otherwise")
     sw.add_argument("--chunk", type=int, default=None,
                     help="speeds per compiled call (progress and CSV rows per chunk; default "
                          "about a tenth of the speeds)")
@@ -228,6 +235,18 @@ def summarise_sweep(res, speeds) -> dict:
     }
 
 
+def method_counts(res, requested: str) -> dict:
+    """Speeds solved by each method in one sweep (``summary.json``): a harmonic sweep
+    reports per speed (its fallback speeds are ``transient``)."""
+    from ..dynamics.sweep import MethodSweepResult
+
+    if not isinstance(res, MethodSweepResult):
+        name = "transient" if requested == "auto" else requested
+        return {name: int(np.size(res.speed_rad_s))}
+    names, counts = np.unique(np.asarray(res.method), return_counts=True)
+    return {str(k): int(v) for k, v in zip(names, counts)}
+
+
 def periodic_start_options(model) -> dict:
     """simulate() options for a model whose initial state is already the periodic steady
     state (:attr:`Geared3DModel.periodic_start`: Eq. (48a) solved harmonic by harmonic):
@@ -342,7 +361,7 @@ def cmd_sweep(args) -> int:
     }
     if done:
         summary["resumed"] = {f: len(v) for f, v in done.items()}
-    times, signals = {}, {}
+    times, signals, methods = {}, {}, {}
     if lead:  # a stall (gearjax.dynamics.watchdog) ends the process: say where the rows are
         watchdog.add_stall_hook(lambda: f"the speeds finished so far are in {csv_path}; continue "
                                         "with the same command and --resume")
@@ -369,8 +388,10 @@ def cmd_sweep(args) -> int:
                       f"({args.model} model built in {t_build:.1f} s)", file=sys.stderr, flush=True)
             t0 = time.perf_counter()
             if todo.size:
-                sweep(model, todo, chunk_size=min(chunk, todo.size), progress=not args.json,
-                      out_csv=csv_path, **periodic_start_options(model))
+                res = sweep(model, todo, chunk_size=min(chunk, todo.size),
+                            progress=not args.json, out_csv=csv_path, method=args.method,
+                            **periodic_start_options(model))
+                methods[form] = method_counts(res, args.method)
             times[form] = (t_build, time.perf_counter() - t0)
             if sig_speeds and lead:
                 signals[form] = _signals(model, sig_speeds)
@@ -385,6 +406,8 @@ def cmd_sweep(args) -> int:
         s = summarise_rows(rows, form, speeds)
         t_build, elapsed = times.get(form, (float("nan"), float("nan")))
         s.update(build_time_s=t_build, wall_time_s=elapsed)
+        if form in methods:
+            s["method"] = methods[form]
         summary["formulations"][form] = s
     if "reference" in summary["formulations"]:
         ref = max_force_by_speed(rows, "reference")
