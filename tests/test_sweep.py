@@ -263,3 +263,43 @@ def test_method_steady_matches_steady_sweep(tmp_path):
     assert len(rows) == 3 and rows[0].startswith("speed_rad_s")
     with pytest.raises(SimulationError):
         sweep(model, speeds, progress=False, method="fast")
+
+
+def test_method_harmonic_keeps_the_linear_orbit_only_where_it_is_the_models(tmp_path):
+    """sweep(method="harmonic") on the sdof te model (damping 0.1, short relief): at the
+    speeds where the linear orbit stays compressive it is the model's orbit, so the peak
+    force equals the transient sweep's (independent solver: diffrax from the quasi-static
+    start, automatic transient) to the transient's accuracy; at the speeds near the tooth
+    critical speed where the linear mesh force turns tensile the harmonic result is not
+    used: those speeds are solved by the transient (contact law) and equal it.
+    The CLI's --method harmonic counts both in summary.json."""
+    from gearjax.dynamics.sweep import MethodSweepResult, auto_method
+    from gearjax.cli.main import main
+
+    model = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
+                                 formulation="te", damping_ratio=0.1)
+    speeds = np.array([600.0, 850.0])  # the CLI's below: one compilation serves both
+    out = tmp_path / "r.csv"
+    h = sweep(model, speeds, progress=False, method="harmonic", out_csv=out)
+    t = sweep(model, speeds, progress=False, method="transient")
+    assert isinstance(h, MethodSweepResult)
+    lost = t.contact_loss
+    assert lost.any() and not lost.all()  # both branches of the method are exercised
+    np.testing.assert_array_equal(h.method, np.where(lost, "transient", "harmonic"))
+    f_s = float(model.static_force_N)
+    assert np.max(np.abs(h.max_mesh_force_N - t.max_mesh_force_N)[~lost]) < 1e-4 * f_s
+    # same solver, but a batch of its own: vmapped adaptive steps run in lockstep, so the
+    # steps (and the last digits) depend on the batch
+    np.testing.assert_allclose(h.max_mesh_force_N[lost], t.max_mesh_force_N[lost], rtol=1e-6)
+    assert np.all(h.converged) and not np.any(h.contact_loss[~lost])
+    assert len(out.read_text().strip().splitlines()) == speeds.size + 1
+    assert auto_method(model) == "transient"  # the sdof transient is cheaper
+    ref = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
+                               formulation="reference")
+    with pytest.raises(SimulationError, match="formulation"):
+        sweep(ref, speeds, progress=False, method="harmonic")
+    assert main(["sweep", "--model", "torsional", "--formulations", "te", "--speeds",
+                 "600:850:2", "--method", "harmonic", "--out", str(tmp_path / "cli"),
+                 "--json"]) == 0
+    summary = json.loads((tmp_path / "cli" / "summary.json").read_text())
+    assert summary["formulations"]["te"]["method"] == {"harmonic": 1, "transient": 1}

@@ -344,9 +344,8 @@ class Geared3DModel(AbstractGearModel):
         # speed-independent RHS jumps (te/perturbation: + table events: NLTE' jumps at zone kinks)
         jumps = jump_angles(qsm, theta_tab, period)
         layout = dict(table_knots=None, table_cell_first=None, table_side=None, table_codes=None,
-                      table=None, angle_map=None, structure_ok=jnp.asarray(True),
-                      table_origin=0.0, table_cells=0, table_max_extra=1,
-                      event_thetas=(), event_kinds=(), event_cells=())
+                      table=None, angle_map=None, structure_ok=jnp.asarray(True), table_origin=0.0,
+                      table_cells=0, table_max_extra=1, event_thetas=(), event_kinds=(), event_cells=())
         if formulation != "reference" and excitation == "table":
             lay = table_layout(qsm, theta_tab, period, jumps)
             jumps = distinct_angles(np.concatenate([jumps, lay.event_thetas]), period)
