@@ -227,7 +227,7 @@ def test_3d_orbit_against_time_integration(formulation):
 def test_small_gain_bound_proves_only_what_floquet_confirms(square_wave):
     """The small-gain bound is sufficient for stability, so wherever it proves it the
     exact Floquet radius must be < 1, and where it cannot decide the monodromy must be
-    computed. Square-wave te model: at damping 0.1 and 0.02 the bound (about
+    computed. Square-wave te model: at damping 0.1 the bound (about
     alpha / (2 zeta)) exceeds 1, so every speed gets its monodromy, equal to the exact
     radius; at damping 0.4 it proves stability (no monodromy integrated) and the exact
     radius agrees. The perturbation formulation has no parametric term: bound 0."""
@@ -235,7 +235,7 @@ def test_small_gain_bound_proves_only_what_floquet_confirms(square_wave):
     mesh = Mesh.build(pair, "uniform")
     inert = tuple(np.asarray(models[ZETA].inertias_kg_m2))
     speeds = np.array([150.0, 600.0])
-    for z in (ZETA, 0.02):
+    for z in (ZETA,):  # 0.02: test_parametric_instability_is_flagged
         res = harmonic_sweep(models[z], speeds, rtol=1e-6, min_harmonics=512,
                              max_harmonics=512)
         assert np.all(res.small_gain > 1.0)  # the bound cannot decide here

@@ -46,7 +46,8 @@ around the period closed by periodicity: :func:`_jump_part`). So the orbit is::
 
 with ``gt`` the coefficients of the smooth remainder of the forcing ``p c sigma + b``
 (``b`` kept in a basis of its few directions: :func:`_forcing_basis`). The truncation
-error is ``O(H^-3)`` (``benchmarks/results/harmonic.md``); :func:`harmonic_sweep` raises
+error is ``O(H^-3)`` (``benchmarks/bench_harmonic.py --convergence``);
+:func:`harmonic_sweep` raises
 ``H`` until ``error_estimate`` (the largest change of the state on the output grid
 between ``H`` and ``H/2``, relative to its largest component) is below ``rtol``.
 
@@ -646,7 +647,7 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
         todo = todo[~(out["error_estimate"][todo] <= rtol)]
         if n_h >= hi or not todo.size:
             break
-        # the estimate falls like H^-3 (measured: benchmarks/results/harmonic.md): jump to
+        # the estimate falls like H^-3 (bench_harmonic.py --convergence): jump to
         # the power of two predicted for the worst speed (one compilation, not a ladder)
         est = out["error_estimate"][todo]
         worst = float(np.max(est[np.isfinite(est)], initial=rtol))
