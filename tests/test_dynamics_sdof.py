@@ -193,6 +193,8 @@ def test_perturbation_with_nlte_matches_closed_form(spur, case):
         np.testing.assert_allclose(float(res.dte_ptp_m[i]), np.ptp(dte), rtol=1e-5)
 
 
+@pytest.mark.slow  # the option the default is preferred to; the default suite keeps the
+# exact substitution against the closed form (test_perturbation_with_nlte_matches_closed_form)
 def test_spectral_nlte_derivative_converges_slowly(spur):
     """The alternative to the substitution: NLTE'' from the Fourier series of NLTE cut at
     H mesh harmonics. The sdof response to NLTE'' at harmonics well above resonance is

@@ -13,7 +13,7 @@ from gearjax.cli.main import main
 from gearjax.rigs.factory import build_model
 from gearjax.rigs.figures import predicted_critical_speeds
 from gearjax.rigs.registry import get_rig
-from gearjax.dynamics.sweep import sweep
+from gearjax.dynamics.sweep import auto_method, sweep
 
 CSV_COLUMNS = ["speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor", "dte_ptp_m",
                "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged"]
@@ -22,9 +22,13 @@ CSV_COLUMNS = ["speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor
 def test_main_job_3d_outputs_low_speed_limit_and_claim_1(capsys, tmp_path):
     out = tmp_path / "case"
     # modes below 6 kHz as in claim 5 (the default cut-off at 840 rad/s, 15.6 kHz, adds
-    # stiff modes far above the mesh frequencies that only shorten the explicit steps)
+    # stiff modes far above the mesh frequencies that only shorten the explicit steps);
+    # the transient solver at every speed: the frequency-domain solver that --method auto
+    # picks for te would compile twice here (H = 256, then 2048 harmonics at 5 rad/s) for
+    # one kept speed, +30 s; it is checked against the transient in tests/test_harmonic.py
     assert main(["sweep", "--speeds", "5:840:2", "--formulations", "reference,te",
-                 "--max-frequency", "6000", "--out", str(out), "--json"]) == 0
+                 "--max-frequency", "6000", "--method", "transient", "--out", str(out),
+                 "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     rows = list(csv.DictReader(open(out / "results.csv")))
     assert list(rows[0]) == CSV_COLUMNS and len(rows) == 4
@@ -42,6 +46,7 @@ def test_main_job_3d_outputs_low_speed_limit_and_claim_1(capsys, tmp_path):
     assert float(by["reference", 840.0]["dynamic_factor"]) > 1.5  # a resonant regime
     assert abs(f_te - f_ref) / f_ref < 0.03
     assert summary["model"] == "3d" and summary["n_modes"] > 20
+    assert summary["formulations"]["te"]["method"] == {"transient": 2}
     assert (out / "response_curves.png").stat().st_size > 10_000
     assert json.loads((out / "summary.json").read_text())["case"] == summary["case"]
 
@@ -58,6 +63,7 @@ def test_claim_5_encoder_positions_do_not_change_forces():
                         encoder_position=enc, max_frequency_hz=6000.0)
         res[enc] = sweep(m, np.array([840.0]), progress=False)  # near the critical speed
         w_x0[enc] = float(m.w_x0)
+    assert auto_method(m) == "harmonic"  # what `gearjax sweep` picks for the 3D te model
     # position 3 (coupling hubs) sees a different static twist; 2 (free ends) the same as 1
     assert abs(w_x0[3] - w_x0[1]) > 1e-7
     for enc in (2, 3):
