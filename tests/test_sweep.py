@@ -294,9 +294,11 @@ def test_method_harmonic_keeps_the_linear_orbit_only_where_it_is_the_models(tmp_
     np.testing.assert_allclose(h.max_mesh_force_N[lost], t.max_mesh_force_N[lost], rtol=1e-6)
     # mesh orders (gearjax.dynamics.orders) of the two solvers' orbits agree too (the
     # transient's accuracy, as the peak force), and the fallback speeds are carried over
+    # (the batch-dependent last digits, as above, relative to the largest order)
     for f, scale in (("mesh_force_orders_N", f_s), ("dte_orders_m", np.max(t.dte_orders_m))):
         assert np.max(np.abs(getattr(h, f) - getattr(t, f))[~lost]) < 1e-4 * scale, f
-        np.testing.assert_allclose(getattr(h, f)[lost], getattr(t, f)[lost], rtol=1e-6)
+        big = np.max(getattr(t, f)[lost])
+        np.testing.assert_allclose(getattr(h, f)[lost], getattr(t, f)[lost], atol=1e-6 * big)
     assert np.all(np.isnan(h.accel_orders_m_s2))  # torsional model: no acceleration
     assert np.all(h.converged) and not np.any(h.contact_loss[~lost])
     assert len(out.read_text().strip().splitlines()) == speeds.size + 1
