@@ -12,7 +12,7 @@ import numpy as np
 from .design.maps import HarrisMap
 from .design.optimise import OptimisationResult
 
-__all__ = ["plot_quasistatic", "plot_response_curves", "plot_mesh_force_signals",
+__all__ = ["plot_quasistatic", "plot_response_curves", "plot_order_tracks", "plot_mesh_force_signals",
            "plot_design_map", "plot_history", "plot_harris"]
 
 
@@ -86,6 +86,60 @@ def plot_response_curves(csv_path: str, path: str, title: str = ""):
         ax.grid(alpha=0.3)
     np.atleast_1d(axes)[0].legend(loc="best", fontsize=8)
     np.atleast_1d(axes)[-1].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
+    if title:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+# order-track panels: (column stem, y label, dB reference in the column's SI unit)
+ORDER_TRACK_PANELS = (("dte_m", "DTE [dB re 1 um]", 1e-6),
+                      ("force_N", "dynamic mesh force [dB re 1 N]", 1.0),
+                      ("accel_m_s2", "pinion-centre acceleration [dB re 1e-6 m/s$^2$]", 1e-6))
+
+
+def plot_order_tracks(csv_path: str, path: str, title: str = "", n_orders: int = 5):
+    """Order tracks from a sweep's ``orders.csv``: the single-sided peak amplitude of mesh
+    orders 1..``n_orders`` (k times the mesh frequency) in dB, ``20 log10(A / A_ref)``
+    (references in the axis labels: 1 um, 1 N, 1e-6 m/s^2), against pinion speed; one
+    panel per quantity (DTE, dynamic mesh force, and the acceleration where the model has
+    one), one colour per order, one line style per formulation. A speed written twice
+    (a resumed run) is drawn once, from its last row."""
+    import csv
+
+    plt = _pyplot()
+    rows = {}
+    for r in csv.DictReader(open(csv_path)):
+        rows[(r["formulation"], float(r["speed_rad_s"]))] = r
+    forms = list(dict.fromkeys(f for f, _ in rows))
+    panels = [p for p in ORDER_TRACK_PANELS
+              if any(r[f"order1_{p[0]}"] not in ("", "nan") for r in rows.values())]
+    panels = panels or list(ORDER_TRACK_PANELS[:2])  # nothing finite: empty DTE, force axes
+    fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 2.6 * len(panels) + 0.6),
+                             sharex=True, squeeze=False, constrained_layout=True)
+    styles = ("-", "--", ":", "-.")
+    for ax, (stem, ylabel, ref) in zip(axes[:, 0], panels):
+        for j, form in enumerate(forms):
+            sel = sorted((w, r) for (f, w), r in rows.items() if f == form)
+            x = np.array([w for w, _ in sel])
+            for k in range(1, n_orders + 1):
+                a = np.array([float(r[f"order{k}_{stem}"] or "nan") for _, r in sel])
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    db = 20.0 * np.log10(np.where(a > 0, a, np.nan) / ref)
+                ax.plot(x, db, ls=styles[j % len(styles)], color=f"C{k - 1}", lw=1.2,
+                        marker="o" if x.size < 30 else None, ms=2.5,
+                        label=f"order {k}" if j == 0 else None)
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    first = axes[0, 0].legend(loc="best", fontsize=8, ncol=n_orders)
+    if len(forms) > 1:  # the line styles: a second legend, without colours
+        from matplotlib.lines import Line2D
+
+        handles = [Line2D([], [], color="k", ls=styles[j % len(styles)]) for j in range(len(forms))]
+        axes[-1, 0].legend(handles, forms, loc="lower right", fontsize=8, title="formulation")
+        if len(panels) == 1:
+            axes[0, 0].add_artist(first)
+    axes[-1, 0].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
     if title:
         fig.suptitle(title)
     fig.savefig(path, dpi=120)

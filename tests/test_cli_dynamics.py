@@ -75,6 +75,34 @@ def test_torsional_sweep_with_signals(torsional_cli_sweep):
     assert (out_dir / "mesh_force_signals.png").stat().st_size > 10_000
 
 
+
+def test_torsional_sweep_writes_mesh_orders(torsional_cli_sweep):
+    """orders.csv (one row per results.csv row, DTE/force orders 1-5, no acceleration in
+    the sdof model) and order_tracks.png of the shared sweep. A signal within [min, max]
+    has single-sided amplitudes of at most 2 (max - min) / pi (the square wave's first
+    harmonic): each order is bounded by the peak-to-peak of results.csv."""
+    import csv
+
+    from gearjax.dynamics.results import ORDER_COLUMNS
+
+    summary, out_dir = torsional_cli_sweep
+    rows = list(csv.DictReader(open(out_dir / "orders.csv")))
+    assert tuple(rows[0]) == ORDER_COLUMNS and "order5_dte_m" in ORDER_COLUMNS
+    res = {(r["formulation"], r["speed_rad_s"]): r for r in csv.DictReader(open(out_dir / "results.csv"))}
+    assert sorted(res) == sorted((r["formulation"], r["speed_rad_s"]) for r in rows)
+    for r in rows:
+        m = res[(r["formulation"], r["speed_rad_s"])]
+        dte = np.array([float(r[f"order{k}_dte_m"]) for k in range(1, 6)])
+        force = np.array([float(r[f"order{k}_force_N"]) for k in range(1, 6)])
+        assert np.all(dte > 0) and np.all(force > 0)
+        assert np.all(dte <= 2 / np.pi * float(m["dte_ptp_m"]) * (1 + 1e-9))
+        f_ptp = float(m["max_mesh_force_N"]) - float(m["min_mesh_force_N"])
+        assert np.all(force <= 2 / np.pi * f_ptp * (1 + 1e-9))
+        assert all(r[f"order{k}_accel_m_s2"] == "" for k in range(1, 6))
+    assert summary["orders_csv"].endswith("orders.csv")
+    assert (out_dir / "order_tracks.png").stat().st_size > 10_000
+
+
 def test_default_case_name_and_out_dir(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     # the te sweep of the shared torsional CLI run (tests/conftest.py: same speeds, so the

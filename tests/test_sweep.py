@@ -259,6 +259,7 @@ def test_method_steady_matches_steady_sweep(tmp_path):
     a = sweep(model, speeds, progress=False, method="steady", out_csv=out)
     b = steady_sweep(model, speeds, progress=False)
     np.testing.assert_array_equal(a.dynamic_factor, b.dynamic_factor)
+    np.testing.assert_array_equal(a.mesh_force_orders_N, b.mesh_force_orders_N)
     rows = out.read_text().strip().splitlines()
     assert len(rows) == 3 and rows[0].startswith("speed_rad_s")
     with pytest.raises(SimulationError):
@@ -291,6 +292,14 @@ def test_method_harmonic_keeps_the_linear_orbit_only_where_it_is_the_models(tmp_
     # same solver, but a batch of its own: vmapped adaptive steps run in lockstep, so the
     # steps (and the last digits) depend on the batch
     np.testing.assert_allclose(h.max_mesh_force_N[lost], t.max_mesh_force_N[lost], rtol=1e-6)
+    # mesh orders (gearjax.dynamics.orders) of the two solvers' orbits agree too (the
+    # transient's accuracy, as the peak force), and the fallback speeds are carried over
+    # (the batch-dependent last digits, as above, relative to the largest order)
+    for f, scale in (("mesh_force_orders_N", f_s), ("dte_orders_m", np.max(t.dte_orders_m))):
+        assert np.max(np.abs(getattr(h, f) - getattr(t, f))[~lost]) < 1e-4 * scale, f
+        big = np.max(getattr(t, f)[lost])
+        np.testing.assert_allclose(getattr(h, f)[lost], getattr(t, f)[lost], atol=1e-6 * big)
+    assert np.all(np.isnan(h.accel_orders_m_s2))  # torsional model: no acceleration
     assert np.all(h.converged) and not np.any(h.contact_loss[~lost])
     assert len(out.read_text().strip().splitlines()) == speeds.size + 1
     assert auto_method(model) == "transient"  # the sdof transient is cheaper

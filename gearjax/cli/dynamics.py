@@ -329,6 +329,7 @@ def cmd_sweep(args) -> int:
     case = case_name(args, scen)
     out = args.out or os.path.join("gearjax-out", case)
     csv_path = os.path.join(out, "results.csv")
+    orders_path = os.path.join(out, "orders.csv")  # mesh orders 1-5 (gearjax.dynamics.orders)
     cutoff_hz, cutoff_source = (modal_cutoff(args, rig, np.concatenate([speeds, sig_speeds]))
                                 if args.model == "3d" else (None, None))
     _check_cutoff(args, rig, cutoff_hz)
@@ -346,6 +347,7 @@ def cmd_sweep(args) -> int:
         if args.resume:
             check_resume(out, record)
             done = done_speeds(read_rows(csv_path, repair=True))
+            read_rows(orders_path, repair=True)
         write_case(out, record)
     chunk = args.chunk or max(1, math.ceil(speeds.size / 10))
     nlte = False if args.no_nlte_terms else None
@@ -390,6 +392,7 @@ def cmd_sweep(args) -> int:
             if todo.size:
                 res = sweep(model, todo, chunk_size=min(chunk, todo.size),
                             progress=not args.json, out_csv=csv_path, method=args.method,
+                            orders_csv=orders_path,
                             **periodic_start_options(model))
                 methods[form] = method_counts(res, args.method)
             times[form] = (t_build, time.perf_counter() - t0)
@@ -432,6 +435,7 @@ def cmd_sweep(args) -> int:
         fig_path = os.path.join(out, "response_curves.png")
         plot_response_curves(csv_path, fig_path, title=title)
         summary["response_curves_png"] = fig_path
+        summary.update(_write_order_tracks(orders_path, out, title))
     if signals and not interrupted:
         summary.update(_write_signals(signals, out, title))
     summary["total_time_s"] = time.perf_counter() - t_all
@@ -450,6 +454,17 @@ def cmd_sweep(args) -> int:
         return 0
     _print_summary(rig, summary, out)
     return 0
+
+
+def _write_order_tracks(orders_path, out, title) -> dict:
+    """``order_tracks.png`` from ``orders.csv`` (mesh-order amplitudes in dB against speed)."""
+    from ..plotting import plot_order_tracks
+
+    if not os.path.exists(orders_path):
+        return {}
+    fig_path = os.path.join(out, "order_tracks.png")
+    plot_order_tracks(orders_path, fig_path, title=title)
+    return {"orders_csv": orders_path, "order_tracks_png": fig_path}
 
 
 def _signals(model, speeds):
@@ -529,7 +544,8 @@ def _print_summary(rig, summary, out):
                   f"{', '.join(f'{w:.0f}' for w in r['unconverged_speeds'][:8])}"
                   f"{f' (+{more} more)' if more > 0 else ''} rad/s (converged=False in "
                   "results.csv); the peak K_v is over the converged speeds only")
-    files = [summary["results_csv"]] + [summary[k] for k in ("response_curves_png",) if k in summary]
+    files = [summary["results_csv"]] + [summary[k] for k in (
+        "response_curves_png", "orders_csv", "order_tracks_png") if k in summary]
     files += [os.path.join(out, "summary.json")]
     files += [summary[k] for k in ("signals_csv", "mesh_force_signals_png") if k in summary]
     print(f"  wrote {', '.join(files)}  ({summary['total_time_s']:.0f} s in all)")

@@ -23,7 +23,7 @@ __all__ = ["RESULT_FILES", "CASE_FILE", "write_case", "check_resume", "read_rows
 CASE_FILE = "case.json"
 # files a sweep writes in its folder (an earlier run is recognised by any of them)
 RESULT_FILES = ("results.csv", "summary.json", CASE_FILE, "response_curves.png",
-                "signals.csv", "mesh_force_signals.png")
+                "signals.csv", "mesh_force_signals.png", "orders.csv", "order_tracks.png")
 
 
 def write_case(out: str, record: dict) -> None:

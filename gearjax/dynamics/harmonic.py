@@ -76,6 +76,7 @@ from ..excitation.events import distinct_angles
 from ..models.base import AbstractGearModel
 from .krylov import gmres
 from .metrics import output_grid, refined_extrema
+from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
 from .results import SweepResult
 from .stability import monodromy
 from .steady import spectral_radius_of
@@ -423,6 +424,8 @@ class HarmonicResult(eqx.Module):
         ``A0`` is not Hurwitz); below ``_SMALL_GAIN_MARGIN`` the orbit is proven stable.
     spectral_radius : Floquet spectral radius (NaN when not computed).
     ok : finite results.
+    mesh_orders : (3, 5) amplitudes of mesh orders 1..5 of F_D (N), DTE (m), acceleration
+        (m/s^2, NaN without one) (:mod:`gearjax.dynamics.orders`).
     """
 
     orbit: HarmonicOrbit
@@ -438,6 +441,7 @@ class HarmonicResult(eqx.Module):
     small_gain: jax.Array
     spectral_radius: jax.Array
     ok: jax.Array
+    mesh_orders: jax.Array
 
 
 def _check_model(model):
@@ -495,16 +499,21 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
     ys = orbit(ts)
     err = jnp.max(jnp.abs(ys - half(ts))) / jnp.maximum(jnp.max(jnp.abs(ys)), 1e-300)
 
+    nan = jnp.asarray(jnp.nan)
+
     def observed(t, y):  # the linear orbit's own force: tensile where contact is lost
         o = model.outputs(t, y, omega, contact=False)
         cols = [o.mesh_force_N, o.dte_m] + ([] if o.accel_m_s2 is None else [o.accel_m_s2])
         return jnp.stack(cols)
 
     # the orbit is the flow: the refinement windows read it instead of integrating
-    _, v_max, v_min = refined_extrema(observed, lambda t0, y0, t: orbit(t), ts, ys,
-                                      n_refine=_N_REFINE)
+    vals, v_max, v_min = refined_extrema(observed, lambda t0, y0, t: orbit(t), ts, ys,
+                                         n_refine=_N_REFINE)
+    orders = mesh_order_amplitudes(order_matrix(  # one period of the grid: vals[1:-1]
+        period, model.mesh_period_rad, samples_per_mesh_period * n_mesh, model.jump_thetas),
+        vals[None, 1:-1])
+    orders = jnp.concatenate([orders, jnp.full((3 - orders.shape[0], N_MESH_ORDERS), nan)])
     f_s = model.static_force_N
-    nan = jnp.asarray(jnp.nan)
     acc = v_max[2] - v_min[2] if v_max.shape[0] > 2 else nan
     ok = (jnp.all(jnp.isfinite(ys)) & jnp.isfinite(v_max[0]) & jnp.isfinite(v_min[0])
           & (gm_res[0] < 1e-8))
@@ -517,7 +526,7 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
         contact_holds=ok & (v_min[0] > 0.0), error_estimate=jnp.where(ok, err, jnp.inf),
         rank_one_error=split.rank_one_error,
         small_gain=_small_gain(lam, (q.T @ split.w) * (modal[2] @ split.p), split.c_radius),
-        spectral_radius=rho, ok=ok)
+        spectral_radius=rho, ok=ok, mesh_orders=bad(orders))
 
 
 # ---------------------------------------------------------------------- sweeps
@@ -568,7 +577,7 @@ def harmonic_steady_states(model, speeds_rad_s, n_harmonics: int = 256,
 
 _FIELDS = ("max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
            "accel_ptp_m_s2", "contact_holds", "error_estimate", "rank_one_error",
-           "small_gain", "ok", "y0")
+           "small_gain", "ok", "y0", "mesh_orders")
 
 
 @eqx.filter_jit
@@ -623,8 +632,9 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     if hi < lo:
         raise SimulationError("max_harmonics", hi, f"must be >= min_harmonics={lo}")
     n = model.state_size
-    out = {f: np.full(speeds.size, np.nan) for f in _FIELDS if f != "y0"}
-    out["y0"] = np.full((speeds.size, n), np.nan)
+    out = {f: np.full(speeds.size, np.nan) for f in _FIELDS}
+    out["y0"], out["mesh_orders"] = np.full((speeds.size, n), np.nan), np.full(
+        (speeds.size, 3, N_MESH_ORDERS), np.nan)
     n_used = np.zeros(speeds.size, dtype=np.int64)
     todo = np.arange(speeds.size)
     kw = (("samples_per_mesh_period", int(samples_per_mesh_period)),)
@@ -675,4 +685,5 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
         n_steps=zero.astype(np.int64), transient_periods=zero, formulation=model.formulation,
         n_harmonics=n_used, error_estimate=out["error_estimate"], contact_holds=holds,
         spectral_radius=rho, stable=stable, stability_known=known,
-        small_gain=out["small_gain"], y0=out["y0"])
+        small_gain=out["small_gain"], y0=out["y0"], mesh_force_orders_N=out["mesh_orders"][:, 0],
+        dte_orders_m=out["mesh_orders"][:, 1], accel_orders_m_s2=out["mesh_orders"][:, 2])

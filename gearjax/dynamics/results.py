@@ -1,6 +1,8 @@
 """What a speed sweep returns: :class:`SweepResult` (one entry per speed), the names of its
-per-speed metric fields and its CSV rows. Shared by :mod:`gearjax.dynamics.sweep` (transient
-sweeps) and :mod:`gearjax.dynamics.steady` (periodic steady-state sweeps)."""
+per-speed metric fields and its CSV rows (``results.csv``; the mesh-order amplitudes in
+``orders.csv``: :data:`ORDER_COLUMNS`). Shared by :mod:`gearjax.dynamics.sweep` (transient
+sweeps), :mod:`gearjax.dynamics.steady` (periodic steady-state sweeps) and
+:mod:`gearjax.dynamics.harmonic` (frequency domain)."""
 
 from __future__ import annotations
 
@@ -9,7 +11,10 @@ import math
 import equinox as eqx
 import numpy as np
 
-__all__ = ["SweepResult", "CSV_COLUMNS", "METRIC_FIELDS", "csv_rows"]
+from .orders import N_MESH_ORDERS
+
+__all__ = ["SweepResult", "CSV_COLUMNS", "METRIC_FIELDS", "ORDER_FIELDS", "ORDER_COLUMNS",
+           "csv_rows", "order_rows", "empty_metrics"]
 
 CSV_COLUMNS = (
     "speed_rad_s",
@@ -33,6 +38,10 @@ class SweepResult(eqx.Module):
     accel_ptp_m_s2, contact_loss, convergence, converged, solver_ok, n_steps,
     transient_periods : NumPy arrays of shape (n_speeds,), see
         :class:`gearjax.dynamics.simulate.SimulationResult`.
+    mesh_force_orders_N, dte_orders_m, accel_orders_m_s2 : (n_speeds, 5) single-sided
+        peak amplitudes of mesh orders 1..5 (column k-1: order k, k times the mesh
+        frequency) of the dynamic mesh force (N), the DTE (m) and the acceleration
+        (m/s^2; NaN for models without one), :mod:`gearjax.dynamics.orders`.
     formulation : the model's formulation (str).
     """
 
@@ -48,18 +57,39 @@ class SweepResult(eqx.Module):
     solver_ok: np.ndarray
     n_steps: np.ndarray
     transient_periods: np.ndarray
+    mesh_force_orders_N: np.ndarray
+    dte_orders_m: np.ndarray
+    accel_orders_m_s2: np.ndarray
     formulation: str = eqx.field(static=True)
 
     def rows(self):
         """CSV rows (dicts keyed by :data:`CSV_COLUMNS`)."""
         return csv_rows(self, slice(None))
 
+    def order_rows(self):
+        """``orders.csv`` rows (dicts keyed by :data:`ORDER_COLUMNS`)."""
+        return order_rows(self)
 
+
+ORDER_FIELDS = ("mesh_force_orders_N", "dte_orders_m", "accel_orders_m_s2")
 METRIC_FIELDS = (
     "speed_rad_s", "max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
     "accel_ptp_m_s2", "contact_loss", "convergence", "converged", "solver_ok", "n_steps",
     "transient_periods",
-)
+) + ORDER_FIELDS
+
+# orders.csv: order<k>_<signal>_<unit>, single-sided peak amplitudes (SI), DTE first
+_CSV_ORDER = (("dte", "m"), ("force", "N"), ("accel", "m_s2"))
+ORDER_COLUMNS = ("speed_rad_s", "formulation") + tuple(
+    f"order{k}_{name}_{unit}" for name, unit in _CSV_ORDER
+    for k in range(1, N_MESH_ORDERS + 1)) + ("converged",)
+
+
+def empty_metrics(n: int) -> dict:
+    """``{field: NaN array}`` for :data:`METRIC_FIELDS` over ``n`` speeds: shape (n,),
+    (n, 5) for the order amplitudes."""
+    return {f: np.full((n, N_MESH_ORDERS) if f in ORDER_FIELDS else n, np.nan)
+            for f in METRIC_FIELDS}
 
 
 def fmt_value(v):
@@ -84,4 +114,23 @@ def csv_rows(res, sl=slice(None)):
             "contact_loss": str(bool(g("contact_loss"))),
             "converged": str(bool(g("converged"))),
         })
+    return out
+
+
+def order_rows(res, sl=slice(None)):
+    """``orders.csv`` rows (dicts keyed by :data:`ORDER_COLUMNS`) of ``res`` restricted to
+    the slice ``sl``: the amplitudes of DTE (m), mesh force (N) and acceleration (m/s^2,
+    empty where the model has none) at mesh orders 1..5."""
+    out = []
+    arrays = {"dte": res.dte_orders_m, "force": res.mesh_force_orders_N,
+              "accel": res.accel_orders_m_s2}
+    speeds = np.asarray(res.speed_rad_s)[sl]
+    for i in range(len(speeds)):
+        row = {"speed_rad_s": repr(float(speeds[i])), "formulation": res.formulation}
+        for name, unit in _CSV_ORDER:
+            amp = np.asarray(arrays[name])[sl][i]
+            for k in range(N_MESH_ORDERS):
+                row[f"order{k + 1}_{name}_{unit}"] = fmt_value(amp[k])
+        row["converged"] = str(bool(np.asarray(res.converged)[sl][i]))
+        out.append(row)
     return out

@@ -67,6 +67,7 @@ import numpy as np
 from ..errors import SimulationError
 from ..models.base import AbstractGearModel
 from .metrics import output_grid, refine_windows, window_extrema
+from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
 
 __all__ = [
     "simulate",
@@ -157,6 +158,10 @@ class SimulationResult(eqx.Module):
     solver_ok : the integration succeeded with finite states.
     n_steps : accepted + rejected steps of all windows.
     transient_periods : excitation periods integrated before measuring.
+    mesh_force_orders_N, dte_orders_m, accel_orders_m_s2 : (5,) single-sided peak
+        amplitudes of mesh orders 1..5 of F_D (N), DTE (m) and the acceleration (m/s^2;
+        NaN for models without one) over the measured periods
+        (:mod:`gearjax.dynamics.orders`).
     signals : :class:`Signals` or None.
     """
 
@@ -172,6 +177,9 @@ class SimulationResult(eqx.Module):
     solver_ok: jax.Array
     n_steps: jax.Array
     transient_periods: jax.Array
+    mesh_force_orders_N: jax.Array
+    dte_orders_m: jax.Array
+    accel_orders_m_s2: jax.Array
     signals: Signals | None = None
 
 
@@ -429,6 +437,8 @@ def simulate(
     f_max, f_min = v_max[0], v_min[0]
     dte_ptp = v_max[1] - v_min[1]
     acc_ptp = v_max[2] - v_min[2] if has_acc else jnp.asarray(jnp.nan)
+    orders = mesh_order_amplitudes(order_matrix(period, model.mesh_period_rad, n_samples,
+                                                jumps), per)  # (q, 5): F_D, DTE (, accel)
     # convergence: last two periods; forces / F_S, DTE / DTE ptp, accel / accel ptp (ptp
     # floored at 1e-3 of the largest |value|, for signals that hardly vary)
     dte_s = jnp.maximum(dte_ptp, 1e-3 * jnp.max(jnp.abs(ext[:, 2:4])))
@@ -478,6 +488,9 @@ def simulate(
         solver_ok=ok,
         n_steps=steps,
         transient_periods=n_tr,
+        mesh_force_orders_N=bad(orders[0]),
+        dte_orders_m=bad(orders[1]),
+        accel_orders_m_s2=bad(orders[2]) if has_acc else jnp.full(N_MESH_ORDERS, jnp.nan),
         signals=signals,
     )
 

@@ -72,7 +72,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import watchdog
-from .results import METRIC_FIELDS, SweepResult
+from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import PeriodicJumpController, SimulationError, SimulationResult, simulate
 
 __all__ = [
@@ -263,12 +263,14 @@ def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
     bad = lambda v: jnp.where(good, v, nan)  # noqa: E731
     res = eqx.tree_at(
         lambda r: (r.max_mesh_force_N, r.min_mesh_force_N, r.dynamic_factor, r.dte_ptp_m,
-                   r.accel_ptp_m_s2, r.converged, r.solver_ok, r.contact_loss, r.n_steps),
+                   r.accel_ptp_m_s2, r.converged, r.solver_ok, r.contact_loss, r.n_steps,
+                   r.mesh_force_orders_N, r.dte_orders_m, r.accel_orders_m_s2),
         res,
         (bad(res.max_mesh_force_N), bad(res.min_mesh_force_N), bad(res.dynamic_factor),
          bad(res.dte_ptp_m), bad(res.accel_ptp_m_s2),
          res.converged & good & (ps.spectral_radius < 1.0) & newton_ok, good,
-         res.contact_loss & good, res.n_steps + ps.n_steps),
+         res.contact_loss & good, res.n_steps + ps.n_steps, bad(res.mesh_force_orders_N),
+         bad(res.dte_orders_m), bad(res.accel_orders_m_s2)),
     )
     return SteadyStateResult(result=res, periodic=ps)
 
@@ -344,7 +346,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     order = np.argsort(speeds, kind="stable")
     padded = np.concatenate([order, np.full(n_chunks * chunk - speeds.size, order[-1])])
     kw = tuple(sorted(steady_kwargs.items()))
-    out = {f: np.full(speeds.size, np.nan) for f in METRIC_FIELDS}
+    out = empty_metrics(speeds.size)
     rho = np.full(speeds.size, np.nan)
     y0s = None
     t_start = time.perf_counter()

@@ -36,7 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import watchdog
-from .results import CSV_COLUMNS, METRIC_FIELDS, SweepResult
+from .results import CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, empty_metrics
 from .simulate import SimulationError, SimulationResult, simulate
 
 __all__ = ["sweep", "SweepResult", "CSV_COLUMNS"]
@@ -102,6 +102,7 @@ def sweep(
     out_csv: str | os.PathLike | None = None,
     devices=None,
     method: str = "transient",
+    orders_csv: str | os.PathLike | None = None,
     **simulate_kwargs,
 ) -> SweepResult:
     """Steady-state response over pinion speeds (one compiled, vmapped call per chunk).
@@ -137,6 +138,8 @@ def sweep(
         (``n_transient_periods``, ``transient_decay``, ``min/max_transient_mesh_periods``,
         ``start``) go to the continuation only. See ``benchmarks/results/README.md`` for
         which is faster where.
+    orders_csv : append one row per speed of mesh-order amplitudes (columns
+        :data:`gearjax.dynamics.results.ORDER_COLUMNS`) when ``out_csv`` gets its rows.
     **simulate_kwargs : options of :func:`gearjax.dynamics.simulate.simulate` (static).
 
     Returns
@@ -162,9 +165,10 @@ def sweep(
         one = devices is None and jax.process_count() == 1
         method = auto_method(model) if one else "transient"
     if method == "steady":
-        return _steady(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs)
+        return _steady(model, speeds, chunk_size, progress, (out_csv, orders_csv), devices,
+                       simulate_kwargs)
     if method == "harmonic":
-        return _harmonic(model, speeds, chunk_size, progress, out_csv, devices,
+        return _harmonic(model, speeds, chunk_size, progress, (out_csv, orders_csv), devices,
                          simulate_kwargs)
     multi_process = jax.process_count() > 1
     if devices is None and multi_process:
@@ -205,9 +209,9 @@ def sweep(
     else:
         fn = _batched
 
-    results = {f: np.full(total, np.nan) for f in METRIC_FIELDS}
+    results = empty_metrics(total)
     if not lead:
-        out_csv, progress = None, False
+        out_csv, orders_csv, progress = None, None, False
     write_header = out_csv is not None and (
         not os.path.exists(out_csv) or os.path.getsize(out_csv) == 0
     )
@@ -233,8 +237,11 @@ def sweep(
         first = {}
         for j, i in enumerate(sel):
             first.setdefault(int(i), c * chunk + j)
+        real_rows = sorted(first.values(), key=lambda k: padded_idx[k])
+        if orders_csv is not None:
+            _append(orders_csv, ORDER_COLUMNS, _gather(results, formulation, real_rows).order_rows())
         if out_csv is not None:
-            chunk_res = _gather(results, formulation, sorted(first.values(), key=lambda k: padded_idx[k]))
+            chunk_res = _gather(results, formulation, real_rows)
             with open(out_csv, "a", newline="") as fh:
                 wr = csv.DictWriter(fh, fieldnames=CSV_COLUMNS)
                 if write_header:
@@ -298,15 +305,27 @@ def auto_method(model) -> str:
     return "transient"
 
 
-def _write_csv(out_csv, res, speeds):
-    new = not os.path.exists(out_csv) or os.path.getsize(out_csv) == 0
-    order = np.argsort(speeds, kind="stable")
-    rows = res.rows()
-    with open(out_csv, "a", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=CSV_COLUMNS)
+def _append(path, columns, rows):
+    """Append ``rows`` to the CSV file ``path`` (a header first when it is new or empty)."""
+    new = not os.path.exists(path) or os.path.getsize(path) == 0
+    with open(path, "a", newline="") as fh:
+        wr = csv.DictWriter(fh, fieldnames=columns)
         if new:
             wr.writeheader()
-        wr.writerows([rows[i] for i in order])
+        wr.writerows(rows)
+
+
+def _write_csv(paths, res, speeds):
+    """Rows of ``res`` in speed order: ``results.csv`` and ``orders.csv`` (``paths``, each
+    may be None)."""
+    out_csv, orders_csv = paths
+    order = np.argsort(speeds, kind="stable")
+    if orders_csv is not None:
+        rows = res.order_rows()
+        _append(orders_csv, ORDER_COLUMNS, [rows[i] for i in order])
+    if out_csv is not None:
+        rows = res.rows()
+        _append(out_csv, CSV_COLUMNS, [rows[i] for i in order])
 
 
 def _harmonic(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs):
@@ -335,8 +354,7 @@ def _harmonic(model, speeds, chunk_size, progress, out_csv, devices, simulate_kw
         for f in METRIC_FIELDS:
             fields[f][~keep] = getattr(rest, f)
     res = MethodSweepResult(**fields, formulation=model.formulation, method=method)
-    if out_csv is not None:
-        _write_csv(out_csv, res, speeds)
+    _write_csv(out_csv, res, speeds)
     return res
 
 
@@ -356,8 +374,7 @@ def _steady(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwar
             steady_kw["measure_" + k] = steady_kw.pop(k)
     res = steady_sweep(model, speeds, chunk_size=chunk_size, progress=progress,
                        continuation_kwargs=dict(simulate_kwargs), **steady_kw)
-    if out_csv is not None:
-        _write_csv(out_csv, res, speeds)
+    _write_csv(out_csv, res, speeds)
     return res
 
 
