@@ -113,7 +113,8 @@ class TETable(eqx.Module):
     @classmethod
     def from_samples(cls, theta_rad, te_s_m, nlte_m=None, stiffness_N_per_m=None, *,
                      mesh_period_rad: float, source: str = "arrays",
-                     angle_column: str = "pinion_angle_rad", rows=None) -> "TETable":
+                     angle_column: str = "pinion_angle_rad", angle_unit_rad: float = 1.0,
+                     rows=None) -> "TETable":
         """The table of samples (rows in file order; see the module docstring).
 
         Parameters
@@ -123,7 +124,8 @@ class TETable(eqx.Module):
             mesh stiffness (N/m, default: none, the model's own).
         mesh_period_rad : 2 pi / z1 of the pair (rad).
         source, angle_column, rows : names for the messages (file, angle column, the
-            file's row numbers of the samples).
+            file's row numbers of the samples); ``angle_unit_rad``: the angle column's unit
+            in rad (the mesh period for ``mesh_cycle_fraction``), for the messages.
 
         Raises
         ------
@@ -137,12 +139,12 @@ class TETable(eqx.Module):
         th = np.asarray(theta_rad, dtype=float).reshape(-1)
         n = th.size
         rows = np.arange(1, n + 1) if rows is None else np.asarray(rows)
-        cols = {angle_column: th, "te_s_m": te_s_m, "nlte_m": nlte_m,
+        cols = {angle_column: th / angle_unit_rad, "te_s_m": te_s_m, "nlte_m": nlte_m,
                 "mesh_stiffness_N_per_m": stiffness_N_per_m}
         cols = {c: np.asarray(v, dtype=float).reshape(-1) for c, v in cols.items() if v is not None}
 
         def bad(col, i, reason):
-            return GearjaxError(f"{source}: {col}={cols[col][i]!r} in row {rows[i]}: {reason}")
+            return GearjaxError(f"{source}: {col}={float(cols[col][i])!r} in row {rows[i]}: {reason}")
 
         for c, v in cols.items():
             if v.size != n:
@@ -154,7 +156,7 @@ class TETable(eqx.Module):
         d = np.diff(th)
         if np.any(d < 0):
             raise bad(angle_column, int(np.argmax(d < 0)) + 1,
-                      f"smaller than the row before ({th[np.argmax(d < 0)]!r}): angles must "
+                      f"smaller than the row before ({float(th[np.argmax(d < 0)] / angle_unit_rad)!r}): angles must "
                       "increase (two rows at one angle mark a jump)")
         same = d <= _SAME_ANGLE * m
         if np.any(same[1:] & same[:-1]):
@@ -184,7 +186,7 @@ class TETable(eqx.Module):
             for j, c in enumerate(("te_s_m", "nlte_m", "mesh_stiffness_N_per_m")):
                 if c in cols and abs(data[-1, j] - data[0, j]) > 1e-2 * ref[j] + 1e-12 * abs(data[0, j]):
                     raise bad(c, n - 1, f"the row at the end of the period ({n_per} mesh "
-                              f"period(s)) must repeat the first row ({data[0, j]!r}): the "
+                              f"period(s)) must repeat the first row ({float(data[0, j])!r}): the "
                               "data are not periodic")
             th, data, rows = th[:-1], data[:-1], rows[:-1]
             if th[-1] >= th[0] + (n_per - _SAME_ANGLE) * m:  # a jump at the period's end:
@@ -193,7 +195,7 @@ class TETable(eqx.Module):
                 rows = np.concatenate([rows[-1:], rows[:-1]])
         else:
             dist = np.diff(th)[np.diff(th) > _SAME_ANGLE * m]
-            cover = span + float(np.median(dist))
+            cover = span + float(np.median(dist)) / m
             n_per = int(round(cover))
             if n_per < 1 or abs(cover - n_per) > 0.01 * n_per:
                 raise bad(angle_column, n - 1,
@@ -334,7 +336,8 @@ def read_te_csv(path, mesh_period_rad: float) -> TETable:
     return TETable.from_samples(th, cols["te_s_m"], cols.get("nlte_m"),
                                 cols.get("mesh_stiffness_N_per_m"),
                                 mesh_period_rad=mesh_period_rad, source=name,
-                                angle_column=angle, rows=rows)
+                                angle_column=angle, rows=rows,
+                                angle_unit_rad=mesh_period_rad if angle == ANGLE_COLUMNS[0] else 1.0)
 
 
 def excitation_table(te: TETable, law: PeriodicHermiteTable | None = None, law_side=None,
@@ -433,12 +436,13 @@ def _fold(kn, sd, origin, period):
 
 
 def with_jump_rows(theta, values, table: PeriodicHermiteTable, side, jump_thetas,
-                   mesh_period_rad: float):
+                   mesh_period_rad: float, fill=()):
     """File rows ``(theta (n,), values (n, 3))`` of ``(TE_S, NLTE, k)``: a quasi-static
     grid (``theta``, ``values``) plus two one-sided rows (left first) at every jump angle
     of a model's excitation table (its ``(x_S, k, NLTE)`` ``table`` with knot ``side`` -1
     / +1 around the jumps, and its integrator ``jump_thetas``, continuous ones included),
-    grid rows at those angles dropped. What ``gearjax quasistatic --csv`` writes, so that a
+    grid rows at those angles dropped (``values`` may carry more columns: ``fill`` gives
+    them in the jump rows). What ``gearjax quasistatic --csv`` writes, so that a
     file written there carries every jump and kink of the model exactly."""
     knots, side = np.asarray(table.knots), np.asarray(side)
     tv = np.asarray(table.values)
@@ -456,10 +460,10 @@ def with_jump_rows(theta, values, table: PeriodicHermiteTable, side, jump_thetas
             v = np.asarray(table(jnp.asarray(a))[0])
             left = right = np.array([v[0] + v[2], v[2], v[1]])
         rows_t += [a, a]
-        rows_v += [left, right]
+        rows_v += [np.concatenate([left, fill]), np.concatenate([right, fill])]
     theta, values = np.asarray(theta, dtype=float), np.asarray(values, dtype=float)
     d = np.abs(np.mod(theta[:, None] - ang[None, :] + period / 2, period) - period / 2)
     far = np.all(d > tol, axis=1)
     th = np.concatenate([theta[far], rows_t])
     order = np.argsort(th, kind="stable")
-    return th[order], np.concatenate([values[far], np.reshape(rows_v, (-1, 3))])[order]
+    return th[order], np.concatenate([values[far], np.reshape(rows_v, (-1, values.shape[1]))])[order]
