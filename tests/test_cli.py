@@ -43,8 +43,12 @@ def test_quasistatic_json_csv_plot(capsys, tmp_path):
         assert key in out
     assert out["nlte_ptp_m"] > 1e-6  # long relief: NLTE != 0 (Section 6.3.2)
     data = np.genfromtxt(csv, delimiter=",", names=True)
-    assert data.dtype.names == ("theta_rad", "te_s_m", "nlte_m", "mesh_force_N")
-    assert len(data) == 64
+    assert data.dtype.names == ("theta_rad", "te_s_m", "nlte_m", "mesh_force_N",
+                                "mesh_stiffness_N_per_m")
+    # the 64 positions + two rows (left, right) at every jump angle (a --te-file)
+    th = data["theta_rad"]
+    assert np.all(np.diff(th) >= 0) and len(np.unique(th)) >= 64 - 6 and len(th) > 64
+    assert np.all(data["mesh_stiffness_N_per_m"] > 0)
     np.testing.assert_allclose(data["mesh_force_N"], out["static_mesh_force_N"], rtol=1e-9)
     assert png.stat().st_size > 10_000
 

@@ -51,7 +51,8 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
     default_max_frequency_hz,
 )
 from ..dynamics import watchdog
-from ..rigs.factory import build_model
+from ..excitation.te_file import read_te_csv
+from ..rigs.factory import TE_FILE_3D, build_model
 from ..rigs.figures import predicted_critical_speeds
 from .scenario import add_nlte_reaction, nlte_reaction_of
 
@@ -90,8 +91,9 @@ def register(sub, add_rig, add_scenario):
     add_rig(sw)
     add_scenario(sw)
     _add_dynamics(sw)
-    sw.add_argument("--formulations", default="reference,te,perturbation",
-                    help="comma-separated subset of reference,te,perturbation (default all)")
+    sw.add_argument("--formulations", default=None,
+                    help="comma-separated subset of reference,te,perturbation (default all; "
+                         "te,perturbation with --te-file)")
     sw.add_argument("--speeds", default="20:900:45", metavar="A:B:N",
                     help="N pinion speeds from A to B rad/s (default 20:900:45)")
     sw.add_argument("--signals", default=None, metavar="SPEEDS",
@@ -155,6 +157,11 @@ def _add_dynamics(p: argparse.ArgumentParser):
                    help="drop NLTE from the equations: no NLTE', NLTE'' inertial terms and "
                         "TE_S instead of TE_S - NLTE in the forcing of Eqs. (42), (48a) "
                         "(Section 6.3.2, Fig. 10 'with NLTE = 0')")
+    p.add_argument("--te-file", default=None, metavar="FILE.csv",
+                   help="torsional model, te/perturbation: TE_S, NLTE and mesh stiffness from a "
+                        "CSV file (columns mesh_cycle_fraction or pinion_angle_rad, te_s_m, "
+                        "optional nlte_m, mesh_stiffness_N_per_m; paper Section 6.2) instead "
+                        "of the quasi-static solve")
     p.add_argument("--max-frequency", type=float, default=None, metavar="HZ",
                    help="3d: keep the modes below HZ plus static correction (0: all modes; "
                         "default: 3 mesh harmonics of the highest speed x 1.5, at least "
@@ -299,6 +306,18 @@ def _check_modes(args, model, cutoff_hz) -> None:
                          "natural frequency (gearjax info lists them) or give 0 for all modes")
 
 
+def _check_te_file(args, forms) -> None:
+    """--te-file drives te/perturbation of the torsional model only (Section 6.2)."""
+    if not args.te_file:
+        return
+    if args.model != "torsional":
+        raise ValueError(f"--te-file={args.te_file}: {TE_FILE_3D}")
+    if "reference" in forms:
+        raise ValueError(f"--te-file={args.te_file}: the reference formulation (Eq. (16): a "
+                         "gap per contact cell) cannot use a TE file; choose --formulations "
+                         "te,perturbation (the default with --te-file)")
+
+
 def cmd_sweep(args) -> int:
     from ..rigs.registry import get_rig
     from ..dynamics.sweep import sweep
@@ -313,7 +332,9 @@ def cmd_sweep(args) -> int:
                          "start a new --out folder)")
     lead = _init_distributed(args)
     speeds = _parse_speeds(args.speeds)
-    forms = _forms(args.formulations)
+    forms = _forms(args.formulations or ("te,perturbation" if args.te_file
+                                         else "reference,te,perturbation"))
+    _check_te_file(args, forms)
     sig_speeds = _parse_signal_speeds(args.signals)
     _check_damping(args.damping)
     if args.model == "torsional" and args.encoders != 1:
@@ -326,6 +347,7 @@ def cmd_sweep(args) -> int:
     rig = get_rig(args.rig)
     scen = scenario_modifications(rig, args)
     mods = scen.mods
+    te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
     case = case_name(args, scen)
     out = args.out or os.path.join("gearjax-out", case)
     csv_path = os.path.join(out, "results.csv")
@@ -338,6 +360,7 @@ def cmd_sweep(args) -> int:
         **scen.summary(), "damping": args.damping,
         "nlte_terms": not args.no_nlte_terms, "nlte_reaction": reaction,
         "encoders": args.encoders, "max_frequency_hz": cutoff_hz, "formulations": forms,
+        **({"te_file": os.path.abspath(args.te_file)} if args.te_file else {}),
         "speeds_rad_s": [float(w) for w in speeds],
     }
     done: dict = {}
@@ -356,7 +379,7 @@ def cmd_sweep(args) -> int:
         "stiffness_law": args.stiffness, "relief": args.relief or scen.key, **scen.summary(),
         "damping": args.damping,
         "nlte_terms": not args.no_nlte_terms, "nlte_reaction": reaction,
-        "encoders": args.encoders,
+        "encoders": args.encoders, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
         "formulations": {},
@@ -375,7 +398,8 @@ def cmd_sweep(args) -> int:
             model = build_model(rig, mods, model=args.model, formulation=form,
                                 law=args.stiffness, damping_ratio=args.damping,
                                 encoder_position=args.encoders, nlte_terms=nlte,
-                                max_frequency_hz=cutoff_hz, nlte_reaction=reaction)
+                                max_frequency_hz=cutoff_hz, nlte_reaction=reaction,
+                                te_table=te)
             _check_modes(args, model, cutoff_hz)
             t_build = time.perf_counter() - t0
             if "predicted" not in summary:
@@ -559,17 +583,19 @@ def cmd_stability(args) -> int:
 
     speeds = _parse_speeds(args.speeds)
     _check_damping(args.damping)
+    _check_te_file(args, [args.formulation])
     reaction = nlte_reaction_of(args)
     rig = get_rig(args.rig)
     scen = scenario_modifications(rig, args)
     mods = scen.mods
+    te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
     cutoff_hz, cutoff_source = modal_cutoff(args, rig, speeds) if args.model == "3d" else (None, None)
     _check_cutoff(args, rig, cutoff_hz)
     model = build_model(rig, mods, model=args.model, formulation=args.formulation,
                         law=args.stiffness, damping_ratio=args.damping,
                         encoder_position=args.encoders,
                         nlte_terms=False if args.no_nlte_terms else None,
-                        max_frequency_hz=cutoff_hz, nlte_reaction=reaction)
+                        max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te)
     _check_modes(args, model, cutoff_hz)
     t0 = time.perf_counter()
     rho = np.asarray(spectral_radius(model, speeds), dtype=float)
@@ -581,7 +607,7 @@ def cmd_stability(args) -> int:
     out = {
         "rig": rig.name, "model": args.model, "formulation": args.formulation,
         "relief": args.relief or scen.key, **scen.summary(), "damping": args.damping,
-        "stiffness_law": args.stiffness, "nlte_reaction": reaction,
+        "stiffness_law": args.stiffness, "nlte_reaction": reaction, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "wall_time_s": time.perf_counter() - t0,
         "neutral_tolerance": tol,

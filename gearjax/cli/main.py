@@ -65,7 +65,8 @@ def _parser() -> argparse.ArgumentParser:
     _add_scenario(qs)
     qs.add_argument("--positions", type=int, default=256,
                     help="positions per mesh period (default 256)")
-    qs.add_argument("--csv", metavar="FILE", help="write theta_rad, te_s_m, nlte_m, mesh_force_N")
+    qs.add_argument("--csv", metavar="FILE", help="write theta_rad, te_s_m, nlte_m, mesh_force_N, "
+                    "mesh_stiffness_N_per_m (+ two rows at every jump: a --te-file)")
     qs.add_argument("--plot", metavar="FILE", help="write a PNG of TE_S, NLTE and load sharing")
     for name in _EXTENSIONS:
         importlib.import_module(name).register(sub, _add_rig, _add_scenario)
@@ -219,9 +220,17 @@ def _cmd_quasistatic(args) -> int:
         "loaded_stiffness_mean_N_per_m": float(np.mean(res.loaded_stiffness_N_per_m)),
         "max_force_balance_error_N": float(np.max(np.abs(force - f_s))),
     }
-    if args.csv:
-        data = np.column_stack([np.asarray(theta), te, nlte, force])
-        np.savetxt(args.csv, data, delimiter=",", header="theta_rad,te_s_m,nlte_m,mesh_force_N",
+    if args.csv:  # + both sides of every jump and kink: a file that --te-file reads exactly
+        from ..excitation.te_file import with_jump_rows
+        from ..rigs.factory import build_model
+
+        sdof = build_model(rig, mods, model="torsional", formulation="te", law=args.stiffness,
+                           n_table=max(16, args.positions))
+        grid = np.column_stack([te, nlte, res.loaded_stiffness_N_per_m, force])
+        th, rows = with_jump_rows(theta, grid, sdof.table, sdof.table_side, sdof.jump_thetas,
+                                  rig.pair.mesh_period_rad, fill=[f_s])
+        np.savetxt(args.csv, np.column_stack([th, rows[:, [0, 1, 3, 2]]]), delimiter=",",
+                   header="theta_rad,te_s_m,nlte_m,mesh_force_N,mesh_stiffness_N_per_m",
                    comments="", fmt="%.10e")
         summary["csv"] = args.csv
     if args.plot:

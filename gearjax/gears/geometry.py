@@ -24,7 +24,8 @@ import math
 import numpy as np
 from ..errors import GeometryError
 
-__all__ = ["GearPair", "GeometryError", "involute", "inverse_involute"]
+__all__ = ["GearPair", "GeometryError", "involute", "inverse_involute", "solid_cylinder_inertias",
+           "STEEL_DENSITY_KG_M3"]
 
 
 MAX_TEETH = 2000  # tooth-number range checked by GearPair
@@ -331,3 +332,19 @@ class GearPair:
             "total_contact_ratio": self.total_contact_ratio,
             "mesh_period_rad": self.mesh_period_rad,
         }
+
+
+STEEL_DENSITY_KG_M3 = 7800.0
+
+
+def solid_cylinder_inertias(pair: GearPair, density_kg_m3: float = STEEL_DENSITY_KG_M3):
+    """Polar inertias (kg m^2) of solid cylinders at the pitch radii with the face widths.
+
+    ``J_k = rho pi b_k r_k^4 / 2``: the default pinion and gear shaft-line inertias of the
+    sdof model when nothing better is known (steel, rho = 7800 kg/m^3).
+    """
+    r1, r2 = pair.pitch_radii_m
+    return (
+        density_kg_m3 * math.pi * pair.face_width1_m * r1**4 / 2.0,
+        density_kg_m3 * math.pi * pair.face_width2_m * r2**4 / 2.0,
+    )

@@ -74,6 +74,10 @@ only NLTE'' is dropped (the gaps de_i contain the errors). When NLTE is identica
 (e.g. spur Table 1 short relief) the default ``nlte_terms=None`` resolves to False and the
 scenario compiles without these terms.
 
+TE from a file (Section 6.2, :meth:`TorsionalModel.with_te`): TE_S, NLTE and, if given, the
+loaded stiffness of a :class:`~gearjax.excitation.te_file.TETable` replace the quasi-static
+table (its rows as knots, its jumps fixed integrator jumps; else this model's stiffness).
+
 State and scaling
 -----------------
 The integrated state is dimensionless, ``y = (z / x_ref, z' / (r x_ref))`` with
@@ -120,24 +124,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..gears.geometry import GearPair
+from ..gears.geometry import STEEL_DENSITY_KG_M3, GearPair, solid_cylinder_inertias  # re-exported
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.contact import solve_unilateral, te_contact, unilateral_solve_pairwise
 from ..gears.quasistatic import contact_gaps, static_mesh_force
-from ..excitation.events import (
-    EV_FIXED,
-    check_event_roots,
-    classify_events,
-    code,
-    code_jnp,
-    engagement_angles,
-    find_brackets,
-    moved_event_angles,
-    quiet_origin,
-)
+from ..excitation.events import (EV_FIXED, check_event_roots, classify_events, code, code_jnp,
+                                 engagement_angles, find_brackets, moved_event_angles,
+                                 quiet_origin)
 from ..excitation.sdof import sdof_signature, sdof_signature_fn, sdof_switch
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
+from ..excitation.te_file import te_model_fields
 from .base import FORMULATIONS, AbstractGearModel, ModelOutputs
 from ..errors import ModelError
 
@@ -148,22 +145,6 @@ Formulation = Literal["reference", "te", "perturbation"]
 NLTE_METHODS = ("substitution", "spectral")
 EXCITATIONS = ("table", "inline")
 NLTE_REACTIONS = ("drive", "pinion")  # default first
-STEEL_DENSITY_KG_M3 = 7800.0
-
-
-def solid_cylinder_inertias(pair: GearPair, density_kg_m3: float = STEEL_DENSITY_KG_M3):
-    """Polar inertias (kg m^2) of solid cylinders at the pitch radii with the face widths.
-
-    ``J_k = rho pi b_k r_k^4 / 2``: the default pinion and gear shaft-line inertias of the
-    sdof model when nothing better is known (steel, rho = 7800 kg/m^3).
-    """
-    r1, r2 = pair.pitch_radii_m
-    return (
-        density_kg_m3 * math.pi * pair.face_width1_m * r1**4 / 2.0,
-        density_kg_m3 * math.pi * pair.face_width2_m * r2**4 / 2.0,
-    )
-
-
 _X_S, _K_S, _NLTE = 0, 1, 2
 
 
@@ -193,6 +174,7 @@ class _TorsionalInputs(eqx.Module):
     jump_cells: tuple = eqx.field(static=True, default=())
     nlte_reaction: str = eqx.field(static=True, default="drive")
     table_codes: jax.Array | None = None
+    te_input: PeriodicHermiteTable | None = None  # from a TE file (with_te): the table itself
 
     @property
     def pair(self) -> GearPair:
@@ -283,7 +265,10 @@ class _TorsionalInputs(eqx.Module):
         layout = dict(knots=self.table_knots, cell_first=self.table_cell_first,
                       origin=self.table_origin, period=self.period_rad,
                       n_cells=self.n_table * n_mesh, max_extra=self.table_max_extra)
-        if amap is None:
+        if self.te_input is not None:
+            structure_ok, table = jnp.asarray(True), self.te_input
+            k_m = table.mean()[_K_S]
+        elif amap is None:
             structure_ok = jnp.asarray(True)
             at = self.table_knots + self.table_side * delta
             vals, slopes = jax.vmap(self._qs_with_slope)(at)
@@ -415,6 +400,17 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         :attr:`structure_ok` holds (module docstring)."""
         inputs = {f.name: getattr(self, f.name) for f in dataclasses.fields(_TorsionalData)}
         inputs["mods"] = mods
+        return TorsionalModel._complete(**inputs)
+
+    def with_te(self, te, nlte_terms: bool | None = None) -> "TorsionalModel":
+        """This te/perturbation model driven by a TE file (module docstring, "TE from a
+        file"); ``nlte_terms`` None: kept iff the file's NLTE is not 0."""
+        if self.formulation == "reference" or (self.excitation, self.nlte_method) != ("table", "substitution"):
+            raise ModelError("formulation", self.formulation, "a TE file drives te or perturbation"
+                             " (excitation='table', nlte_method='substitution'), not the reference"
+                             " formulation (Eq. (16): a gap per cell)")
+        inputs = {f.name: getattr(self, f.name) for f in dataclasses.fields(_TorsionalData)}
+        inputs.update(te_model_fields(te, self.table, self.table_side, self.jump_thetas, nlte_terms))
         return TorsionalModel._complete(**inputs)
 
     @classmethod

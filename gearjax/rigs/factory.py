@@ -14,12 +14,15 @@ from ..models.geared3d import Geared3DModel
 from ..models.torsional import NLTE_REACTIONS, TorsionalModel
 from .rig import Rig
 
-__all__ = ["MODELS", "NLTE_REACTION_3D", "build_model"]
+__all__ = ["MODELS", "NLTE_REACTION_3D", "TE_FILE_3D", "build_model"]
 
 MODELS = ("3d", "torsional")
 # why the 3D model refuses nlte_reaction="pinion" (the command line says the same)
 NLTE_REACTION_3D = ("the 3D model puts the NLTE'' reaction torque at its torque node (the "
                     "rig's motor: 'drive', Eq. (14)); 'pinion' is a torsional-model option")
+
+TE_FILE_3D = ("a TE file drives the torsional model (--model torsional); the 3D model takes "
+              "TE_S from its own quasi-static solve (per-cell contact, encoder positions)")
 
 
 def build_model(
@@ -33,6 +36,7 @@ def build_model(
     encoder_position: int = 1,
     max_frequency_hz: float | None = None,
     nlte_reaction: str = "drive",
+    te_table=None,
     **kwargs,
 ) -> TorsionalModel | Geared3DModel:
     """The dynamic model of ``rig`` with tooth modifications ``mods`` (default none).
@@ -53,6 +57,10 @@ def build_model(
     nlte_reaction : where the NLTE'' reaction torque acts (:mod:`gearjax.models.torsional`):
         ``"drive"`` (default, every model and command) or, torsional model only,
         ``"pinion"`` (Eqs. (15)-(16)); the 3D model puts it at its torque node (Eq. (14)).
+    te_table : a :class:`gearjax.excitation.te_file.TETable` (a TE file, paper Section
+        6.2) driving the te/perturbation formulations of the torsional model
+        (:meth:`TorsionalModel.with_te`); the 3D model refuses it (its TE_S comes from the
+        per-cell 3D quasi-static solve at its encoders).
     kwargs : go to the model's ``build`` (``formulation``, ``damping_ratio``,
         ``nlte_terms``, ``max_frequency_hz``, ...). Defaults taken from the rig:
         ``pinion_torque_Nm`` (C_m0, N m) and, 3D, ``torque_node`` (the motor node) and
@@ -67,7 +75,10 @@ def build_model(
         if max_frequency_hz is not None:
             raise ModelError("max_frequency_hz", max_frequency_hz,
                              "the torsional model has no modal cut-off")
-        return TorsionalModel.build(mesh, mods, nlte_reaction=nlte_reaction, **kwargs)
+        sdof = TorsionalModel.build(mesh, mods, nlte_reaction=nlte_reaction, **kwargs)
+        return sdof if te_table is None else sdof.with_te(te_table, kwargs.get("nlte_terms"))
+    if te_table is not None:
+        raise ModelError("te_table", te_table.source, TE_FILE_3D)
     if nlte_reaction not in NLTE_REACTIONS:
         raise ModelError("nlte_reaction", nlte_reaction, f"must be one of {NLTE_REACTIONS}")
     if nlte_reaction != "drive":
