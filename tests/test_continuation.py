@@ -122,3 +122,40 @@ def test_bad_input(model):
         continuation_sweep(model, [300.0, 300.0], "up")
     with pytest.raises(SimulationError, match="speeds_rad_s"):
         continuation_sweep(model, [300.0, -1.0], "up")
+
+
+def test_cli_direction_refuses_what_a_continuation_cannot_do(capsys, tmp_path):
+    """One line, before any model is built."""
+    from gearjax.cli.main import main
+
+    code = main(["sweep", "--model", "torsional", "--direction", "up", "--resume",
+                 "--out", str(tmp_path / "x")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--direction=up" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.slow  # a CLI continuation (compiles the shooting, ~20 s on 2 shared cores)
+def test_cli_direction_both(tmp_path):
+    """``gearjax sweep --direction both``: results.csv keeps the default columns first and
+    adds the branch columns; summary.json gives the jump up of the up sweep and the
+    hysteresis band (the speeds of test_up_and_down_sweeps_differ_in_the_hysteresis_band)."""
+    import csv
+    import json
+
+    from gearjax.cli.main import main
+    from gearjax.dynamics.results import CSV_COLUMNS
+
+    out = tmp_path / "both"
+    assert main(["sweep", "--model", "torsional", "--formulations", "reference",
+                 "--damping", "0.03", "--speeds", "615:665:3", "--direction", "both",
+                 "--out", str(out), "--json"]) == 0
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert tuple(rows[0])[:len(CSV_COLUMNS)] == CSV_COLUMNS
+    assert sorted((r["direction"], float(r["speed_rad_s"])) for r in rows
+                  if r["orbit"] == "followed") == sorted(
+        (d, w) for d in ("up", "down") for w in (615.0, 640.0, 665.0))
+    br = json.loads((out / "summary.json").read_text())["formulations"]["reference"]["branches"]
+    assert br["jump_up_rad_s"] == [[640.0, 665.0]] and br["jump_down_rad_s"] == []
+    assert br["hysteresis_band_rad_s"] == [615.0, 640.0]
+    assert (out / "response_curves.png").stat().st_size > 0

@@ -63,8 +63,8 @@ import numpy as np
 from ..errors import SimulationError
 from . import watchdog
 from .results import METRIC_FIELDS, SweepResult
-from .simulate import default_solver, jump_density, simulate
-from .steady import _controller, periodic_state
+from .simulate import PeriodicJumpController, default_solver, jump_density, simulate
+from .steady import periodic_state
 
 __all__ = ["continuation_sweep", "BranchResult", "branch_jumps", "hysteresis_band",
            "DIRECTIONS", "JUMP_THRESHOLD"]
@@ -134,10 +134,14 @@ def _settle(model, omega, y_start, cfg):
     n = jnp.ceil(math.log(1.0 / c["transient_decay"]) / (rate * period))
     n = jnp.clip(jnp.nan_to_num(n, nan=n_max, posinf=n_max), n_min, n_max)
     solver, rtol, atol = default_solver(model.formulation, jump_density(model))
+    ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.0, icoeff=1.0)
+    jumps = np.sort(np.asarray(model.jump_thetas, dtype=float))
+    if jumps.size:  # steps end at the speed-independent jumps, as in simulate
+        ctrl = PeriodicJumpController(ctrl, jnp.asarray(jumps), period)
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(lambda t, y, args: model.vector_field(t, y, args)), solver,
         t0=0.0, t1=n * period, dt0=None, y0=y_start, args=omega,
-        saveat=diffrax.SaveAt(t1=True), stepsize_controller=_controller(model, rtol, atol),
+        saveat=diffrax.SaveAt(t1=True), stepsize_controller=ctrl,
         max_steps=2_000_000, throw=False)
     return sol.ys[-1]
 
