@@ -12,7 +12,8 @@ import numpy as np
 from .design.maps import HarrisMap
 from .design.optimise import OptimisationResult
 
-__all__ = ["plot_quasistatic", "plot_response_curves", "plot_order_tracks", "plot_mesh_force_signals",
+__all__ = ["plot_quasistatic", "plot_response_curves", "plot_order_tracks", "plot_branches",
+           "plot_mesh_force_signals",
            "plot_design_map", "plot_history", "plot_harris"]
 
 
@@ -144,6 +145,67 @@ def plot_order_tracks(csv_path: str, path: str, title: str = "", n_orders: int =
         fig.suptitle(title)
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def plot_branches(csv_path: str, path: str, title: str = ""):
+    """Response curves of up and down continuation sweeps (``gearjax sweep --direction``,
+    :mod:`gearjax.dynamics.continuation`) from their ``results.csv``: max dynamic tooth load
+    and peak-to-peak DTE against pinion speed, per formulation (colour) and direction (up
+    triangles, down triangles pointing down). Stable followed orbits: solid lines; jumps
+    (max force changing by more than ``JUMP_THRESHOLD`` between neighbours): dotted
+    arrows in the sweep's direction, so the hysteresis band lies between the two sweeps'
+    arrows; unstable periodic orbits met by the continuation: dashed, open markers; a speed
+    without a stable orbit: open marker."""
+    import csv
+
+    from .dynamics.continuation import JUMP_THRESHOLD
+
+    plt = _pyplot()
+    rows = list(csv.DictReader(open(csv_path)))
+    val = lambda r, k: float(r[k]) if r.get(k, "") not in ("",) else np.nan  # noqa: E731
+    forms = list(dict.fromkeys(r["formulation"] for r in rows))
+    panels = [("max_mesh_force_N", "max dynamic tooth load [N]", 1.0),
+              ("dte_ptp_m", "peak-to-peak DTE [um]", 1e6)]
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 5.8), sharex=True, constrained_layout=True)
+    marks = {"up": "^", "down": "v"}
+    for ax, (key, ylabel, scale) in zip(axes, panels):
+        for c, form in enumerate(forms):
+            color = f"C{c}"
+            for d in ("up", "down"):
+                sel = [r for r in rows if r["formulation"] == form and r.get("direction") == d]
+                fol = sorted((r for r in sel if r["orbit"] == "followed"),
+                             key=lambda r: float(r["speed_rad_s"]), reverse=d == "down")
+                if fol:
+                    w = np.array([val(r, "speed_rad_s") for r in fol])
+                    f = np.array([val(r, "max_mesh_force_N") for r in fol])
+                    y = np.array([val(r, key) for r in fol]) * scale
+                    ok = np.array([r["converged"] == "True" for r in fol])
+                    for a in range(len(fol) - 1):
+                        b = a + 1
+                        if abs(f[b] - f[a]) > JUMP_THRESHOLD * min(f[a], f[b]):
+                            ax.annotate("", (w[b], y[b]), (w[a], y[a]), arrowprops=dict(
+                                arrowstyle="->", ls=":", color=color, lw=1.2))
+                        elif ok[a] and ok[b]:
+                            ax.plot(w[a:b + 1], y[a:b + 1], "-", color=color, lw=1.3)
+                    ax.plot(w[ok], y[ok], marks[d], color=color, ms=4, ls="none",
+                            label=f"{form}, sweep {d}")
+                    ax.plot(w[~ok], y[~ok], marks[d], mfc="none", color=color, ms=5, ls="none")
+                uns = sorted((r for r in sel if r["orbit"] == "unstable"),
+                             key=lambda r: float(r["speed_rad_s"]))
+                if uns:
+                    ax.plot([val(r, "speed_rad_s") for r in uns],
+                            np.array([val(r, key) for r in uns]) * scale, "--" + marks[d],
+                            mfc="none", color=color, ms=5, lw=1.0,
+                            label=f"{form}, unstable orbit ({d})")
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="best", fontsize=8)
+    axes[-1].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
+    if title:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
 
 
 def plot_mesh_force_signals(signals: dict, path: str, title: str = ""):

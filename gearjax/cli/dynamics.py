@@ -114,6 +114,13 @@ def register(sub, add_rig, add_scenario):
                          "proven stable go to the transient), steady (shooting), transient; "
                          "auto (default): harmonic for te/perturbation on the 3D model, "
                          "transient otherwise")
+    sw.add_argument("--direction", default="independent",
+                    choices=["independent", "up", "down", "both"],
+                    help="independent (default, as before): every speed from the quasi-static "
+                         "start; up/down/both: continuation, each speed started from its "
+                         "neighbour's periodic orbit (shooting; --method not used), showing "
+                         "jumps and coexisting branches near a critical speed with contact "
+                         "loss (results.csv gains direction, orbit, spectral_radius, restarted)")
     sw.add_argument("--chunk", type=int, default=None,
                     help="speeds per compiled call (progress and CSV rows per chunk; default "
                          "about a tenth of the speeds)")
@@ -330,6 +337,9 @@ def cmd_sweep(args) -> int:
                         or args.num_processes is not None):
         raise ValueError("--resume: not with several processes (resume on one process, or "
                          "start a new --out folder)")
+    from .branches import check_direction, run_branches
+
+    check_direction(args)
     lead = _init_distributed(args)
     speeds = _parse_speeds(args.speeds)
     forms = _forms(args.formulations or ("te,perturbation" if args.te_file
@@ -363,6 +373,8 @@ def cmd_sweep(args) -> int:
         **({"te_file": os.path.abspath(args.te_file)} if args.te_file else {}),
         "speeds_rad_s": [float(w) for w in speeds],
     }
+    if args.direction != "independent":
+        record["direction"] = args.direction
     done: dict = {}
     if lead:  # every output problem is reported now, before any computing
         prepare_output_dir("--out", out, results=RESULT_FILES, resume=args.resume,
@@ -386,7 +398,7 @@ def cmd_sweep(args) -> int:
     }
     if done:
         summary["resumed"] = {f: len(v) for f, v in done.items()}
-    times, signals, methods = {}, {}, {}
+    times, signals, methods, branches = {}, {}, {}, {}
     if lead:  # a stall (gearjax.dynamics.watchdog) ends the process: say where the rows are
         watchdog.add_stall_hook(lambda: f"the speeds finished so far are in {csv_path}; continue "
                                         "with the same command and --resume")
@@ -413,7 +425,10 @@ def cmd_sweep(args) -> int:
                 print(f"  {form}: {speeds.size} speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rad/s{left} "
                       f"({args.model} model built in {t_build:.1f} s)", file=sys.stderr, flush=True)
             t0 = time.perf_counter()
-            if todo.size:
+            if todo.size and args.direction != "independent":
+                branches[form] = run_branches(model, todo, args.direction, csv_path,
+                                              progress=not args.json)
+            elif todo.size:
                 res = sweep(model, todo, chunk_size=min(chunk, todo.size),
                             progress=not args.json, out_csv=csv_path, method=args.method,
                             orders_csv=orders_path,
@@ -435,6 +450,8 @@ def cmd_sweep(args) -> int:
         s.update(build_time_s=t_build, wall_time_s=elapsed)
         if form in methods:
             s["method"] = methods[form]
+        if form in branches:
+            s["branches"] = branches[form]
         summary["formulations"][form] = s
     if "reference" in summary["formulations"]:
         ref = max_force_by_speed(rows, "reference")
@@ -454,10 +471,11 @@ def cmd_sweep(args) -> int:
              f"{', NLTE terms off' if args.no_nlte_terms else ''}"
              f"{' (interrupted)' if interrupted else ''}")
     if rows:
-        from ..plotting import plot_response_curves
+        from ..plotting import plot_branches, plot_response_curves
 
         fig_path = os.path.join(out, "response_curves.png")
-        plot_response_curves(csv_path, fig_path, title=title)
+        plot = plot_response_curves if args.direction == "independent" else plot_branches
+        plot(csv_path, fig_path, title=title)
         summary["response_curves_png"] = fig_path
         summary.update(_write_order_tracks(orders_path, out, title))
     if signals and not interrupted:

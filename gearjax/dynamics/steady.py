@@ -182,7 +182,7 @@ def _solver_options(solver, rtol, atol):
 
 def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
                    atol: float | None = None, max_newton: int = 8, newton_tol: float = 1e-10,
-                   max_steps: int = 1_000_000) -> PeriodicState:
+                   max_steps: int = 1_000_000, y_start=None) -> PeriodicState:
     """Periodic start ``y*`` of the steady response at pinion speed ``omega`` (rad/s) by
     shooting (module docstring). Jit/vmap-compatible in ``omega`` and the model's arrays.
 
@@ -196,10 +196,13 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
         perturbation converge in one step while contact holds on the orbit; a second step
         verifies it).
     max_steps : step limit of each period integration.
+    y_start : (n,) first Newton iterate (default the quasi-static state
+        ``model.initial_state(omega)``); e.g. the periodic orbit at a neighbouring speed,
+        for continuation (:mod:`gearjax.dynamics.continuation`).
     """
     solver, rtol, atol = _solver_options(solver, rtol, atol)
     omega = jnp.asarray(omega, dtype=float)
-    y_s = model.initial_state(omega)
+    y_s = model.initial_state(omega) if y_start is None else jnp.asarray(y_start, dtype=float)
     n = y_s.shape[0]
     eye = jnp.eye(n, dtype=y_s.dtype)
 
