@@ -63,7 +63,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from . import watchdog
-from .results import METRIC_FIELDS, SweepResult
+from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import PeriodicJumpController, default_solver, jump_density, simulate
 from .steady import periodic_state
 
@@ -191,7 +191,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     if direction == "down":
         order = order[::-1]
     n, k = speeds.size, int(model.state_size)
-    out = {f: np.full(n, np.nan) for f in METRIC_FIELDS}
+    out = empty_metrics(n)
     extra = {name: np.full(n, np.nan) for name in
              ("spectral_radius", "newton_iterations", "unstable_max_mesh_force_N",
               "unstable_dte_ptp_m", "unstable_spectral_radius")}
@@ -215,7 +215,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
             found, rho, it, y, met = jax.device_get(_orbit(model, w, settled, cfg))
             ok = bool(found) and float(rho) < 1.0
         for f, v in zip(METRIC_FIELDS, met):
-            out[f][i] = float(v)
+            out[f][i] = v
         extra["spectral_radius"][i], extra["newton_iterations"][i] = rho, it
         stable[i] = ok
         y0s[i] = y
