@@ -86,6 +86,7 @@ def test_info_3d_reports_appendix_a_relations(capsys, encoders):
     assert f[0] > 0 and np.all(np.diff(f) >= 0)  # K_bar invertible: no rigid-body mode left
 
 
+@pytest.mark.xdist_group("torsional_cli_sweep")  # one worker runs the shared sweep
 def test_sweep_writes_csv_json_and_figure(torsional_cli_sweep):
     # `gearjax sweep --model torsional --speeds 40:700:3 --formulations te,reference ...`,
     # shared with tests/test_cli_dynamics.py (tests/conftest.py)

@@ -44,6 +44,7 @@ def test_info_torsional_figures_closed_form(capsys):
     assert 0.8 < out["iso6336_resonance_speed_rad_s"] / (w / 26) < 1.3
 
 
+@pytest.mark.xdist_group("torsional_cli_sweep")  # one worker runs the shared sweep
 def test_torsional_sweep_with_signals(torsional_cli_sweep):
     # `gearjax sweep --model torsional --speeds 40:700:3 --formulations te,reference
     # --signals 300 --json` (tests/conftest.py; its CSV/JSON/figure: tests/test_cli.py)
@@ -76,6 +77,7 @@ def test_torsional_sweep_with_signals(torsional_cli_sweep):
 
 
 
+@pytest.mark.xdist_group("torsional_cli_sweep")  # one worker runs the shared sweep
 def test_torsional_sweep_writes_mesh_orders(torsional_cli_sweep):
     """orders.csv (one row per results.csv row, DTE/force orders 1-5, no acceleration in
     the sdof model) and order_tracks.png of the shared sweep. A signal within [min, max]

@@ -22,6 +22,7 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from gearjax import Mesh, baud_velex_pair, table1_relief
 from gearjax.dynamics.metrics import JUMP_SIDE, output_grid
@@ -106,3 +107,43 @@ def test_sdof_perturbation_orders_against_closed_form_receptance():
     # the resonance of order 2 at 397 rad/s: order 2 dominates there, not at 300 rad/s
     assert np.argmax(res.dte_orders_m[1]) == 1 and np.argmax(res.dte_orders_m[0]) != 1
     assert np.all(np.isnan(res.accel_orders_m_s2))  # the sdof model has no acceleration
+
+
+def test_pure_sine_te_file_orders_against_closed_form_receptance():
+    """A TE file (Section 6.2) holding a pure sine TE_S = TE0 + a sin(z1 theta) and a
+    constant mesh stiffness k0, no NLTE: Eq. (20) is then linear time-invariant, so mesh
+    order 1 of the DTE is ``|H(z1 Omega)| k0 cos^2 b_b a`` with the closed-form receptance
+    ``H(w) = 1 / (k0 cos^2 b_b - m_eq w^2 + i c w)``, mesh order 1 of the force is
+    ``k0 cos b_b |X_1 - a|`` (Eq. (24)), and orders 2-5 vanish. Below (300 rad/s) and
+    near (0.9 omega_n / z1) the tooth critical speed, damping 0.1 (contact holds).
+    Tolerance 1e-6 of the DTE's order 1 (the integration's rtol 1e-7 and the file's cubic
+    Hermite interpolation at 256 rows per mesh period, O(h^4), ~1e-9 here), carried
+    through Eq. (24) for the force."""
+    from gearjax.excitation.te_file import TETable
+
+    mesh = Mesh.build(baud_velex_pair(False))
+    base = TorsionalModel.build(mesh, table1_relief("short"), formulation="te", damping_ratio=0.1)
+    z1, period = mesh.pair.z1, base.mesh_period_rad
+    k0, a = float(base.mean_stiffness_N_per_m()), 1e-6
+    theta = np.arange(256) * (period / 256)
+    table = TETable.from_samples(theta, 12e-6 + a * np.sin(z1 * theta),
+                                 stiffness_N_per_m=np.full(theta.size, k0),
+                                 mesh_period_rad=period)
+    model = base.with_te(table)
+    assert not model.nlte_terms and float(model.mean_stiffness_N_per_m()) == pytest.approx(k0)
+    m_eq, cb = float(model.equivalent_mass_kg), model.cos_bb
+    stiff = k0 * cb**2
+    c = 2 * 0.1 * math.sqrt(stiff * m_eq)
+    speeds = np.array([300.0, 0.9 * math.sqrt(stiff / m_eq) / z1])
+    res = sweep(model, speeds, progress=False)
+    assert np.all(res.converged) and not np.any(res.contact_loss)
+    for i, omega in enumerate(speeds):
+        w = z1 * omega
+        x1 = stiff * a / (stiff - m_eq * w**2 + 1j * c * w)  # order 1 of x, phase of TE_S
+        dte = np.array([abs(x1), 0, 0, 0, 0])
+        force = np.array([k0 * cb * abs(x1 - a), 0, 0, 0, 0])
+        np.testing.assert_allclose(res.dte_orders_m[i], dte, rtol=0, atol=1e-6 * dte[0])
+        # F_D's order 1 is k0 cos b_b (X_1 - a): X_1's error (1e-6 |X_1|) carried through
+        np.testing.assert_allclose(res.mesh_force_orders_N[i], force, rtol=0,
+                                   atol=1e-6 * k0 * cb * abs(x1))
+    assert res.dte_orders_m[1, 0] > 2 * a  # near resonance: amplified
