@@ -177,9 +177,11 @@ def test_3d_te_contact_law_is_the_cell_law_for_perfect_teeth():
     force_ref = np.asarray(jax.vmap(lambda t, yy: ref.outputs(t, yy, omega).mesh_force_N)(th, y))
     assert np.sum(force == 0.0) >= 5 and np.sum(force > 0.0) >= 5  # both sides exercised
     # te reads X_S from its excitation table (32 knots per mesh period, O(h^4)): agreement
-    # to the table's interpolation error, a few 1e-9 of the force
+    # to the table's interpolation error times the mesh stiffness, an absolute error on the
+    # scale of F_S (measured 1.1e-4 N = 2e-8 F_S), not of the sampled force, which can lie
+    # near 0 (the modal coordinates' signs, hence the sampled states, follow the eigensolver)
     np.testing.assert_array_equal(force == 0.0, force_ref == 0.0)
-    np.testing.assert_allclose(force, force_ref, rtol=1e-7, atol=0)
+    np.testing.assert_allclose(force, force_ref, rtol=0, atol=1e-7 * float(te.static_force_N))
     err = np.max(np.abs(np.asarray(f_te) - np.asarray(f_ref))) / np.max(np.abs(np.asarray(f_ref)))
     print("relative vector-field difference", err)
     assert err < 1e-7
