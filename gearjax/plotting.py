@@ -152,13 +152,14 @@ def plot_branches(csv_path: str, path: str, title: str = ""):
     :mod:`gearjax.dynamics.continuation`) from their ``results.csv``: max dynamic tooth load
     and peak-to-peak DTE against pinion speed, per formulation (colour) and direction (up
     triangles, down triangles pointing down). Stable followed orbits: solid lines; jumps
-    (max force changing by more than ``JUMP_THRESHOLD`` between neighbours): dotted
+    (max force changing by more than ``JUMP_THRESHOLD`` between neighbours,
+    :func:`gearjax.dynamics.continuation.forces_differ`): dotted
     arrows in the sweep's direction, so the hysteresis band lies between the two sweeps'
     arrows; unstable periodic orbits met by the continuation: dashed, open markers; a speed
     without a stable orbit: open marker."""
     import csv
 
-    from .dynamics.continuation import JUMP_THRESHOLD
+    from .dynamics.continuation import forces_differ
 
     plt = _pyplot()
     rows = list(csv.DictReader(open(csv_path)))
@@ -182,7 +183,7 @@ def plot_branches(csv_path: str, path: str, title: str = ""):
                     ok = np.array([r["converged"] == "True" for r in fol])
                     for a in range(len(fol) - 1):
                         b = a + 1
-                        if abs(f[b] - f[a]) > JUMP_THRESHOLD * min(f[a], f[b]):
+                        if forces_differ(f[a], f[b]):
                             ax.annotate("", (w[b], y[b]), (w[a], y[a]), arrowprops=dict(
                                 arrowstyle="->", ls=":", color=color, lw=1.2))
                         elif ok[a] and ok[b]:

@@ -12,9 +12,6 @@ start, as before) writes the default columns only.
 
 from __future__ import annotations
 
-import csv
-import os
-
 import numpy as np
 
 from ..dynamics.continuation import (
@@ -23,7 +20,7 @@ from ..dynamics.continuation import (
     continuation_sweep,
     hysteresis_band,
 )
-from ..dynamics.results import CSV_COLUMNS, csv_rows, fmt_value
+from ..dynamics.results import CSV_COLUMNS, append_rows, csv_rows, fmt_value
 
 __all__ = ["DIRECTION_CHOICES", "EXTRA_COLUMNS", "run_branches", "check_direction"]
 
@@ -79,13 +76,8 @@ def run_branches(model, speeds, direction: str, csv_path: str, progress: bool) -
     dirs = ("up", "down") if direction == "both" else (direction,)
     speeds = np.sort(np.asarray(speeds, dtype=float))
     branches = {d: continuation_sweep(model, speeds, d, progress=progress) for d in dirs}
-    new = not os.path.exists(csv_path) or os.path.getsize(csv_path) == 0
-    with open(csv_path, "a", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=CSV_COLUMNS + EXTRA_COLUMNS)
-        if new:
-            wr.writeheader()
-        for br in branches.values():
-            wr.writerows(_rows(br))
+    append_rows(csv_path, CSV_COLUMNS + EXTRA_COLUMNS,
+                [row for br in branches.values() for row in _rows(br)])
     out = {"direction": direction, "jump_threshold": JUMP_THRESHOLD,
            "jump_definition": ("neighbouring speeds of one sweep whose max mesh force differs "
                                "by more than jump_threshold times the smaller one")}

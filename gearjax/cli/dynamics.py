@@ -51,9 +51,11 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
     default_max_frequency_hz,
 )
 from ..dynamics import watchdog
+from ..dynamics.sweep import METHODS
 from ..excitation.te_file import read_te_csv
 from ..rigs.factory import TE_FILE_3D, build_model
 from ..rigs.figures import predicted_critical_speeds
+from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .scenario import add_nlte_reaction, nlte_reaction_of
 
 __all__ = ["register", "case_name", "summarise_sweep",
@@ -107,15 +109,13 @@ def register(sub, add_rig, add_scenario):
                          "(checked against its case.json), speeds already in results.csv skipped")
     sw.add_argument("--overwrite", action="store_true",
                     help="replace the results of an earlier run in the --out folder")
-    sw.add_argument("--method", default="auto",
-                    choices=["auto", "harmonic", "steady", "transient"],
+    sw.add_argument("--method", default="auto", choices=METHODS,
                     help="periodic steady-state solver: harmonic (frequency domain, te and "
                          "perturbation; speeds where the linear orbit loses contact or is not "
                          "proven stable go to the transient), steady (shooting), transient; "
                          "auto (default): harmonic for te/perturbation on the 3D model, "
                          "transient otherwise")
-    sw.add_argument("--direction", default="independent",
-                    choices=["independent", "up", "down", "both"],
+    sw.add_argument("--direction", default="independent", choices=DIRECTION_CHOICES,
                     help="independent (default, as before): every speed from the quasi-static "
                          "start; up/down/both: continuation, each speed started from its "
                          "neighbour's periodic orbit (shooting; --method not used), showing "
@@ -337,8 +337,6 @@ def cmd_sweep(args) -> int:
                         or args.num_processes is not None):
         raise ValueError("--resume: not with several processes (resume on one process, or "
                          "start a new --out folder)")
-    from .branches import check_direction, run_branches
-
     check_direction(args)
     lead = _init_distributed(args)
     speeds = _parse_speeds(args.speeds)

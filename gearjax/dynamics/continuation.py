@@ -64,11 +64,12 @@ import numpy as np
 from ..errors import SimulationError
 from . import watchdog
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
-from .simulate import PeriodicJumpController, default_solver, jump_density, simulate
+from .simulate import (default_solver, jump_controller, jump_density, simulate,
+                       transient_periods)
 from .steady import periodic_state
 
 __all__ = ["continuation_sweep", "BranchResult", "branch_jumps", "hysteresis_band",
-           "DIRECTIONS", "JUMP_THRESHOLD"]
+           "forces_differ", "DIRECTIONS", "JUMP_THRESHOLD"]
 
 DIRECTIONS = ("up", "down")
 JUMP_THRESHOLD = 0.2  # relative change of the max mesh force between neighbours (see above)
@@ -128,21 +129,13 @@ def _settle(model, omega, y_start, cfg):
     the slowest free mode, as simulate's automatic transient)."""
     c = dict(cfg)
     period = float(model.period_rad)
-    n_mesh = int(round(period / model.mesh_period_rad))
-    n_min = int(math.ceil(c["min_transient_mesh_periods"] / n_mesh))
-    n_max = max(n_min, int(math.ceil(c["max_transient_mesh_periods"] / n_mesh)))
-    rate = model.decay_rate_per_rad(omega)
-    n = jnp.ceil(math.log(1.0 / c["transient_decay"]) / (rate * period))
-    n = jnp.clip(jnp.nan_to_num(n, nan=n_max, posinf=n_max), n_min, n_max)
+    n = transient_periods(model, omega, c["transient_decay"], c["min_transient_mesh_periods"],
+                          c["max_transient_mesh_periods"])
     solver, rtol, atol = default_solver(model.formulation, jump_density(model))
-    ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.0, icoeff=1.0)
-    jumps = np.sort(np.asarray(model.jump_thetas, dtype=float))
-    if jumps.size:  # steps end at the speed-independent jumps, as in simulate
-        ctrl = PeriodicJumpController(ctrl, jnp.asarray(jumps), period)
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(lambda t, y, args: model.vector_field(t, y, args)), solver,
         t0=0.0, t1=n * period, dt0=None, y0=y_start, args=omega,
-        saveat=diffrax.SaveAt(t1=True), stepsize_controller=ctrl,
+        saveat=diffrax.SaveAt(t1=True), stepsize_controller=jump_controller(model, rtol, atol),
         max_steps=2_000_000, throw=False)
     return sol.ys[-1]
 
@@ -235,6 +228,12 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
                         stable=stable, restarted=restarted, y0=y0s, unstable_y0=uy0s, **extra)
 
 
+def forces_differ(f_a, f_b, threshold: float = JUMP_THRESHOLD):
+    """The jump criterion (module docstring): max mesh forces ``f_a``, ``f_b`` (N, arrays
+    broadcast) differing by more than ``threshold`` times the smaller one."""
+    return np.abs(np.asarray(f_b) - np.asarray(f_a)) > threshold * np.minimum(f_a, f_b)
+
+
 def branch_jumps(branch: BranchResult, threshold: float = JUMP_THRESHOLD) -> list[dict]:
     """Jumps of one branch, in the order the sweep met them: neighbouring speeds (in the
     sweep's direction) where the max mesh force changes by more than ``threshold`` times
@@ -252,7 +251,7 @@ def branch_jumps(branch: BranchResult, threshold: float = JUMP_THRESHOLD) -> lis
         fa, fb = f[a], f[b]
         if not (np.isfinite(fa) and np.isfinite(fb)):
             continue
-        if abs(fb - fa) > threshold * min(fa, fb):
+        if forces_differ(fa, fb, threshold):
             jumps.append({"from_rad_s": float(w[a]), "to_rad_s": float(w[b]),
                           "max_mesh_force_before_N": float(fa),
                           "max_mesh_force_after_N": float(fb),
@@ -274,7 +273,7 @@ def hysteresis_band(up: BranchResult, down: BranchResult,
     fu = np.asarray(up.max_mesh_force_N, float)[iu]
     fd = np.asarray(down.max_mesh_force_N, float)[idn]
     both = np.asarray(up.stable, bool)[iu] & np.asarray(down.stable, bool)[idn]
-    differ = both & (np.abs(fu - fd) > threshold * np.minimum(fu, fd))
+    differ = both & forces_differ(fu, fd, threshold)
     if not differ.any():
         return None
     return [float(wu[iu][differ].min()), float(wu[iu][differ].max())]

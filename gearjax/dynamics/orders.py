@@ -41,11 +41,9 @@ import numpy as np
 
 from .metrics import JUMP_SIDE, output_grid
 
-__all__ = ["N_MESH_ORDERS", "ORDER_QUANTITIES", "order_matrix", "mesh_order_amplitudes"]
+__all__ = ["N_MESH_ORDERS", "order_matrix", "mesh_order_amplitudes"]
 
 N_MESH_ORDERS = 5  # mesh orders 1..5 are reported
-# (signal, unit suffix) of the order amplitudes, in the column order of the model outputs
-ORDER_QUANTITIES = (("force", "N"), ("dte", "m"), ("accel", "m_s2"))
 
 
 def _merged_jumps(jump_thetas, period: float):

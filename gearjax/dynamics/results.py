@@ -6,7 +6,9 @@ sweeps), :mod:`gearjax.dynamics.steady` (periodic steady-state sweeps) and
 
 from __future__ import annotations
 
+import csv
 import math
+import os
 
 import equinox as eqx
 import numpy as np
@@ -14,7 +16,7 @@ import numpy as np
 from .orders import N_MESH_ORDERS
 
 __all__ = ["SweepResult", "CSV_COLUMNS", "METRIC_FIELDS", "ORDER_FIELDS", "ORDER_COLUMNS",
-           "csv_rows", "order_rows", "empty_metrics"]
+           "csv_rows", "order_rows", "empty_metrics", "append_rows"]
 
 CSV_COLUMNS = (
     "speed_rad_s",
@@ -134,3 +136,15 @@ def order_rows(res, sl=slice(None)):
         row["converged"] = str(bool(np.asarray(res.converged)[sl][i]))
         out.append(row)
     return out
+
+
+def append_rows(path, columns, rows) -> None:
+    """Append ``rows`` (dicts keyed by ``columns``) to the CSV file ``path``, its header
+    first when the file is new or empty (``results.csv``, ``orders.csv``: rows are written
+    as speeds finish, so an interrupted sweep keeps them)."""
+    new = not os.path.exists(path) or os.path.getsize(path) == 0
+    with open(path, "a", newline="") as fh:
+        wr = csv.DictWriter(fh, fieldnames=columns)
+        if new:
+            wr.writeheader()
+        wr.writerows(rows)

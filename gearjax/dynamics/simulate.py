@@ -77,6 +77,8 @@ __all__ = [
     "SimulationError",
     "PeriodicJumpController",
     "jump_density",
+    "jump_controller",
+    "transient_periods",
     "transient_start",
 ]
 
@@ -255,12 +257,28 @@ class PeriodicJumpController(diffrax.AbstractAdaptiveStepSizeController):
         return keep, next_t0, next_t1, made_jump | jump1 | jump2, inner, result
 
 
-def _controller(rtol, atol, jumps=None, period=None):
+def jump_controller(model, rtol, atol):
+    """The step-size controller of every integration in theta (simulate, shooting,
+    continuation): integral-only PID at ``rtol``/``atol``, whose steps end at the model's
+    speed-independent jump angles (:class:`PeriodicJumpController`) where it has any."""
     pid = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.0, icoeff=1.0)
-    if jumps is None or len(jumps) == 0:
+    jumps = np.asarray(model.jump_thetas, dtype=float)
+    if jumps.size == 0:
         return pid
-    return PeriodicJumpController(pid, jnp.asarray(np.sort(np.asarray(jumps, dtype=float))),
-                                  float(period))
+    return PeriodicJumpController(pid, jnp.asarray(np.sort(jumps)), float(model.period_rad))
+
+
+def transient_periods(model, omega, transient_decay: float, min_transient_mesh_periods: int,
+                      max_transient_mesh_periods: int):
+    """Excitation periods of the automatic transient (module docstring): until the
+    slowest free mode of the linearised model decays by ``transient_decay``, clipped to
+    ``[min, max]_transient_mesh_periods`` (the maximum where the model is undamped)."""
+    period = float(model.period_rad)
+    n_mesh = int(round(period / model.mesh_period_rad))
+    n_min = int(math.ceil(min_transient_mesh_periods / n_mesh))
+    n_max = max(n_min, int(math.ceil(max_transient_mesh_periods / n_mesh)))
+    n = jnp.ceil(math.log(1.0 / transient_decay) / (model.decay_rate_per_rad(omega) * period))
+    return jnp.clip(jnp.nan_to_num(n, nan=n_max, posinf=n_max), n_min, n_max)
 
 
 def transient_start(model, omega):
@@ -358,20 +376,17 @@ def simulate(
     # ---------------------------------------------------------------- one solve
     rate = model.decay_rate_per_rad(omega)
     if n_transient_periods is None:
-        n_min = int(math.ceil(min_transient_mesh_periods / n_mesh))
-        n_max = max(n_min, int(math.ceil(max_transient_mesh_periods / n_mesh)))
-        n_auto = jnp.ceil(math.log(1.0 / transient_decay) / (rate * period))
-        n_tr = jnp.clip(jnp.nan_to_num(n_auto, nan=n_max, posinf=n_max), n_min, n_max)
+        n_tr = transient_periods(model, omega, transient_decay, min_transient_mesh_periods,
+                                 max_transient_mesh_periods)
     else:
-        n_max = int(n_transient_periods)
-        n_tr = jnp.asarray(float(n_max))
+        n_tr = jnp.asarray(float(n_transient_periods))
     t_tr = n_tr * period
     t_end = t_tr + n_measured_periods * period
     # output grid: mid-cell samples (never on an engagement angle) plus both sides of
     # every jump, per measured period (gearjax.dynamics.metrics)
     grid = output_grid(period, n_samples, jumps, n_measured_periods)
     ts = t_tr + jnp.asarray(grid.offsets)
-    ctrl = _controller(rtol, atol, jumps, period)
+    ctrl = jump_controller(model, rtol, atol)
     if start not in ("auto", "initial"):
         raise SimulationError("start", start, 'must be "auto" or "initial"')
     if y0 is None:

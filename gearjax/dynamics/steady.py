@@ -73,7 +73,7 @@ import numpy as np
 
 from . import watchdog
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
-from .simulate import PeriodicJumpController, SimulationError, SimulationResult, simulate
+from .simulate import SimulationError, SimulationResult, jump_controller, simulate
 
 __all__ = [
     "periodic_state",
@@ -144,14 +144,6 @@ def spectral_radius_of(phi, squarings: int = 40):
     return jnp.exp(acc + w * jnp.log(jnp.maximum(s, 1e-300)))
 
 
-def _controller(model, rtol, atol):
-    pid = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.0, icoeff=1.0)
-    jumps = np.asarray(model.jump_thetas, dtype=float)
-    if jumps.size == 0:
-        return pid
-    return PeriodicJumpController(pid, jnp.asarray(np.sort(jumps)), float(model.period_rad))
-
-
 def _one_period(model, omega, y_start, solver, rtol, atol, max_steps):
     """(y(P), Phi(P), ok, steps): the state and the monodromy matrix of the linearised
     flow after one excitation period from ``y_start`` (one diffeqsolve)."""
@@ -165,7 +157,7 @@ def _one_period(model, omega, y_start, solver, rtol, atol, max_steps):
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(vf), solver, t0=0.0, t1=float(model.period_rad), dt0=None,
         y0=(y_start, jnp.eye(n, dtype=y_start.dtype)), args=omega,
-        saveat=diffrax.SaveAt(t1=True), stepsize_controller=_controller(model, rtol, atol),
+        saveat=diffrax.SaveAt(t1=True), stepsize_controller=jump_controller(model, rtol, atol),
         max_steps=max_steps, adjoint=diffrax.ForwardMode(), throw=False,
     )
     y_p, phi = sol.ys[0][-1], sol.ys[1][-1]

@@ -23,7 +23,6 @@
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 import sys
@@ -36,7 +35,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import watchdog
-from .results import CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, empty_metrics
+from .results import (CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, append_rows,
+                      empty_metrics)
 from .simulate import SimulationError, SimulationResult, simulate
 
 __all__ = ["sweep", "SweepResult", "CSV_COLUMNS"]
@@ -212,9 +212,6 @@ def sweep(
     results = empty_metrics(total)
     if not lead:
         out_csv, orders_csv, progress = None, None, False
-    write_header = out_csv is not None and (
-        not os.path.exists(out_csv) or os.path.getsize(out_csv) == 0
-    )
     t_start = time.perf_counter()
     n_done = 0
     for c in range(n_chunks):
@@ -238,16 +235,12 @@ def sweep(
         for j, i in enumerate(sel):
             first.setdefault(int(i), c * chunk + j)
         real_rows = sorted(first.values(), key=lambda k: padded_idx[k])
-        if orders_csv is not None:
-            _append(orders_csv, ORDER_COLUMNS, _gather(results, formulation, real_rows).order_rows())
-        if out_csv is not None:
+        if out_csv is not None or orders_csv is not None:
             chunk_res = _gather(results, formulation, real_rows)
-            with open(out_csv, "a", newline="") as fh:
-                wr = csv.DictWriter(fh, fieldnames=CSV_COLUMNS)
-                if write_header:
-                    wr.writeheader()
-                    write_header = False
-                wr.writerows(chunk_res.rows())
+            if orders_csv is not None:  # before results.csv, which --resume reads
+                append_rows(orders_csv, ORDER_COLUMNS, chunk_res.order_rows())
+            if out_csv is not None:
+                append_rows(out_csv, CSV_COLUMNS, chunk_res.rows())
         if progress:
             n_done += len(first)
             conv = np.asarray(out[METRIC_FIELDS.index("converged")], dtype=bool)
@@ -305,16 +298,6 @@ def auto_method(model) -> str:
     return "transient"
 
 
-def _append(path, columns, rows):
-    """Append ``rows`` to the CSV file ``path`` (a header first when it is new or empty)."""
-    new = not os.path.exists(path) or os.path.getsize(path) == 0
-    with open(path, "a", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=columns)
-        if new:
-            wr.writeheader()
-        wr.writerows(rows)
-
-
 def _write_csv(paths, res, speeds):
     """Rows of ``res`` in speed order: ``results.csv`` and ``orders.csv`` (``paths``, each
     may be None)."""
@@ -322,10 +305,10 @@ def _write_csv(paths, res, speeds):
     order = np.argsort(speeds, kind="stable")
     if orders_csv is not None:
         rows = res.order_rows()
-        _append(orders_csv, ORDER_COLUMNS, [rows[i] for i in order])
+        append_rows(orders_csv, ORDER_COLUMNS, [rows[i] for i in order])
     if out_csv is not None:
         rows = res.rows()
-        _append(out_csv, CSV_COLUMNS, [rows[i] for i in order])
+        append_rows(out_csv, CSV_COLUMNS, [rows[i] for i in order])
 
 
 def _harmonic(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs):
@@ -336,8 +319,7 @@ def _harmonic(model, speeds, chunk_size, progress, out_csv, devices, simulate_kw
                               'process; use method="transient" to shard over devices or hosts')
     t0 = time.perf_counter()
     hb = harmonic_sweep(model, speeds, floquet=model.state_size <= HARMONIC_FLOQUET_MAX_STATES)
-    keep = (hb.solver_ok & hb.converged & hb.contact_holds & hb.stable
-            & hb.stability_known)
+    keep = hb.converged & hb.contact_holds & hb.stable & hb.stability_known  # converged: ok
     fields = {f: np.array(getattr(hb, f), copy=True) for f in METRIC_FIELDS}
     fields["contact_loss"] = np.zeros(speeds.size, dtype=bool)
     method = np.where(keep, "harmonic", "transient")

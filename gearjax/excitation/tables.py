@@ -15,7 +15,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["PeriodicHermiteTable", "AngleMap"]
+__all__ = ["PeriodicHermiteTable", "AngleMap", "hermite_segment"]
+
+
+def hermite_segment(v0, v1, d0, d1, u, w):
+    """(value, d/dtheta) of the cubic Hermite segment of width ``w`` (rad) with end values
+    ``v0, v1`` and end slopes times the width ``d0, d1``, at the fraction ``u`` in [0, 1]
+    of the segment (NumPy or JAX arrays, broadcast)."""
+    u2, u3 = u * u, u * u * u
+    val = (2 * u3 - 3 * u2 + 1) * v0 + (u3 - 2 * u2 + u) * d0 + (-2 * u3 + 3 * u2) * v1 + (u3 - u2) * d1
+    der = ((6 * u2 - 6 * u) * v0 + (3 * u2 - 4 * u + 1) * d0 + (-6 * u2 + 6 * u) * v1 + (3 * u2 - 2 * u) * d1) / w
+    return val, der
 
 
 class PeriodicHermiteTable(eqx.Module):
@@ -76,12 +86,8 @@ class PeriodicHermiteTable(eqx.Module):
         t0, t1 = self.knots[j], self.knots[j + 1]
         w = jnp.maximum(t1 - t0, 1e-300)
         u = jnp.clip((s - t0) / w, 0.0, 1.0)
-        v0, v1 = self.values[j], self.values[j + 1]
-        d0, d1 = self.slopes[j] * w, self.slopes[j + 1] * w
-        u2, u3 = u * u, u * u * u
-        val = (2 * u3 - 3 * u2 + 1) * v0 + (u3 - 2 * u2 + u) * d0 + (-2 * u3 + 3 * u2) * v1 + (u3 - u2) * d1
-        der = ((6 * u2 - 6 * u) * v0 + (3 * u2 - 4 * u + 1) * d0 + (-6 * u2 + 6 * u) * v1 + (3 * u2 - 2 * u) * d1) / w
-        return val, der
+        return hermite_segment(self.values[j], self.values[j + 1], self.slopes[j] * w,
+                               self.slopes[j + 1] * w, u, w)
 
     def mean(self):
         """Exact mean over one period of the Hermite interpolant, (q,)."""

@@ -50,7 +50,7 @@ import numpy as np
 
 from ..errors import GearjaxError, ModelError
 from .events import EV_FIXED, quiet_origin
-from .tables import PeriodicHermiteTable
+from .tables import PeriodicHermiteTable, hermite_segment
 
 __all__ = ["TETable", "read_te_csv", "excitation_table", "te_model_fields", "with_jump_rows",
            "ANGLE_COLUMNS"]
@@ -284,12 +284,7 @@ def _hermite(knots, values, slopes, theta):
     w = np.maximum(t1 - t0, 1e-300)
     u = np.clip((s - t0) / w, 0.0, 1.0)[:, None]
     w = w[:, None]
-    v0, v1, d0, d1 = values[j], values[j + 1], slopes[j] * w, slopes[j + 1] * w
-    u2, u3 = u * u, u * u * u
-    val = (2 * u3 - 3 * u2 + 1) * v0 + (u3 - 2 * u2 + u) * d0 + (-2 * u3 + 3 * u2) * v1 + (u3 - u2) * d1
-    der = ((6 * u2 - 6 * u) * v0 + (3 * u2 - 4 * u + 1) * d0 + (-6 * u2 + 6 * u) * v1
-           + (3 * u2 - 2 * u) * d1) / w
-    return val, der
+    return hermite_segment(values[j], values[j + 1], slopes[j] * w, slopes[j + 1] * w, u, w)
 
 
 def read_te_csv(path, mesh_period_rad: float) -> TETable:
