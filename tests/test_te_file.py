@@ -109,15 +109,14 @@ def test_bad_te_file_is_one_line_naming_column_and_row(tmp_path, capsys, header,
         assert w in err, (w, err)
 
 
-def test_te_file_refuses_reference_and_3d(tmp_path, capsys):
+def test_te_file_refuses_the_reference_formulation(tmp_path, capsys):
     path = _write(tmp_path / "ok.csv", ["mesh_cycle_fraction", "te_s_m"],
                   [(i / 8, 1e-5) for i in range(8)])
-    for extra in (["--model", "torsional", "--formulations", "reference,te"], []):
-        code = main(["sweep", "--te-file", path, "--speeds", "100:200:2",
-                     "--out", str(tmp_path / "o"), *extra])
+    for model in ("torsional", "3d"):
+        code = main(["sweep", "--te-file", path, "--speeds", "100:200:2", "--model", model,
+                     "--formulations", "reference,te", "--out", str(tmp_path / "o")])
         err = capsys.readouterr().err.strip()
-        assert code == 2 and len(err.splitlines()) == 1
-        assert ("reference formulation" in err) if extra else ("--model torsional" in err)
+        assert code == 2 and len(err.splitlines()) == 1 and "reference formulation" in err
     with pytest.raises(GearjaxError, match="micrometres"):
         TETable.from_samples([0, 1, 2, 3], [1e-2] * 4, mesh_period_rad=4.0)
 
@@ -178,3 +177,120 @@ def test_quasistatic_csv_as_te_file_gives_the_same_sweep(tmp_path, capsys):
     for ra, rb in zip(*res):
         for key in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m"):
             assert float(rb[key]) == pytest.approx(float(ra[key]), rel=1e-9), key
+
+
+def test_3d_model_driven_by_its_own_te_as_a_file_is_the_same_model():
+    """3D round trip (Eqs. (42) and (36)-(41)): the te model's own TE_S at its encoders
+    (``d + NLTE + w_x0``), NLTE and loaded stiffness written as file rows (both sides of
+    every jump) and read back drive a model with the same excitation ``d, k, NLTE`` and the
+    same vector field (same k_m given: the modal basis depends on it); by default k_m is
+    the exact mean of the file's stiffness, which the trapezoidal mean of a dense sample
+    of the file's rows approaches. Tooth modifications cannot change a file's excitation."""
+    import equinox as eqx
+
+    from gearjax.models.geared3d_excitation import file_mean_stiffness
+
+    rig = get_rig("baud-velex-spur")
+    mods = table1_relief("long")
+    own = build_model(rig, mods, model="3d", formulation="te", max_frequency_hz=3000.0)
+    v = np.asarray(own.table.values)
+    at_encoders = eqx.tree_at(lambda t: t.values, own.table, jnp.asarray(
+        np.column_stack([v[:, 0] + float(own.w_x0), v[:, 1], v[:, 2]])))  # (TE_S - NLTE, k, NLTE)
+    th = np.arange(256) * (MESH / 256)
+    s = np.asarray(jax.vmap(at_encoders)(jnp.asarray(th))[0])
+    grid = np.column_stack([s[:, 0] + s[:, 2], s[:, 2], s[:, 1]])  # TE_S, NLTE, k
+    t, rows = with_jump_rows(th, grid, at_encoders, own.table_side, own.jump_thetas, MESH)
+    te = TETable.from_samples(t, rows[:, 0], rows[:, 1], rows[:, 2], mesh_period_rad=MESH)
+    fed = build_model(rig, mods, model="3d", formulation="te", max_frequency_hz=3000.0,
+                      te_table=te, mean_stiffness_N_per_m=float(own.k_m))
+    assert fed.nlte_terms and fed.te_source == "arrays" and fed.angle_map is None
+    x = jnp.asarray(np.random.default_rng(3).uniform(0, 2 * MESH, 1000))
+    a = np.asarray(jax.vmap(own.table)(x)[0])
+    b = np.asarray(jax.vmap(fed.table)(x)[0])
+    assert np.all(np.max(np.abs(b - a), axis=0) <= 1e-10 * np.max(np.abs(a), axis=0))
+    rng = np.random.default_rng(1)
+    y = jnp.asarray(0.1 * rng.normal(size=(50, own.state_size)))
+    sim = jnp.asarray(rng.uniform(0, MESH, 50))
+    f_own = jax.vmap(lambda s, y: own.vector_field(s, y, 500.0))(sim, y)
+    f_fed = jax.vmap(lambda s, y: fed.vector_field(s, y, 500.0))(sim, y)
+    assert float(jnp.max(jnp.abs(f_fed - f_own))) <= 1e-10 * float(jnp.max(jnp.abs(f_own)))
+    def wrapped(t):  # angles in [0, MESH), the period's end as its start
+        t = np.mod(np.asarray(t), MESH)
+        return np.sort(np.where(t > MESH - 1e-12, 0.0, t))
+
+    np.testing.assert_allclose(wrapped(fed.jump_thetas), wrapped(own.jump_thetas), rtol=0, atol=1e-12)
+    dense = np.linspace(0, MESH, 200001)  # the default k_m: the file's exact mean
+    k_dense = np.asarray(te(dense)[0])[:, 2]
+    assert file_mean_stiffness(te) == pytest.approx(np.trapezoid(k_dense, dense) / MESH, rel=1e-6)
+    with pytest.raises(GearjaxError, match="TE file"):
+        fed.with_modifications(mods)
+
+
+def _sine_file(k0=7.7e8, a=1e-6, n=256):
+    theta = np.arange(n) * (MESH / n)
+    return TETable.from_samples(theta, 12e-6 + a * np.sin(Z1 * theta),
+                                stiffness_N_per_m=np.full(theta.size, k0), mesh_period_rad=MESH)
+
+
+def _modal_order1(model, omega, k0, a):
+    """(DTE, force) order-1 amplitudes of Eq. (48a) under a sine TE_S (closed form)."""
+    kr, cr = np.asarray(model.kbar_r), np.asarray(model.c_r)
+    vr, wr, cb = np.asarray(model.v_r), np.asarray(model.w_r), model.cos_bb
+    w = Z1 * omega
+    q1 = np.linalg.solve(kr - w**2 * np.eye(len(vr)) + 1j * w * cr, vr * k0 * cb * a)
+    return abs(wr @ q1), k0 * abs(vr @ q1 - cb * a)
+
+
+def test_3d_pure_sine_te_file_against_the_closed_form_modal_receptance():
+    """A pure sine TE_S = a sin(z1 theta) with a constant stiffness k0 makes Eq. (48a) of
+    the 3D model linear time-invariant: ``Omega^2 X'' + Omega C X' + K_bar X = F_0 +
+    k0 cos b_b (TE_S - w_x0) V``, so in the modal basis (``M_r = I``) the order-1 response
+    is ``q_1 = (K_r - (z1 Omega)^2 I + i z1 Omega C_r)^-1 v_r k0 cos b_b a``, DTE order 1
+    ``|w_r^T q_1|`` and force order 1 ``k0 |v_r^T q_1 - cos b_b a|`` (Eq. (41)); orders 2-5
+    vanish. In the quasi-static limit the DTE is the file's TE_S (C_wv k0 cos b_b = 1,
+    Eq. (35)). Below and at the tooth critical speed, damping 0.1 (contact holds); the file's
+    Hermite interpolation (256 rows) is O(h^4) ~ 1e-9, the transient's rtol ~1e-6 sets the
+    tolerance."""
+    from gearjax.dynamics.sweep import sweep
+
+    rig = get_rig("baud-velex-spur")
+    k0, a = 7.7e8, 1e-6
+    model = build_model(rig, None, model="3d", formulation="perturbation", damping_ratio=0.1,
+                        max_frequency_hz=3000.0, te_table=_sine_file(k0, a))
+    assert not model.nlte_terms and float(model.k_m) == pytest.approx(k0, rel=1e-12)
+    assert float(model.c_wv) * k0 * model.cos_bb == pytest.approx(1.0, rel=1e-9)  # Eq. (35)
+    speeds = np.array([300.0, 860.0])  # 860 rad/s: the main job's tooth critical speed
+    res = sweep(model, speeds, progress=False)
+    assert np.all(res.converged) and not np.any(res.contact_loss)
+    for i, omega in enumerate(speeds):
+        dte, force = _modal_order1(model, omega, k0, a)
+        np.testing.assert_allclose(res.dte_orders_m[i], [dte, 0, 0, 0, 0], rtol=0, atol=1e-5 * dte)
+        np.testing.assert_allclose(res.mesh_force_orders_N[i], [force, 0, 0, 0, 0], rtol=0,
+                                   atol=1e-5 * k0 * model.cos_bb * dte)
+    assert res.dte_orders_m[1, 0] > 1.5 * a  # at the critical speed: amplified
+
+
+@pytest.mark.slow
+def test_3d_sweep_with_te_file_from_the_command_line(tmp_path, capsys):
+    """`gearjax sweep --model 3d --te-file`: the sine file of the closed-form test through
+    the command line (perturbation, 2 speeds) writes the closed-form order-1 DTE to
+    orders.csv and records the file in summary.json."""
+    import json
+
+    k0, a = 7.7e8, 1e-6
+    te = _sine_file(k0, a)
+    path = _write(tmp_path / "sine.csv", ["pinion_angle_rad", "te_s_m", "mesh_stiffness_N_per_m"],
+                  [(float(t), float(v[0]), float(v[2])) for t, v in zip(te.knots[:-1], te.values[:-1])])
+    out = tmp_path / "o"
+    assert main(["sweep", "--model", "3d", "--te-file", path, "--formulations", "perturbation",
+                 "--speeds", "300:860:2", "--max-frequency", "3000", "--out", str(out),
+                 "--json"]) == 0
+    capsys.readouterr()
+    model = build_model(get_rig("baud-velex-spur"), None, model="3d", formulation="perturbation",
+                        damping_ratio=0.1, max_frequency_hz=3000.0, te_table=read_te_csv(path, MESH))
+    rows = list(csv.DictReader(open(out / "orders.csv")))
+    assert len(rows) == 2
+    for row in rows:
+        dte, _ = _modal_order1(model, float(row["speed_rad_s"]), k0, a)
+        assert float(row["order1_dte_m"]) == pytest.approx(dte, rel=1e-5)
+    assert json.load(open(out / "summary.json"))["te_file"].endswith("sine.csv")

@@ -53,7 +53,7 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
 from ..dynamics import watchdog
 from ..dynamics.sweep import METHODS
 from ..excitation.te_file import read_te_csv
-from ..rigs.factory import TE_FILE_3D, build_model
+from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .scenario import add_nlte_reaction, nlte_reaction_of
@@ -165,10 +165,10 @@ def _add_dynamics(p: argparse.ArgumentParser):
                         "TE_S instead of TE_S - NLTE in the forcing of Eqs. (42), (48a) "
                         "(Section 6.3.2, Fig. 10 'with NLTE = 0')")
     p.add_argument("--te-file", default=None, metavar="FILE.csv",
-                   help="torsional model, te/perturbation: TE_S, NLTE and mesh stiffness from a "
-                        "CSV file (columns mesh_cycle_fraction or pinion_angle_rad, te_s_m, "
-                        "optional nlte_m, mesh_stiffness_N_per_m; paper Section 6.2) instead "
-                        "of the quasi-static solve")
+                   help="te/perturbation: TE_S, NLTE and mesh stiffness from a CSV file "
+                        "(columns mesh_cycle_fraction or pinion_angle_rad, te_s_m, optional "
+                        "nlte_m, mesh_stiffness_N_per_m; paper Section 6.2) instead of the "
+                        "quasi-static solve; 3d: TE_S as measured at --encoders")
     p.add_argument("--max-frequency", type=float, default=None, metavar="HZ",
                    help="3d: keep the modes below HZ plus static correction (0: all modes; "
                         "default: 3 mesh harmonics of the highest speed x 1.5, at least "
@@ -314,13 +314,11 @@ def _check_modes(args, model, cutoff_hz) -> None:
 
 
 def _check_te_file(args, forms) -> None:
-    """--te-file drives te/perturbation of the torsional model only (Section 6.2)."""
+    """--te-file drives the te/perturbation formulations only (Section 6.2)."""
     if not args.te_file:
         return
-    if args.model != "torsional":
-        raise ValueError(f"--te-file={args.te_file}: {TE_FILE_3D}")
     if "reference" in forms:
-        raise ValueError(f"--te-file={args.te_file}: the reference formulation (Eq. (16): a "
+        raise ValueError(f"--te-file={args.te_file}: the reference formulation (Eqs. (14), (16): a "
                          "gap per contact cell) cannot use a TE file; choose --formulations "
                          "te,perturbation (the default with --te-file)")
 

@@ -29,20 +29,8 @@ the TE projection vector (Rb1, Rb2 at the encoder torsional dofs, Eq. (10)),
 Quasi-static solution and excitation (Eqs. (25), (36)): the structure is condensed onto the
 12 pinion-gear dofs and solved with unilateral contact
 (:mod:`gearjax.structure.condensation`); te/perturbation tabulate ``(TE_S - NLTE - w_x0,
-k(theta), NLTE)`` once per design on a jump-aware periodic Hermite table
-(:mod:`gearjax.excitation.mesh3d`), exact at the jumps of ``k`` and the kinks of ``TE_S``
-and NLTE; ``excitation="inline"`` solves the contact at every right-hand side instead.
-
-Design derivatives (moving events): the angles where ``k`` jumps, NLTE' jumps or ``TE_S``
-kinks move with the tip relief. The tabulated formulations record every event at build
-(:attr:`event_thetas`, :attr:`event_kinds`, :attr:`event_cells`), move them by Newton on
-their switching functions (:meth:`jump_angles_rad`) and integrate in the simulation angle
-``s`` with ``theta = phi(s)`` (:class:`gearjax.excitation.tables.AngleMap`, the identity at
-the build design): :meth:`vector_field` is ``phi'(s) dy/dtheta``. The model is complete
-when built; :meth:`with_modifications` gives the model of another design (table, map and
-:attr:`structure_ok`, whether the design keeps the build's discrete quasi-static state,
-recomputed; traceable). ``k_m`` stays the build value (exact for te, held fixed in the
-perturbation derivative). The reference formulation has no table and no map.
+k(theta), NLTE)`` once per design, with the switching angles moving with the design, or
+take TE_S, NLTE and k from a TE file (:mod:`gearjax.models.geared3d_excitation`).
 
 Inertial excitations (text after Eq. (14)): ``E`` (Eq. (5), :meth:`gearjax.structure.geared.
 GearedStructure.inertial_vector`) plus the eccentricity parts ``E~``, ``F~``, ``G~``
@@ -82,9 +70,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ModelError
-from ..excitation.events import distinct_angles
 from ..excitation.mesh3d import (QuasiStaticMesh3D, fourier_coefficients, harmonic_response,
-                                 jump_angles, table_layout, tabulate)
+                                 tabulate)
+from ..excitation.te_file import TETable
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
@@ -95,6 +83,7 @@ from ..structure.element import PinionGearElement
 from ..structure.geared import Eccentricity, disc_mass, geared_structure
 from .base import (FORMULATIONS, AbstractGearModel, ModelOutputs, modal_slowest_output_mode,
                    modal_transient_start)
+from .geared3d_excitation import file_mean_stiffness, own_table_fields, te_file_fields
 from .cutoff import (CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS,  # re-exported
                      default_max_frequency_hz)
 
@@ -133,7 +122,8 @@ class Geared3DModel(AbstractGearModel):
     Static attributes: formulation, mesh_vectors, nlte_terms, n_modes, n_static,
     period_rad, jump_thetas, decay_omega_rad_s (slowest mode with a mesh participation
     above ``participation_tol``), qs_max_iter, table_origin, table_cells,
-    table_max_extra, excitation, harmonic_start, event_thetas, event_kinds, event_cells.
+    table_max_extra, excitation, harmonic_start, event_thetas, event_kinds, event_cells,
+    te_source (the TE file driving the excitation, or None).
     """
 
     mesh: Mesh
@@ -181,6 +171,7 @@ class Geared3DModel(AbstractGearModel):
     event_thetas: tuple = eqx.field(static=True)
     event_kinds: tuple = eqx.field(static=True)
     event_cells: tuple = eqx.field(static=True)
+    te_source: str | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if self.formulation not in FORMULATIONS:
@@ -220,6 +211,7 @@ class Geared3DModel(AbstractGearModel):
         qs_max_iter: int = 30,
         excitation: str = "table",
         harmonic_start: bool = False,
+        te_table: TETable | None = None,
     ) -> "Geared3DModel":
         """Build a complete 3D model (outside ``jit``: checks, modal basis, k_m, jump and
         event angles, excitation table).
@@ -264,6 +256,10 @@ class Geared3DModel(AbstractGearModel):
             right-hand side (slow with ``"cells"`` vectors; kept to check the table).
         harmonic_start : perturbation without NLTE/eccentricity terms: start exactly on the
             periodic steady state (:meth:`harmonic_state`, see :attr:`periodic_start`).
+        te_table : te/perturbation: TE_S, NLTE and (if given) k from a TE file (Section 6.2,
+            :mod:`gearjax.models.geared3d_excitation`); its mean stiffness is k_m unless
+            ``mean_stiffness_N_per_m`` is given; ``nlte_terms`` None: kept iff its NLTE is
+            not identically 0.
 
         Raises
         ------
@@ -307,11 +303,19 @@ class Geared3DModel(AbstractGearModel):
             bad = theta_tab[~np.asarray(qs.converged)]
             raise ModelError("qs_max_iter", qs_max_iter, f"active set did not converge at theta={bad[:3]}")
         k_m = float(np.mean(np.asarray(qs.loaded_stiffness_N_per_m)))
+        if te_table is not None:
+            if formulation == "reference" or excitation != "table":
+                raise ModelError("te_table", te_table.source, "a TE file drives te or perturbation"
+                                 " with excitation='table', not the reference formulation "
+                                 "(Eq. (14): a gap per cell)")
+            k_m = file_mean_stiffness(te_table) or k_m
         if mean_stiffness_N_per_m is not None:
             k_m = float(mean_stiffness_N_per_m)
             if not (math.isfinite(k_m) and k_m > 0):
                 raise ModelError("mean_stiffness_N_per_m", mean_stiffness_N_per_m, "must be finite and > 0")
         nlte_tab = np.asarray(qs.nlte_m)
+        if te_table is not None:
+            nlte_tab = np.asarray(te_table.values[:, 1])
         if nlte_terms is None:
             nlte_terms = bool(np.max(np.abs(nlte_tab - 0.0)) > 0.0)
         cond = Condensation.build(K, F0, W, gs.element_dofs, keep12, k_m=k_m, v_local=v12)
@@ -342,21 +346,11 @@ class Geared3DModel(AbstractGearModel):
             loaded_codes=formulation != "reference")
 
         # speed-independent RHS jumps (te/perturbation: + table events: NLTE' jumps at zone kinks)
-        jumps = jump_angles(qsm, theta_tab, period)
-        layout = dict(table_knots=None, table_cell_first=None, table_side=None, table_codes=None,
-                      table=None, angle_map=None, structure_ok=jnp.asarray(True), table_origin=0.0,
-                      table_cells=0, table_max_extra=1, event_thetas=(), event_kinds=(), event_cells=())
-        if formulation != "reference" and excitation == "table":
-            lay = table_layout(qsm, theta_tab, period, jumps)
-            jumps = distinct_angles(np.concatenate([jumps, lay.event_thetas]), period)
-            ev = dict(event_thetas=lay.event_thetas, event_kinds=lay.event_kinds, event_cells=lay.event_cells)
-            table, amap, ok = _tabulate(
-                qsm, lay.knots, lay.side, lay.cell_first, origin=lay.origin, period=float(period),
-                n_cells=lay.n_cells, max_extra=lay.max_extra, table_codes=lay.codes, **ev)
-            layout = dict(table_knots=lay.knots, table_cell_first=lay.cell_first,
-                          table_side=lay.side, table_codes=lay.codes, table=table,
-                          angle_map=amap, structure_ok=ok, table_origin=lay.origin,
-                          table_cells=lay.n_cells, table_max_extra=lay.max_extra, **ev)
+        tabulated = formulation != "reference" and excitation == "table"
+        jumps, layout = own_table_fields(qsm, theta_tab, period, tabulated)
+        if te_table is not None:
+            jumps, layout, period = te_file_fields(te_table, layout, jumps, red.w_r @ red.q0,
+                                                   nlte_terms)
 
         return cls(
             mesh=mesh, mods=mods, element=el,
@@ -370,7 +364,8 @@ class Geared3DModel(AbstractGearModel):
             n_modes=int(red.n_modes), n_static=int(red.n_static), period_rad=float(period),
             jump_thetas=tuple(float(t) for t in jumps), decay_omega_rad_s=decay_omega,
             qs_max_iter=int(qs_max_iter), excitation=excitation,
-            harmonic_start=bool(harmonic_start), **layout,
+            harmonic_start=bool(harmonic_start),
+            te_source=None if te_table is None else te_table.source, **layout,
         )
 
     # ------------------------------------------------------------------ constants
@@ -429,6 +424,9 @@ class Geared3DModel(AbstractGearModel):
         """The complete model of the design ``mods`` (same structure, modal basis, ``k_m``
         and build layout): excitation table, angle map through the moved events and
         :attr:`structure_ok` recomputed. Traceable (jit, jacfwd) in ``mods``."""
+        if self.te_source is not None:
+            raise ModelError("te_source", self.te_source, "the excitation comes from a TE file; "
+                             "tooth modifications cannot change it (build the model without it)")
         m = eqx.tree_at(lambda m: m.mods, self, mods)
         if m.table_knots is None:
             return m
@@ -696,5 +694,3 @@ class Geared3DModel(AbstractGearModel):
         share = jnp.where(w > 0, v**2 / jnp.where(w > 0, w, 1.0) ** 2, 0.0)
         return w[jnp.argmax(share)]
 
-
-_tabulate = eqx.filter_jit(tabulate)  # build: one compilation per model shape and layout

@@ -14,16 +14,12 @@ from ..models.geared3d import Geared3DModel
 from ..models.torsional import NLTE_REACTIONS, TorsionalModel
 from .rig import Rig
 
-__all__ = ["MODELS", "NLTE_REACTION_3D", "TE_FILE_3D", "build_model"]
+__all__ = ["MODELS", "NLTE_REACTION_3D", "build_model"]
 
 MODELS = ("3d", "torsional")
 # why the 3D model refuses nlte_reaction="pinion" (the command line says the same)
 NLTE_REACTION_3D = ("the 3D model puts the NLTE'' reaction torque at its torque node (the "
                     "rig's motor: 'drive', Eq. (14)); 'pinion' is a torsional-model option")
-
-TE_FILE_3D = ("a TE file drives the torsional model (--model torsional); the 3D model takes "
-              "TE_S from its own quasi-static solve (per-cell contact, encoder positions)")
-
 
 def build_model(
     rig: Rig,
@@ -58,9 +54,9 @@ def build_model(
         ``"drive"`` (default, every model and command) or, torsional model only,
         ``"pinion"`` (Eqs. (15)-(16)); the 3D model puts it at its torque node (Eq. (14)).
     te_table : a :class:`gearjax.excitation.te_file.TETable` (a TE file, paper Section
-        6.2) driving the te/perturbation formulations of the torsional model
-        (:meth:`TorsionalModel.with_te`); the 3D model refuses it (its TE_S comes from the
-        per-cell 3D quasi-static solve at its encoders).
+        6.2) driving the te/perturbation formulations (torsional:
+        :meth:`TorsionalModel.with_te`; 3D: ``Geared3DModel.build(te_table=)``, TE_S read at
+        the model's encoders).
     kwargs : go to the model's ``build`` (``formulation``, ``damping_ratio``,
         ``nlte_terms``, ``max_frequency_hz``, ...). Defaults taken from the rig:
         ``pinion_torque_Nm`` (C_m0, N m) and, 3D, ``torque_node`` (the motor node) and
@@ -77,8 +73,6 @@ def build_model(
                              "the torsional model has no modal cut-off")
         sdof = TorsionalModel.build(mesh, mods, nlte_reaction=nlte_reaction, **kwargs)
         return sdof if te_table is None else sdof.with_te(te_table, kwargs.get("nlte_terms"))
-    if te_table is not None:
-        raise ModelError("te_table", te_table.source, TE_FILE_3D)
     if nlte_reaction not in NLTE_REACTIONS:
         raise ModelError("nlte_reaction", nlte_reaction, f"must be one of {NLTE_REACTIONS}")
     if nlte_reaction != "drive":
@@ -87,5 +81,5 @@ def build_model(
     if "encoder_nodes" not in kwargs:
         kwargs["encoder_nodes"] = rig.encoder_nodes(encoder_position)
     return Geared3DModel.build(rig.structure(), mesh, mods, max_frequency_hz=max_frequency_hz,
-                               **kwargs)
+                               te_table=te_table, **kwargs)
 
