@@ -85,7 +85,8 @@ def test_mesh_law_matches_the_formulas_and_stays_pure():
     mesh = Mesh.build(pair, "weber", pinion_torque_Nm=PINION_TORQUE_NM)
     load = weber.static_line_load(pair, PINION_TORQUE_NM)
     # F_S cos(beta_b) / (b eps_alpha) by hand: C_m0 / (Rb1 b eps_alpha) for a spur pair
-    assert load == pytest.approx(PINION_TORQUE_NM / (pair.base_radii_m[0] * 0.04 * pair.transverse_contact_ratio))
+    by_hand = PINION_TORQUE_NM / (pair.base_radii_m[0] * 0.04 * pair.transverse_contact_ratio)
+    assert load == pytest.approx(by_hand)
     xa, xe = pair.contact_limits_m
     xi = np.linspace(xa, xe, 41)
     exact = 1.0 / weber.pair_compliance(pair, xi, load)["total"]
