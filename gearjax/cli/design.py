@@ -100,7 +100,7 @@ def _setup(args, separate=False):
                                                and args.max_frequency >= 0):
         raise DesignError(f"--max-frequency={args.max_frequency!r}: need a cut-off >= 0 Hz (0: all modes)")
     rig = get_rig(args.rig)
-    mesh = Mesh.build(rig.pair, args.stiffness)
+    mesh = Mesh.build(rig.pair, args.stiffness, pinion_torque_Nm=rig.pinion_torque_Nm)
     space = ReliefSpace(shape=args.shape, shared=not separate)
     inertias = args.inertias
     if inertias != "bodies":

@@ -26,6 +26,12 @@ import numpy as np
 __all__ = ["main"]
 
 
+def _stiffness_laws():
+    from ..gears.mesh import STIFFNESS_LAWS
+
+    return list(STIFFNESS_LAWS)
+
+
 def _add_rig(p: argparse.ArgumentParser):
     p.add_argument(
         "--rig",
@@ -36,8 +42,9 @@ def _add_rig(p: argparse.ArgumentParser):
     p.add_argument(
         "--stiffness",
         default="iso6336",
-        choices=["uniform", "iso6336"],
-        help="mesh stiffness law (default iso6336: mean = ISO 6336-1 c_gamma_alpha * b)",
+        choices=_stiffness_laws(),
+        help="mesh stiffness law (default iso6336: mean = ISO 6336-1 c_gamma_alpha * b; "
+             "weber: Weber-Banaschek/O'Donnell tooth-pair compliance of the paper, Section 6.1)",
     )
     p.add_argument("--json", action="store_true", help="print machine-readable JSON only")
 
@@ -197,7 +204,7 @@ def _cmd_quasistatic(args) -> int:
     mods = scen.mods
     n_periods = rig.pair.z1 if scen.pitch_errors else 1  # a pinion revolution
     _check_positions_memory(args.positions, n_periods)
-    mesh = Mesh.build(rig.pair, args.stiffness)
+    mesh = Mesh.build(rig.pair, args.stiffness, pinion_torque_Nm=rig.pinion_torque_Nm)
     theta = mesh.theta_grid(args.positions, n_periods)
     f_s = static_mesh_force(rig.pair, rig.pinion_torque_Nm)
     res = quasi_static(mesh, mods, theta, f_s)

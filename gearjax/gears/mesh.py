@@ -23,6 +23,10 @@ Stiffness laws (per unit length of contact line, N/m^2), selected by a static st
   stiffness is exactly ISO 6336-1's ``c_gamma_alpha b`` (``c_gamma_alpha = c' (0.75
   eps_alpha + 0.25)``) while the mid-profile single-pair stiffness of a spur pair is ``c' b``
   times ``(0.75 eps_alpha + 0.25) / (eps_alpha (1 - c/3)) = 1`` -- both ISO figures hold.
+* ``"weber"``: the paper's law (Section 6.1): the tooth-pair compliance of Weber &
+  Banaschek's beam integrals, the O'Donnell-form foundation and Weber's Hertzian approach,
+  computed at build along the path (:mod:`.weber`) and stored as a degree-10 polynomial in
+  the same ``s``; not calibrated on ISO (its k_m is the model's own).
 
 The cell stiffness is ``k_i = k_l(xi_i) * dl`` with ``dl = (b / cells_per_line) / cos(beta_b)``.
 Mesh stiffness ``k(theta) = sum_i k_i`` (normal direction), ``k_m`` its mean, and
@@ -40,6 +44,7 @@ import jax.numpy as jnp
 
 from .geometry import GearPair
 from .modifications import ToothModifications
+from . import weber
 
 __all__ = [
     "Mesh",
@@ -50,8 +55,8 @@ __all__ = [
     "STIFFNESS_LAWS",
 ]
 
-StiffnessLaw = Literal["uniform", "iso6336"]
-STIFFNESS_LAWS = ("uniform", "iso6336")
+StiffnessLaw = Literal["uniform", "iso6336", "weber"]
+STIFFNESS_LAWS = ("uniform", "iso6336", "weber")
 
 # ISO 6336-1:2006 Eq. (98) coefficients for q' (mm um / N)
 _ISO_C = (0.04723, 0.15551, 0.25791, -0.00635, -0.11654, -0.00193, -0.24188, 0.00529, 0.00182)
@@ -127,6 +132,7 @@ class Mesh(eqx.Module):
     n_slots: int = eqx.field(static=True)
     stiffness_peak_N_per_m2: float = eqx.field(static=True)
     profile_curvature: float = eqx.field(static=True)
+    profile_coefficients: tuple = eqx.field(static=True, default=())
 
     @classmethod
     def build(
@@ -135,16 +141,19 @@ class Mesh(eqx.Module):
         law: StiffnessLaw = "iso6336",
         cells_per_line: int | None = None,
         stiffness_per_length_N_per_m2: float | None = None,
+        pinion_torque_Nm: float | None = None,
     ) -> "Mesh":
         """Build a mesh model.
 
         Parameters
         ----------
         pair : the gear pair.
-        law : ``"uniform"`` or ``"iso6336"`` (see module docstring).
+        law : ``"uniform"``, ``"iso6336"`` or ``"weber"`` (see module docstring).
         cells_per_line : cells across the face width; default 10 (spur) or 40 (helical).
         stiffness_per_length_N_per_m2 : overrides the peak stiffness per unit contact
             length (uniform law only).
+        pinion_torque_Nm : weber law only: the torque setting the line load of its Hertzian
+            term (:func:`.weber.static_line_load`); None: 300 N/mm. Ignored by the others.
         """
         if law not in STIFFNESS_LAWS:
             raise ValueError(f"law={law!r}: stiffness law must be one of {STIFFNESS_LAWS}")
@@ -163,17 +172,26 @@ class Mesh(eqx.Module):
                     raise ValueError(
                         f"stiffness_per_length_N_per_m2={peak!r}: must be finite and > 0"
                     )
-        else:
-            if stiffness_per_length_N_per_m2 is not None:
-                raise ValueError(
-                    "stiffness_per_length_N_per_m2 is only for law='uniform'; the iso6336 law "
-                    "is calibrated on ISO 6336-1"
-                )
+        elif stiffness_per_length_N_per_m2 is not None:
+            raise ValueError(
+                f"stiffness_per_length_N_per_m2 is only for law='uniform'; the {law} law "
+                "computes its own"
+            )
+        coefficients = ()
+        if law == "weber":
+            load = (weber.REFERENCE_LINE_LOAD_N_PER_M if pinion_torque_Nm is None
+                    else weber.static_line_load(pair, pinion_torque_Nm))
+            coefficients = weber.stiffness_profile(pair, load)
+            s = [-1.0 + 2.0 * j / 200 for j in range(201)]
+            curvature = 0.0
+            peak = max(sum(c * x**j for j, c in enumerate(coefficients)) for x in s)
+        elif law == "iso6336":
             curvature = 0.75 * (1.0 - 1.0 / eps)
             peak = iso6336_mesh_stiffness(pair) * cos_bb / (eps * (1.0 - curvature / 3.0))
         span = pair.path_of_contact_m + pair.contact_line_shift_m
         n_slots = int(math.ceil(span / pair.base_pitch_m)) + 1
-        return cls(pair, law, int(cells_per_line), n_slots, float(peak), float(curvature))
+        return cls(pair, law, int(cells_per_line), n_slots, float(peak), float(curvature),
+                   coefficients)
 
     # ------------------------------------------------------------------ geometry of cells
     @property
@@ -189,6 +207,11 @@ class Mesh(eqx.Module):
         """Stiffness per unit contact length k_l(xi) (N/m^2) of the selected law."""
         xi_a, xi_e = self.pair.contact_limits_m
         s = (2.0 * xi - xi_a - xi_e) / (xi_e - xi_a)
+        if self.profile_coefficients:  # weber: Horner in s
+            k = jnp.zeros_like(s) + self.profile_coefficients[-1]
+            for c in self.profile_coefficients[-2::-1]:
+                k = k * s + c
+            return k
         return self.stiffness_peak_N_per_m2 * (1.0 - self.profile_curvature * s * s)
 
     def cells(self, theta) -> Cells:

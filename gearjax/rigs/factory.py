@@ -65,7 +65,8 @@ def build_model(
     if model not in MODELS:
         raise ModelError("model", model, f"must be one of {MODELS}")
     if mesh is None:
-        mesh = Mesh.build(rig.pair, law, cells_per_line=cells_per_line)
+        mesh = Mesh.build(rig.pair, law, cells_per_line=cells_per_line,
+                          pinion_torque_Nm=rig.pinion_torque_Nm)
     kwargs.setdefault("pinion_torque_Nm", rig.pinion_torque_Nm)
     if model == "torsional":
         if max_frequency_hz is not None:

@@ -23,7 +23,7 @@ __all__ = ["torsional_stiffness_figures", "iso6336_resonance_speed", "system_3d"
 
 def torsional_stiffness_figures(rig: Rig, law: str = "iso6336") -> dict:
     """Mesh figures of a rig at its nominal torque (used by ``gearjax info``)."""
-    mesh = Mesh.build(rig.pair, law)
+    mesh = Mesh.build(rig.pair, law, pinion_torque_Nm=rig.pinion_torque_Nm)
     k_m, alpha, _ = mesh.stiffness_variation(mesh.theta_grid(512))
     pair = rig.pair
     cos_bb = math.cos(pair.base_helix_angle_rad)
@@ -76,7 +76,7 @@ def system_3d(rig: Rig, law: str = "iso6336", encoder_position: int = 1):
     N m), ``k_m`` (mean mesh stiffness, N/m) and ``F_S`` (N).
     """
     structure = rig.structure()
-    mesh = Mesh.build(rig.pair, law)
+    mesh = Mesh.build(rig.pair, law, pinion_torque_Nm=rig.pinion_torque_Nm)
     element = PinionGearElement.at_nodes(mesh, structure.n_dof, structure.pinion_node, structure.gear_node)
     node_i, node_ii = rig.encoder_nodes(encoder_position)
     W = element.torsional_vector(structure.dof(node_i, "theta"), structure.dof(node_ii, "theta"))
