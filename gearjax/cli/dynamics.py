@@ -51,7 +51,8 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
     default_max_frequency_hz,
 )
 from ..dynamics import watchdog
-from ..dynamics.sweep import METHODS
+from ..dynamics.sweep import METHODS, tolerance_options
+from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv
 from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
@@ -115,6 +116,11 @@ def register(sub, add_rig, add_scenario):
                          "proven stable go to the transient), steady (shooting), transient; "
                          "auto (default): harmonic for te/perturbation on the 3D model, "
                          "transient otherwise")
+    sw.add_argument("--rtol", type=float, default=None, metavar="R",
+                    help="requested relative accuracy of the metrics (default: each solver's "
+                         "own, rtol 1e-7 and periodicity 1e-3): integrator rtol (atol R/100), "
+                         "harmonic truncation, transient decay and periodicity test "
+                         "(gearjax.dynamics.sweep.tolerance_options); independent sweeps")
     sw.add_argument("--direction", default="independent", choices=DIRECTION_CHOICES,
                     help="independent (default, as before): every speed from the quasi-static "
                          "start; up/down/both: continuation, each speed started from its "
@@ -350,6 +356,13 @@ def cmd_sweep(args) -> int:
         raise ValueError("--resume --overwrite: choose one (continue the run, or replace it)")
     if args.chunk is not None and args.chunk < 1:
         raise ValueError(f"--chunk={args.chunk}: must be >= 1")
+    try:
+        tolerances = tolerance_options(args.rtol)
+    except SimulationError as exc:
+        raise ValueError(f"--rtol={args.rtol!r}: must lie in [1e-13, 1e-2]") from exc
+    if tolerances and args.direction != "independent":
+        raise ValueError(f"--rtol={args.rtol!r}: for independent sweeps (the continuation of "
+                         "--direction keeps its shooting tolerances)")
     rig = get_rig(args.rig)
     scen = scenario_modifications(rig, args)
     mods = scen.mods
@@ -369,6 +382,8 @@ def cmd_sweep(args) -> int:
         **({"te_file": os.path.abspath(args.te_file)} if args.te_file else {}),
         "speeds_rad_s": [float(w) for w in speeds],
     }
+    if args.rtol is not None:
+        record["rtol"] = float(args.rtol)
     if args.direction != "independent":
         record["direction"] = args.direction
     done: dict = {}
@@ -389,6 +404,7 @@ def cmd_sweep(args) -> int:
         "nlte_terms": not args.no_nlte_terms, "nlte_reaction": reaction,
         "encoders": args.encoders, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
+        "rtol": args.rtol,
         "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
         "formulations": {},
     }
@@ -428,7 +444,7 @@ def cmd_sweep(args) -> int:
                 res = sweep(model, todo, chunk_size=min(chunk, todo.size),
                             progress=not args.json, out_csv=csv_path, method=args.method,
                             orders_csv=orders_path,
-                            **periodic_start_options(model))
+                            **periodic_start_options(model), **tolerances)
                 methods[form] = method_counts(res, args.method)
             times[form] = (t_build, time.perf_counter() - t0)
             if sig_speeds and lead:

@@ -108,6 +108,7 @@ def summarise_rows(rows: list[dict], formulation: str, speeds: np.ndarray) -> di
     df = np.array([_float(r["dynamic_factor"]) for r in rs])
     fmax = np.array([_float(r["max_mesh_force_N"]) for r in rs])
     conv = np.array([r["converged"] == "True" for r in rs], dtype=bool)
+    resid = np.array([_float(r.get("convergence", "nan")) for r in rs])
     loss = np.array([r["contact_loss"] == "True" for r in rs], dtype=bool)
     finite = np.isfinite(df)
     ok = conv & finite
@@ -123,6 +124,9 @@ def summarise_rows(rows: list[dict], formulation: str, speeds: np.ndarray) -> di
         "contact_loss_speeds": [float(v) for v in w[loss]],
         "unconverged_speeds": [float(v) for v in w[~conv]],
         "failed_speeds": [float(v) for v in w[~finite]],
+        # the achieved periodicity residual (results.csv's convergence column), worst speed
+        "max_convergence_measure": (float(np.nanmax(resid)) if np.any(np.isfinite(resid))
+                                    else float("nan")),
     }
 
 

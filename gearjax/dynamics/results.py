@@ -28,6 +28,7 @@ CSV_COLUMNS = (
     "min_mesh_force_N",
     "contact_loss",
     "converged",
+    "convergence",  # the periodicity measure behind `converged` (the achieved residual)
 )
 
 
@@ -115,6 +116,7 @@ def csv_rows(res, sl=slice(None)):
             "min_mesh_force_N": fmt_value(g("min_mesh_force_N")),
             "contact_loss": str(bool(g("contact_loss"))),
             "converged": str(bool(g("converged"))),
+            "convergence": fmt_value(g("convergence")),
         })
     return out
 
