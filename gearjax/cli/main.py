@@ -101,7 +101,7 @@ _STALL_TIMEOUTS = {"sweep": _WATCHED_S, "optimise": _WATCHED_S, "stability": 0.0
 
 # Modules adding sub-commands: each defines ``register(subparsers, add_rig, add_scenario)``
 # that adds its parsers with ``set_defaults(func=...)``; ``func(args) -> int``.
-_EXTENSIONS: tuple[str, ...] = ("gearjax.cli.dynamics", "gearjax.cli.design")
+_EXTENSIONS: tuple[str, ...] = ("gearjax.cli.dynamics", "gearjax.cli.design", "gearjax.cli.paper")
 
 
 _EXAMPLES = """examples:

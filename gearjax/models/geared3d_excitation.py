@@ -45,7 +45,10 @@ __all__ = ["own_table_fields", "te_file_fields", "file_mean_stiffness", "tabulat
 
 tabulate_jit = eqx.filter_jit(tabulate)  # build: one compilation per model shape and layout
 
-NO_TABLE = dict(table_knots=None, table_cell_first=None, table_side=None, table_codes=None,
+def _no_table() -> dict:
+    """Layout fields of a model without table (a function: a jnp array at import would
+    start the XLA backend, which must wait for ``jax.distributed.initialize``)."""
+    return dict(table_knots=None, table_cell_first=None, table_side=None, table_codes=None,
                 table=None, angle_map=None, structure_ok=jnp.asarray(True), table_origin=0.0,
                 table_cells=0, table_max_extra=1, event_thetas=(), event_kinds=(), event_cells=())
 
@@ -57,7 +60,7 @@ def own_table_fields(qsm: QuasiStaticMesh3D, theta_tab, period: float, tabulated
     as events (moving with the design through the angle map)."""
     jumps = jump_angles(qsm, theta_tab, period)
     if not tabulated:
-        return jumps, dict(NO_TABLE)
+        return jumps, _no_table()
     lay = table_layout(qsm, theta_tab, period, jumps)
     jumps = distinct_angles(np.concatenate([jumps, lay.event_thetas]), period)
     ev = dict(event_thetas=lay.event_thetas, event_kinds=lay.event_kinds, event_cells=lay.event_cells)
@@ -92,7 +95,7 @@ def te_file_fields(te: TETable, own: dict, own_jumps, w_x0: float, nlte_terms: b
     if not nlte_terms:
         d = np.column_stack([d[:, 0] + d[:, 2], d[:, 1], d[:, 2]])
     table = eqx.tree_at(lambda t: (t.values, t.slopes), table, (jnp.asarray(v), jnp.asarray(d)))
-    fields = dict(NO_TABLE, table_knots=table.knots, table_cell_first=table.cell_first,
+    fields = dict(_no_table(), table_knots=table.knots, table_cell_first=table.cell_first,
                   table_side=jnp.asarray(side), table=table, table_origin=float(table.origin),
                   table_cells=int(table.n_cells), table_max_extra=int(table.max_extra))
     return tuple(float(j) for j in jumps), fields, float(table.period)
