@@ -44,16 +44,16 @@ CASES = (
          ("--relief", "long", "--formulations", "reference,te", "--signals", "100,400,800")),
     Case("fig10-no-nlte", "6.3.2", "Figs. 10-11", "long relief, NLTE'' terms set to zero (te)",
          ("--relief", "long", "--no-nlte-terms", "--formulations", "te", "--signals", "100,400,800")),
+    Case("encoders2", "6.3.5", "Fig. 7", "encoder position 2 (free shaft ends), te",
+         ("--encoders", "2", "--formulations", "te"), needs_3d=True),
+    Case("encoders3", "6.3.5", "Fig. 7", "encoder position 3 (coupling hubs), te",
+         ("--encoders", "3", "--formulations", "te"), needs_3d=True),
     Case("fig12", "6.3.3", "Fig. 12", "spur, short relief, pinion pitch errors, damping 0.1",
          ("--pitch-errors",)),
     Case("fig12-no-nlte", "6.3.3", "Fig. 12", "pitch errors, NLTE'' terms set to zero (te)",
          ("--pitch-errors", "--no-nlte-terms", "--formulations", "te")),
     Case("fig13", "6.3.4", "Fig. 13", "helical, short relief, pinion pitch errors, damping 0.03",
          ("--rig", "baud-velex-helical", "--pitch-errors", "--damping", "0.03")),
-    Case("encoders2", "6.3.5", "Fig. 7", "encoder position 2 (free shaft ends), te",
-         ("--encoders", "2", "--formulations", "te"), needs_3d=True),
-    Case("encoders3", "6.3.5", "Fig. 7", "encoder position 3 (coupling hubs), te",
-         ("--encoders", "3", "--formulations", "te"), needs_3d=True),
 )
 _KEYS = tuple(c.key for c in CASES)
 
