@@ -13,6 +13,7 @@ Section 6.3 cases (Velex & Ajmi), one command each (``--speeds`` to taste)::
     gearjax sweep --damping 0.03                            # 6.3.1, zeta 0.03 (Fig. 8)
     gearjax sweep --relief long --signals 100,400,800       # 6.3.2 (Figs. 10, 11)
     gearjax sweep --relief long --no-nlte-terms --formulations te      # 6.3.2, NLTE'' = 0
+    gearjax sweep --relief long --zero-nlte --formulations te          # NLTE = 0 everywhere
     gearjax sweep --pitch-errors                            # 6.3.3 (Fig. 12)
     gearjax sweep --rig baud-velex-helical --pitch-errors --damping 0.03   # 6.3.4 (Fig. 13)
     gearjax sweep --encoders 2                              # 6.3.5 (also 1 and 3)
@@ -57,7 +58,7 @@ from ..excitation.te_file import read_te_csv
 from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
-from .scenario import add_nlte_reaction, nlte_reaction_of
+from .scenario import add_nlte_reaction, add_nlte_switches, nlte_options_of, nlte_reaction_of
 
 __all__ = ["register", "case_name", "summarise_sweep",
            "default_max_frequency_hz", "modal_cutoff"]
@@ -166,10 +167,7 @@ def _add_dynamics(p: argparse.ArgumentParser):
                    help="modal damping factor (default 0.1; the paper also uses 0.03)")
     p.add_argument("--encoders", type=int, default=1, choices=[1, 2, 3],
                    help="3d: encoder positions of Fig. 7 defining TE and DTE (default 1)")
-    p.add_argument("--no-nlte-terms", action="store_true",
-                   help="drop NLTE from the equations: no NLTE', NLTE'' inertial terms and "
-                        "TE_S instead of TE_S - NLTE in the forcing of Eqs. (42), (48a) "
-                        "(Section 6.3.2, Fig. 10 'with NLTE = 0')")
+    add_nlte_switches(p)
     p.add_argument("--te-file", default=None, metavar="FILE.csv",
                    help="te/perturbation: TE_S, NLTE and mesh stiffness from a CSV file "
                         "(columns mesh_cycle_fraction or pinion_angle_rad, te_s_m, optional "
@@ -221,8 +219,10 @@ def case_name(args, scenario=None) -> str:
     if scenario.pitch_errors if scenario is not None else args.pitch_errors:
         parts.append("pitch")
     parts.append(f"zeta{args.damping:g}")
-    if args.no_nlte_terms:
-        parts.append("no-nlte")
+    if args.zero_nlte:
+        parts.append("zero-nlte")
+    elif args.no_nlte_terms:
+        parts.append("no-nlte-dd")
     if args.nlte_reaction != "drive":
         parts.append(f"nlte-{args.nlte_reaction}")
     if args.model == "3d":
@@ -377,7 +377,8 @@ def cmd_sweep(args) -> int:
     record = {
         "case": case, "rig": rig.name, "model": args.model, "stiffness_law": args.stiffness,
         **scen.summary(), "damping": args.damping,
-        "nlte_terms": not args.no_nlte_terms, "nlte_reaction": reaction,
+        "nlte_terms": not args.zero_nlte, "nlte_reaction": reaction,
+        **({"nlte_inertia": False} if args.no_nlte_terms else {}),
         "encoders": args.encoders, "max_frequency_hz": cutoff_hz, "formulations": forms,
         **({"te_file": os.path.abspath(args.te_file)} if args.te_file else {}),
         "speeds_rad_s": [float(w) for w in speeds],
@@ -396,13 +397,13 @@ def cmd_sweep(args) -> int:
             read_rows(orders_path, repair=True)
         write_case(out, record)
     chunk = args.chunk or max(1, math.ceil(speeds.size / 10))
-    nlte = False if args.no_nlte_terms else None
+    nlte = nlte_options_of(args)
     summary = {
         "case": case, "rig": rig.name, "model": args.model,
         "stiffness_law": args.stiffness, "relief": args.relief or scen.key, **scen.summary(),
         "damping": args.damping,
-        "nlte_terms": not args.no_nlte_terms, "nlte_reaction": reaction,
-        "encoders": args.encoders, "te_file": args.te_file,
+        "nlte_terms": not args.zero_nlte, "nlte_inertia": nlte["nlte_inertia"],
+        "nlte_reaction": reaction, "encoders": args.encoders, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "rtol": args.rtol,
         "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
@@ -421,7 +422,7 @@ def cmd_sweep(args) -> int:
             t0 = time.perf_counter()
             model = build_model(rig, mods, model=args.model, formulation=form,
                                 law=args.stiffness, damping_ratio=args.damping,
-                                encoder_position=args.encoders, nlte_terms=nlte,
+                                encoder_position=args.encoders, **nlte,
                                 max_frequency_hz=cutoff_hz, nlte_reaction=reaction,
                                 te_table=te)
             _check_modes(args, model, cutoff_hz)
@@ -480,8 +481,8 @@ def cmd_sweep(args) -> int:
     summary["results_csv"] = csv_path
     title = (f"{rig.name}, {args.model}, {scen.label}"
              f"{', pitch errors' if scen.pitch_errors else ''}, damping {args.damping}"
-             f"{', NLTE terms off' if args.no_nlte_terms else ''}"
-             f"{' (interrupted)' if interrupted else ''}")
+             + (", NLTE = 0" if args.zero_nlte else ", NLTE'' = 0" if args.no_nlte_terms else "")
+             + f"{' (interrupted)' if interrupted else ''}")
     if rows:
         from ..plotting import plot_branches, plot_response_curves
 
@@ -624,7 +625,7 @@ def cmd_stability(args) -> int:
     model = build_model(rig, mods, model=args.model, formulation=args.formulation,
                         law=args.stiffness, damping_ratio=args.damping,
                         encoder_position=args.encoders,
-                        nlte_terms=False if args.no_nlte_terms else None,
+                        **nlte_options_of(args),
                         max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te)
     _check_modes(args, model, cutoff_hz)
     t0 = time.perf_counter()

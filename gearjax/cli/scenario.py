@@ -17,7 +17,8 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["Scenario", "scenario_modifications", "add_nlte_reaction", "nlte_reaction_of"]
+__all__ = ["Scenario", "scenario_modifications", "add_nlte_reaction", "nlte_reaction_of",
+           "add_nlte_switches", "nlte_options_of"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,3 +131,24 @@ def nlte_reaction_of(args) -> str:
     if args.model == "3d" and args.nlte_reaction != "drive":
         raise GearjaxError("--nlte-reaction", args.nlte_reaction, NLTE_REACTION_3D)
     return args.nlte_reaction
+
+
+def add_nlte_switches(p) -> None:
+    """Add ``--no-nlte-terms`` (Section 6.3.2: the NLTE'' inertial terms alone set to zero)
+    and ``--zero-nlte`` (NLTE = 0 everywhere) to the parser ``p``."""
+    p.add_argument("--no-nlte-terms", action="store_true",
+                   help="Section 6.3.2 ('NLTE'' set at zero in the equations of motion'): drop "
+                        "the inertial terms NLTE'' E + NLTE' F of Eqs. (14), (42), (48a) (sdof: "
+                        "NLTE'' of (16), (20), (47a)); TE_S - NLTE stays in the forcing and "
+                        "DTE = W^T X + NLTE")
+    p.add_argument("--zero-nlte", action="store_true",
+                   help="NLTE = 0 everywhere: no NLTE'' terms and TE_S instead of TE_S - NLTE "
+                        "in the forcing (the model treats TE_S as the static approach)")
+
+
+def nlte_options_of(args) -> dict:
+    """``nlte_terms`` (False with ``--zero-nlte``, else None: kept unless NLTE is 0) and
+    ``nlte_inertia`` (False with either switch) for :func:`gearjax.rigs.factory.build_model`."""
+    zero = bool(getattr(args, "zero_nlte", False))
+    return {"nlte_terms": False if zero else None,
+            "nlte_inertia": not (zero or getattr(args, "no_nlte_terms", False))}

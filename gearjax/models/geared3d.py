@@ -36,7 +36,9 @@ Inertial excitations (text after Eq. (14)): ``E`` (Eq. (5), :meth:`gearjax.struc
 GearedStructure.inertial_vector`) plus the eccentricity parts ``E~``, ``F~``, ``G~``
 (:class:`gearjax.structure.geared.Eccentricity`). Without eccentricity these are not
 compiled; without NLTE terms (``nlte_terms=False``, or NLTE identically zero) E and F are
-not compiled and ``TE_S - NLTE`` becomes ``TE_S``.
+not compiled and ``TE_S - NLTE`` becomes ``TE_S``; ``nlte_inertia=False`` (Section 6.3.2,
+"NLTE'' set at zero") drops the E and F terms alone, with no substitution (``u = q'``).
+Helpers: :mod:`gearjax.models.geared3d_inertial`.
 
 NLTE'' without differentiating a kinked function: with ``u = q' + NLTE' e(theta)`` (``q``
 modal coordinates, ``M_r = I``, ``e = T^T E``) the equations are integrated as
@@ -84,6 +86,7 @@ from ..structure.geared import Eccentricity, disc_mass, geared_structure
 from .base import (FORMULATIONS, AbstractGearModel, ModelOutputs, modal_slowest_output_mode,
                    modal_transient_start)
 from .geared3d_excitation import file_mean_stiffness, own_table_fields, te_file_fields
+from .geared3d_inertial import inertial_vectors, nlte_derivatives
 from .cutoff import (CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS,  # re-exported
                      default_max_frequency_hz)
 
@@ -119,7 +122,7 @@ class Geared3DModel(AbstractGearModel):
         without table / without moving events).
     structure_ok : (bool array) this design keeps the discrete structure of the build.
 
-    Static attributes: formulation, mesh_vectors, nlte_terms, n_modes, n_static,
+    Static attributes: formulation, mesh_vectors, nlte_terms, nlte_inertia, n_modes, n_static,
     period_rad, jump_thetas, decay_omega_rad_s (slowest mode with a mesh participation
     above ``participation_tol``), qs_max_iter, table_origin, table_cells,
     table_max_extra, excitation, harmonic_start, event_thetas, event_kinds, event_cells,
@@ -172,6 +175,7 @@ class Geared3DModel(AbstractGearModel):
     event_kinds: tuple = eqx.field(static=True)
     event_cells: tuple = eqx.field(static=True)
     te_source: str | None = eqx.field(static=True, default=None)
+    nlte_inertia: bool = eqx.field(static=True, default=True)
 
     def __check_init__(self):
         if self.formulation not in FORMULATIONS:
@@ -212,6 +216,7 @@ class Geared3DModel(AbstractGearModel):
         excitation: str = "table",
         harmonic_start: bool = False,
         te_table: TETable | None = None,
+        nlte_inertia: bool = True,
     ) -> "Geared3DModel":
         """Build a complete 3D model (outside ``jit``: checks, modal basis, k_m, jump and
         event angles, excitation table).
@@ -234,7 +239,10 @@ class Geared3DModel(AbstractGearModel):
             ``"perturbation"`` (Eq. (48a)).
         mesh_vectors : ``"cells"`` (V(M_i), paper) or ``"mean"`` (averaged V everywhere:
             the reference contact and the quasi-static TE_S then use V, Eq. (27)).
-        nlte_terms : keep NLTE in the equations (default: unless NLTE is identically zero).
+        nlte_terms : keep NLTE in the equations (default: unless NLTE is identically zero);
+            False: NLTE = 0 everywhere.
+        nlte_inertia : False drops ``NLTE'' E + NLTE' F`` alone (Section 6.3.2, "NLTE'' set
+            at zero"): ``TE_S - NLTE`` stays in the forcing, NLTE in the DTE, E out of the basis.
         max_frequency_hz : modal cut-off (Hz); None keeps all modes (exact).
         fixed_dofs : dof indices clamped to zero (removed), e.g. to make a torsional-only
             structure.
@@ -321,7 +329,7 @@ class Geared3DModel(AbstractGearModel):
         cond = Condensation.build(K, F0, W, gs.element_dofs, keep12, k_m=k_m, v_local=v12)
 
         # modal basis of (M, K_bar), projected vectors
-        E = gs.inertial_vector() if nlte_terms else np.zeros(F0.shape)
+        E = gs.inertial_vector() if nlte_terms and nlte_inertia else np.zeros(F0.shape)
         red = gs.modal(k_m, E, max_frequency_hz, zeta)
         omega_r, v_r, q0, c_v_r = red.omega_r, red.v_r, red.q0, red.c_v_r
         part = v_r**2 / np.where(omega_r > 0, omega_r, np.inf) ** 2
@@ -365,7 +373,8 @@ class Geared3DModel(AbstractGearModel):
             jump_thetas=tuple(float(t) for t in jumps), decay_omega_rad_s=decay_omega,
             qs_max_iter=int(qs_max_iter), excitation=excitation,
             harmonic_start=bool(harmonic_start),
-            te_source=None if te_table is None else te_table.source, **layout,
+            te_source=None if te_table is None else te_table.source,
+            nlte_inertia=bool(nlte_inertia), **layout,
         )
 
     # ------------------------------------------------------------------ constants
@@ -483,42 +492,16 @@ class Geared3DModel(AbstractGearModel):
     def _ecc_local(self, theta):
         return self.ecc.local_vectors(theta, *self.mesh.pair.base_radii_m)
 
-    def _inertial(self, theta):
-        """(e(theta), e'(theta), f(theta), g(theta)) in modal coordinates; None when absent."""
-        use_e = self.nlte_terms
-        if self.ecc is None:
-            e = self.e_r if use_e else None
-            return e, (jnp.zeros_like(self.e_r) if use_e else None), None, None
-        tl = self.t_local.T
+    @property
+    def nlte_inertial_terms(self) -> bool:
+        """``NLTE'' E + NLTE' F`` are in the equations (``nlte_terms`` and ``nlte_inertia``)."""
+        return self.nlte_terms and self.nlte_inertia
 
-        def e_fun(t):
-            return self.e_r + tl @ self._ecc_local(t)[0]
+    def _inertial(self, theta):  # (e, e', f, g) in modal coordinates, None when absent
+        return inertial_vectors(self, theta)
 
-        _, f_loc, g_loc = self._ecc_local(theta)
-        g = tl @ g_loc
-        if not use_e:
-            return None, None, None, g
-        e, ep = jax.jvp(e_fun, (theta,), (jnp.ones_like(theta),))
-        return e, ep, tl @ f_loc, g
-
-    def _nlte_derivs(self, s, order: int = 1):
-        """NLTE and its derivatives with respect to theta (1 or 2) at the simulation angle
-        ``s`` (chain rule through the angle map: d/dtheta = (d/ds) / phi')."""
-        if self.table is not None:
-            f = lambda t: self.table(t)[0][2]  # noqa: E731  (exact at the kinks: knots)
-        else:
-            f = lambda t: contact_gaps(self.mesh, self.mods, t)[2]  # noqa: E731
-
-        def d1(t):
-            n0, n1 = jax.jvp(f, (t,), (jnp.ones_like(t),))
-            dth = self.angle(t)[1]
-            return n0, (n1 if dth is None else n1 / dth)
-
-        if order == 1:
-            return d1(s)
-        (n0, n1), (_, n2) = jax.jvp(d1, (s,), (jnp.ones_like(s),))
-        dth = self.angle(s)[1]
-        return n0, n1, (n2 if dth is None else n2 / dth)
+    def _nlte_derivs(self, s, order: int = 1):  # NLTE and its theta-derivatives at s
+        return nlte_derivatives(self, s, order)
 
     # ------------------------------------------------------------------ dynamics
     def _unscale(self, y, omega):
@@ -613,17 +596,18 @@ class Geared3DModel(AbstractGearModel):
 
     @property
     def _constant_coefficients(self) -> bool:
-        """Eq. (48a) without NLTE and eccentricity terms, excitation tabulated."""
-        return (self.formulation == "perturbation" and not self.nlte_terms and self.ecc is None
-                and self.table_knots is not None)
+        """Eq. (48a) without NLTE inertial and eccentricity terms, excitation tabulated."""
+        return (self.formulation == "perturbation" and not self.nlte_inertial_terms
+                and self.ecc is None and self.table_knots is not None)
 
     def harmonic_state(self, omega, theta0=0.0, n_harmonics: int | None = None):
         """Periodic steady state of Eq. (48a) at ``theta0`` (scaled state), exact in the
-        frequency domain while contact holds: without NLTE and eccentricity terms Eq. (48a)
-        has *constant* coefficients and the forcing ``k_m cos(b_b) d(theta) V``, ``d = TE_S
-        - w_x0``, so each harmonic answers alone (:func:`gearjax.excitation.mesh3d.
-        harmonic_response`; ``d`` sampled 8x finer than the table, ``n_harmonics`` kept,
-        default 128 per mesh period: ``d_h = O(h^-2)``, ``z_h = O(h^-4)``)."""
+        frequency domain while contact holds: without NLTE inertial and eccentricity terms Eq.
+        (48a) has *constant* coefficients and the forcing ``k_m cos(b_b) d(theta) V``, ``d =
+        TE_S - NLTE - w_x0`` (``TE_S - w_x0`` without NLTE), so each harmonic answers alone
+        (:func:`gearjax.excitation.mesh3d.harmonic_response`; ``d`` sampled 8x finer than the
+        table, ``n_harmonics`` kept, default 128 per mesh period: ``d_h = O(h^-2)``, ``z_h =
+        O(h^-4)``)."""
         if not self._constant_coefficients:
             raise ModelError("formulation", self.formulation,
                              "harmonic_state needs the perturbation formulation without NLTE "

@@ -72,7 +72,9 @@ te and perturbation formulations, ``TE_S - NLTE`` is replaced by ``TE_S`` (the m
 treats TE_S as the static approach and reports ``DTE = x``). In the reference formulation
 only NLTE'' is dropped (the gaps de_i contain the errors). When NLTE is identically zero
 (e.g. spur Table 1 short relief) the default ``nlte_terms=None`` resolves to False and the
-scenario compiles without these terms.
+scenario compiles without these terms. ``nlte_inertia=False`` (Section 6.3.2: "NLTE'' set
+at zero in the equations of motion") drops the NLTE'' term alone: ``TE_S - NLTE`` stays in
+the forcing and ``DTE = x + NLTE``; no substitution is needed then (``z = x``, kappa = 0).
 
 TE from a file (Section 6.2, :meth:`TorsionalModel.with_te`): TE_S, NLTE and, if given, the
 loaded stiffness of a :class:`~gearjax.excitation.te_file.TETable` replace the quasi-static
@@ -129,13 +131,12 @@ from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.contact import solve_unilateral, te_contact, unilateral_solve_pairwise
 from ..gears.quasistatic import contact_gaps, static_mesh_force
-from ..excitation.events import (EV_FIXED, check_event_roots, classify_events, code, code_jnp,
-                                 engagement_angles, find_brackets, moved_event_angles,
-                                 quiet_origin)
-from ..excitation.sdof import sdof_signature, sdof_signature_fn, sdof_switch
+from ..excitation.events import EV_FIXED, code_jnp, moved_event_angles
+from ..excitation.sdof import sdof_signature, sdof_switch
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..excitation.te_file import te_model_fields
 from .base import FORMULATIONS, AbstractGearModel, ModelOutputs
+from .torsional_layout import sdof_table_layout
 from ..errors import ModelError
 
 __all__ = ["TorsionalModel", "ModelOutputs", "ModelError", "FORMULATIONS",
@@ -173,6 +174,7 @@ class _TorsionalInputs(eqx.Module):
     jump_kinds: tuple = eqx.field(static=True, default=())
     jump_cells: tuple = eqx.field(static=True, default=())
     nlte_reaction: str = eqx.field(static=True, default="drive")
+    nlte_inertia: bool = eqx.field(static=True, default=True)
     table_codes: jax.Array | None = None
     te_input: PeriodicHermiteTable | None = None  # from a TE file (with_te): the table itself
 
@@ -250,8 +252,13 @@ class _TorsionalInputs(eqx.Module):
         return AngleMap.through(self.jump_thetas, self.jump_angles_rad(), self.period_rad)
 
     @property
+    def nlte_inertial_terms(self) -> bool:
+        """The NLTE'' inertial term is in the equations (``nlte_terms`` and ``nlte_inertia``)."""
+        return self.nlte_terms and self.nlte_inertia
+
+    @property
     def _substitution(self) -> bool:
-        return self.nlte_terms and self.nlte_method == "substitution"
+        return self.nlte_inertial_terms and self.nlte_method == "substitution"
 
     def _assemble(self) -> dict:
         """The derived arrays of :class:`TorsionalModel` from these inputs (traceable, so
@@ -297,7 +304,7 @@ class _TorsionalInputs(eqx.Module):
         x_ref = self.static_force_N / (k_m * self.cos_bb)
         kappa = self.nlte_inertia_ratio if self._substitution else jnp.zeros(())
         coeffs = None
-        if self.nlte_method == "spectral" and self.nlte_terms:
+        if self.nlte_method == "spectral" and self.nlte_inertial_terms:
             n = self.n_table * n_mesh
             th = jnp.arange(n) * (self.period_rad / n)
             nlte = jax.vmap(lambda t: contact_gaps(self.mesh, self.mods, t)[2])(th)
@@ -342,6 +349,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
     formulation : ``"reference"`` (Eq. (16)), ``"te"`` (Eq. (20)) or ``"perturbation"``
         (Eq. (47a)).
     nlte_terms : keep the NLTE terms (see module docstring).
+    nlte_inertia : keep the NLTE'' inertial term (False: Section 6.3.2, NLTE'' = 0 only).
     nlte_method : ``"substitution"`` (exact, default) or ``"spectral"``.
     nlte_harmonics : harmonics of the mesh frequency kept by the spectral method.
     excitation : ``"table"`` (default) or ``"inline"`` quasi-static excitations.
@@ -430,6 +438,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         n_table: int = 256,
         merge_spur_lines: bool = True,
         nlte_reaction: str = "drive",
+        nlte_inertia: bool = True,
     ) -> "TorsionalModel":
         """Build a torsional model (outside ``jit``: inputs are checked, jump angles found).
 
@@ -442,7 +451,9 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         damping_ratio : zeta in [0, 1), default 0.03 (paper Section 6.1).
         formulation : ``"reference"``, ``"te"`` or ``"perturbation"``.
         nlte_terms : keep NLTE in the equations; None (default) keeps them unless NLTE is
-            identically zero for these modifications.
+            identically zero for these modifications. False: NLTE = 0 everywhere.
+        nlte_inertia : keep the NLTE'' inertial term (default); False drops it alone
+            (Section 6.3.2, "NLTE'' set at zero"), ``TE_S - NLTE`` and the DTE kept.
         nlte_method : ``"substitution"`` or ``"spectral"`` (see module docstring).
         nlte_harmonics : mesh harmonics kept by the spectral method.
         excitation : ``"table"`` or ``"inline"`` (see module docstring).
@@ -493,63 +504,18 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         if (merge_spur_lines and mesh.pair.spur and mesh.cells_per_line > 1
                 and not np.any(np.asarray(mods.crowning_m) != 0.0)):
             mesh = dataclasses.replace(mesh, cells_per_line=1)
-        period = mods.excitation_period_rad(mesh.pair)
         force = static_mesh_force(mesh.pair, torque)
-        n_mesh = int(round(period / mesh.pair.mesh_period_rad))
-        sig = sdof_signature_fn(mesh, mods, force)
-        theta = np.arange(n_table * n_mesh) * (period / (n_table * n_mesh))
-        scan = {k: np.asarray(v) for k, v in sig(jnp.asarray(theta)).items()}
-        if not np.all(np.isfinite(scan["x_s"])):
-            raise ModelError("mods", "...", "the quasi-static solve has no contact at some angle "
-                             "(modifications larger than the static deflection everywhere?)")
+        layout = sdof_table_layout(mesh, mods, force, n_table)
+        period, nlte_max = layout.pop("period"), layout.pop("nlte_max")
         if nlte_terms is None:
-            nlte_terms = bool(np.max(np.abs(scan["nlte"])) > 0.0)
-        # table origin far from every change of the discrete quasi-static state, then the
-        # changes bracketed by adjacent floats *in table coordinates* [origin, origin + P)
-        c0 = code(scan)
-        coarse = theta[np.any(c0 != np.roll(c0, -1, axis=0), axis=1)]
-        origin = quiet_origin(coarse, period)
-        grid = origin + theta
-        scan_u = {k: np.asarray(v) for k, v in sig(jnp.asarray(grid)).items()}
-        lo, hi = find_brackets(lambda t: code(sig(jnp.asarray(t))), grid, code(scan_u), period)
-        geo = engagement_angles(mesh, period)
-        jumps = np.unique(np.mod(np.concatenate([geo, hi]), period))
-        jumps = jumps[np.concatenate([[True], np.diff(jumps) > 1e-12 * period])]
-        if jumps.size > 1 and jumps[-1] > period * (1 - 1e-12) and jumps[0] < 1e-12 * period:
-            jumps = jumps[:-1]
-        knots, cell_first, max_extra = PeriodicHermiteTable.layout(
-            origin, period, n_table * n_mesh, np.concatenate([lo, hi])
-        )
-        side = np.zeros(knots.shape)
-        side[np.isin(knots, lo)] = -1.0
-        side[np.isin(knots, hi)] = 1.0
-        # design-dependent switching angles: kind and cells of the event at every jump, so
-        # that the assembly can move them with the modifications (module docstring,
-        # "Derivatives with respect to the design")
-        kinds, cells_ab = [EV_FIXED] * jumps.size, [(0, 0)] * jumps.size
-        if lo.size:
-            kinds, cells_ab = classify_events(jumps, lo, hi, code(sig(jnp.asarray(lo))),
-                                              code(sig(jnp.asarray(hi))), mesh.n_cells, period)
-        kinds, cells_ab = check_event_roots(
-            eqx.Partial(sdof_switch, mesh, mods, jnp.asarray(force)),
-            jumps, kinds, cells_ab, mesh.pair.mesh_period_rad)
-        moving = any(k != EV_FIXED for k in kinds)
-        codes = None
-        if moving:
-            delta = 1e-9 * period
-            codes = jnp.asarray(code(sig(jnp.asarray(knots + side * delta))), dtype=jnp.int32)
+            nlte_terms = nlte_max > 0.0
         return cls._complete(
             mesh=mesh, mods=mods, inertias_kg_m2=jnp.asarray(inert),
             pinion_torque_Nm=jnp.asarray(torque), damping_ratio=jnp.asarray(zeta),
-            table_knots=jnp.asarray(knots), table_side=jnp.asarray(side),
-            table_cell_first=jnp.asarray(cell_first, dtype=jnp.int32),
             formulation=formulation, nlte_terms=bool(nlte_terms), nlte_method=nlte_method,
-            nlte_reaction=nlte_reaction, nlte_harmonics=int(nlte_harmonics),
-            excitation=excitation, period_rad=float(period),
-            jump_thetas=tuple(float(t) for t in jumps), n_table=n_table,
-            table_origin=float(origin), table_max_extra=max_extra,
-            jump_kinds=tuple(int(k) for k in kinds),
-            jump_cells=tuple((int(a), int(b)) for a, b in cells_ab), table_codes=codes,
+            nlte_reaction=nlte_reaction, nlte_inertia=bool(nlte_inertia),
+            nlte_harmonics=int(nlte_harmonics),
+            excitation=excitation, period_rad=period, n_table=n_table, **layout,
         )
 
     def angle(self, s):
@@ -641,7 +607,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         x, xp = self._x_and_slope(theta, y, omega, exc)
         resid, _ = self._mesh_terms(theta, x, exc, contact)
         acc = -r * (resid + 2.0 * self.damping_ratio * xp / (r * self.x_ref))
-        if self.nlte_terms and self.nlte_method == "spectral":
+        if self.nlte_inertial_terms and self.nlte_method == "spectral":
             acc = acc - self.nlte_inertia_ratio * self._nlte_dd(theta) / (r * self.x_ref)
         dydth = jnp.stack([r * y[1], acc])
         return dydth if dth is None else dydth * dth
