@@ -130,6 +130,9 @@ def _add_scenario(p: argparse.ArgumentParser):
                    help="relief shape (default: the rig file's, else linear)")
     p.add_argument("--pitch-errors", action="store_true",
                    help="add the pinion cumulative pitch errors (periods of a pinion revolution)")
+    from .scenario import add_eccentricity
+
+    add_eccentricity(p)
 
 
 def _fail(msg: str) -> int:
@@ -202,7 +205,8 @@ def _cmd_quasistatic(args) -> int:
     rig = get_rig(args.rig)
     scen = scenario_modifications(rig, args)
     mods = scen.mods
-    n_periods = rig.pair.z1 if scen.pitch_errors else 1  # a pinion revolution
+    # the excitation period: a revolution of each body carrying errors (pinion: z1 mesh periods)
+    n_periods = round(mods.excitation_period_rad(rig.pair) / rig.pair.mesh_period_rad)
     _check_positions_memory(args.positions, n_periods)
     mesh = Mesh.build(rig.pair, args.stiffness, pinion_torque_Nm=rig.pinion_torque_Nm)
     theta = mesh.theta_grid(args.positions, n_periods)
@@ -279,7 +283,7 @@ def _check_positions_memory(positions: int, n_periods: int) -> None:
     have = available_memory_bytes()
     limit = 0.5 * have if have else 8 * 2**30
     if need > limit:
-        span = f" x {n_periods} mesh periods (--pitch-errors)" if n_periods > 1 else ""
+        span = f" x {n_periods} mesh periods (the errors' period)" if n_periods > 1 else ""
         raise GearjaxError("--positions", positions,
                            f"{positions}{span} positions need about {need / 2**30:.1f} GiB, more "
                            f"than half the available memory ({limit * 2 / 2**30:.1f} GiB); "

@@ -18,7 +18,9 @@ import dataclasses
 import numpy as np
 
 __all__ = ["Scenario", "scenario_modifications", "add_nlte_reaction", "nlte_reaction_of",
-           "add_nlte_switches", "nlte_options_of"]
+           "add_nlte_switches", "nlte_options_of", "add_eccentricity", "eccentricity_of"]
+
+MAX_ECCENTRICITY_UM = 1000.0  # above 1 mm: a unit mistake (the option is in micrometres)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,7 +39,10 @@ class Scenario:
 
     def summary(self) -> dict:
         m = self.mods
-        return {
+        ecc = {} if m.eccentricity_m is None else {  # only when present: older case.json stay
+            "eccentricity_m": [float(v) for v in np.asarray(m.eccentricity_m)],  # resumable
+            "eccentricity_phase_rad": [float(v) for v in np.asarray(m.eccentricity_phase_rad)]}
+        return {**ecc,
             "relief_source": self.source,
             "relief_label": self.label,
             "relief_amplitude_m": [float(v) for v in np.asarray(m.relief_amplitude_m)],
@@ -96,6 +101,9 @@ def scenario_modifications(rig, args) -> Scenario:
             crowning_m=file_mods.crowning_m)
     if getattr(args, "pitch_errors", False):
         mods = mods.with_pitch_errors(rig.pinion_pitch_errors_m, np.zeros(rig.pair.z2))
+    ecc = eccentricity_of(args)
+    if ecc is not None:
+        mods = mods.with_eccentricity(*ecc)
     source = base + (" with " + ", ".join(changed) if changed else "")
     if not changed and file_mods is None:
         label = f"relief {relief}" + (f" ({shape})" if shape != "linear" else "")
@@ -108,6 +116,11 @@ def scenario_modifications(rig, args) -> Scenario:
                                                    and not changed else "")
         key = ("file" if file_mods is not None and not changed
                else f"relief{amp[0]:g}x{ext[0]:g}" + ("" if shape == "linear" else f"-{shape}"))
+    if ecc is not None:
+        um = ecc[0] * 1e6
+        label += f", eccentricity {um[0]:g}/{um[1]:g} um"
+        key += f"-ecc{um[0]:g}x{um[1]:g}" + (f"-ph{ecc[1][0]:g}x{ecc[1][1]:g}"
+                                             if np.any(ecc[1] != 0) else "")
     return Scenario(mods=mods, source=source, label=label, key=key)
 
 
@@ -152,3 +165,50 @@ def nlte_options_of(args) -> dict:
     zero = bool(getattr(args, "zero_nlte", False))
     return {"nlte_terms": False if zero else None,
             "nlte_inertia": not (zero or getattr(args, "no_nlte_terms", False))}
+
+
+def add_eccentricity(p) -> None:
+    """Add ``--eccentricity E1[,E2]`` (um) and ``--eccentricity-phase P1[,P2]`` (rad)."""
+    p.add_argument("--eccentricity", default=None, metavar="E1[,E2]",
+                   help="eccentricities of the pinion and the gear in micrometres (one value: "
+                        "pinion only); the excitation period becomes a revolution of each "
+                        "eccentric body (gear: z2 mesh periods); replaces a rig file's")
+    p.add_argument("--eccentricity-phase", default=None, metavar="P1[,P2]",
+                   help="phases lambda_1, lambda_2 of the eccentricities (rad, default 0)")
+
+
+def _pair_of(flag: str, text: str, what: str) -> np.ndarray:
+    from ..errors import GearjaxError
+
+    try:
+        vals = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise GearjaxError(flag, text, f"expected one or two comma-separated {what}") from None
+    if not 1 <= len(vals) <= 2:
+        raise GearjaxError(flag, text, f"expected one or two comma-separated {what}")
+    if not all(np.isfinite(vals)):
+        raise GearjaxError(flag, text, f"{what} must be finite")
+    return np.array(vals + [0.0] * (2 - len(vals)))
+
+
+def eccentricity_of(args):
+    """``(e (2,) m, lambda (2,) rad)`` of ``--eccentricity`` (micrometres; one value: the
+    pinion's, the gear's 0) and ``--eccentricity-phase`` (rad, default 0), or None without
+    ``--eccentricity``. Raises :class:`gearjax.errors.GearjaxError` for a negative, non
+    finite or absurd (> 1 mm) eccentricity, or a phase without an eccentricity."""
+    from ..errors import GearjaxError
+
+    text, ph = getattr(args, "eccentricity", None), getattr(args, "eccentricity_phase", None)
+    if text is None:
+        if ph is not None:
+            raise GearjaxError("--eccentricity-phase", ph, "needs --eccentricity")
+        return None
+    um = _pair_of("--eccentricity", text, "eccentricities (um)")
+    if np.any(um < 0):
+        raise GearjaxError("--eccentricity", text, "eccentricities must be >= 0 (um; the "
+                           "direction is the phase)")
+    if np.any(um > MAX_ECCENTRICITY_UM):
+        raise GearjaxError("--eccentricity", text, f"above {MAX_ECCENTRICITY_UM:g} um = 1 mm; "
+                           "the values are in micrometres (20 um is 20)")
+    phase = np.zeros(2) if ph is None else _pair_of("--eccentricity-phase", ph, "phases (rad)")
+    return um / 1e6, phase
