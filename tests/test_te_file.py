@@ -179,6 +179,7 @@ def test_quasistatic_csv_as_te_file_gives_the_same_sweep(tmp_path, capsys):
             assert float(rb[key]) == pytest.approx(float(ra[key]), rel=1e-9), key
 
 
+@pytest.mark.slow  # 40 s (a long-relief 3D te table twice); the sine test below is the default's
 def test_3d_model_driven_by_its_own_te_as_a_file_is_the_same_model():
     """3D round trip (Eqs. (42) and (36)-(41)): the te model's own TE_S at its encoders
     (``d + NLTE + w_x0``), NLTE and loaded stiffness written as file rows (both sides of
