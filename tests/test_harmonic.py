@@ -252,3 +252,31 @@ def test_small_gain_bound_proves_only_what_floquet_confirms(square_wave):
                                 damping_ratio=ZETA, pinion_torque_Nm=TORQUE)
     res = harmonic_sweep(pert, speeds, rtol=1e-6)
     assert np.all(res.small_gain == 0.0) and np.all(res.stable)
+
+
+def test_auto_falls_back_to_the_transient_when_the_split_does_not_fit(square_wave, monkeypatch,
+                                                                      capsys):
+    """``sweep(method="auto")`` on a model whose vector field the frequency-domain split
+    refuses (``SimulationError`` on ``model``, e.g. a residual above ``rank_one_tol``) runs
+    every speed by the transient instead of stopping the sweep (the README's main job once
+    stopped there); ``method="harmonic"`` asked explicitly still raises."""
+    import gearjax.dynamics.harmonic as harmonic_mod
+    import gearjax.dynamics.sweep as sweep_mod
+    from gearjax.dynamics.sweep import sweep
+
+    from gearjax.errors import SimulationError
+
+    model = square_wave[0][ZETA]
+
+    def refuse(*args, **kwargs):
+        raise SimulationError("model", "rank_one_error=1.2e-08", "not rank one")
+
+    monkeypatch.setattr(harmonic_mod, "harmonic_sweep", refuse)
+    monkeypatch.setattr(sweep_mod, "auto_method", lambda m: "harmonic")
+    speeds = np.array([300.0, 600.0])
+    res = sweep(model, speeds, method="auto", progress=True)
+    direct = sweep(model, speeds, method="transient", progress=False)
+    assert "not applicable" in capsys.readouterr().err
+    np.testing.assert_array_equal(res.max_mesh_force_N, direct.max_mesh_force_N)
+    with pytest.raises(SimulationError, match="rank_one_error"):
+        sweep(model, speeds, method="harmonic", progress=False)

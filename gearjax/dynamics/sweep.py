@@ -161,15 +161,25 @@ def sweep(
         )
     if method not in METHODS:
         raise SimulationError("method", method, f"must be one of {', '.join(METHODS)}")
-    if method == "auto":  # the frequency-domain solver runs on one device of one process
+    auto = method == "auto"
+    if auto:  # the frequency-domain solver runs on one device of one process
         one = devices is None and jax.process_count() == 1
         method = auto_method(model) if one else "transient"
     if method == "steady":
         return _steady(model, speeds, chunk_size, progress, (out_csv, orders_csv), devices,
                        simulate_kwargs)
     if method == "harmonic":
-        return _harmonic(model, speeds, chunk_size, progress, (out_csv, orders_csv), devices,
-                         simulate_kwargs)
+        try:
+            return _harmonic(model, speeds, chunk_size, progress, (out_csv, orders_csv), devices,
+                             simulate_kwargs)
+        except SimulationError as exc:
+            if not (auto and exc.field == "model"):
+                raise
+            if progress:  # auto: a model the frequency-domain split does not fit
+                print(f"[gearjax.dynamics.sweep] {model.formulation:12s} harmonic balance not "
+                      f"applicable ({exc}); every speed by the transient solver",
+                      file=sys.stderr, flush=True)
+            method = "transient"
     multi_process = jax.process_count() > 1
     if devices is None and multi_process:
         devices = "all"
