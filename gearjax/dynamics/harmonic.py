@@ -78,6 +78,7 @@ from .krylov import gmres
 from .metrics import output_grid, refined_extrema
 from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
 from .results import SweepResult
+from . import watchdog
 from .stability import monodromy
 from .steady import spectral_radius_of
 
@@ -646,10 +647,14 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     n_h = lo
     t0 = time.perf_counter()
     while todo.size:
+        t_batch = time.perf_counter()
         res = jax.device_get(_hb_batch(model, jnp.asarray(speeds[todo]), n_h, kw))
         for f, v in zip(_FIELDS, res):
             out[f][todo] = np.asarray(v, dtype=float)
         n_used[todo] = n_h
+        # the next batch doubles H at least (and compiles again): allow it 4x this one
+        watchdog.progress(f"harmonic balance, {todo.size} speed(s) at H={n_h}",
+                          expect_s=4.0 * (time.perf_counter() - t_batch))
         if np.any(out["rank_one_error"][todo] > rank_one_tol):
             raise SimulationError(
                 "model", f"rank_one_error={np.max(out['rank_one_error'][todo]):.1e}",
