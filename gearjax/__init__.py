@@ -10,7 +10,9 @@ to keep XLA's defaults, or name a flag in ``XLA_FLAGS`` to choose its value your
 ``--xla_cpu_experimental_ynn_fusion_type=`` and ``--xla_cpu_multi_thread_eigen=false``.
 jax 0.10.2 runs f64 dots as YNNPACK fusions that block an intra-op pool worker while
 fanning out into the same pool; repeated 3D steady-state evaluations hung there
-(issue 16; ``benchmarks/results/soak_3d.md``). They only matter on the CPU backend.
+(issue 16; ``benchmarks/results/soak_3d.md``). They only matter on the CPU backend. The
+hang later caught with a native stack was another one, which these flags do not prevent:
+jaxlib's batched LAPACK kernels waiting on the pool they run on (:mod:`gearjax.linalg`).
 """
 
 import os as _os

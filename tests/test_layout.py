@@ -17,7 +17,7 @@ PKG = Path(__file__).resolve().parents[1] / "gearjax"
 
 # layers from the top of the data flow down to the command line; a module may import its
 # own layer and the layers before it, never a later one
-LAYERS = ("errors", "gears", "structure", "excitation", "models", "dynamics", "rigs",
+LAYERS = ("errors", "linalg", "gears", "structure", "excitation", "models", "dynamics", "rigs",
           "design", "plotting", "cli")
 MAX_LINES = 700
 

@@ -71,6 +71,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..linalg import solve as dense_solve
 from . import watchdog
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import SimulationError, SimulationResult, jump_controller, simulate
@@ -200,7 +201,7 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
 
     def step(y):
         y_p, phi, ok, steps = _one_period(model, omega, y, solver, rtol, atol, max_steps)
-        dy = jnp.linalg.solve(eye - phi, y_p - y)
+        dy = dense_solve(eye - phi, y_p - y)  # vmapped: gearjax.linalg
         return y + dy, phi, ok, steps, jnp.sqrt(jnp.sum(dy * dy))
 
     y1, phi, ok, steps, res = step(y_s)

@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..gears.contact import unilateral_solve_pairwise
+from ..linalg import solve as dense_solve
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.quasistatic import contact_gaps
@@ -315,7 +316,7 @@ def harmonic_response(kbar_r, c_r, v_r, amp, period: float, omega):
     eye = jnp.eye(r)
     a = (kbar_r[None] - (w_h**2)[:, None, None] * eye[None]
          + 1j * w_h[:, None, None] * c_r[None])
-    g = jnp.linalg.solve(a, jnp.broadcast_to(v_r.astype(a.dtype), (n_h + 1, r))[..., None])[..., 0]
+    g = dense_solve(a, jnp.broadcast_to(v_r.astype(a.dtype), (n_h + 1, r))[..., None])[..., 0]
     z_h = g * amp[:, None]
     weight = jnp.where(h > 0, 2.0, 1.0)[:, None]
     z = jnp.real(jnp.sum(weight * z_h, axis=0))

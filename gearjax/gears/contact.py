@@ -25,6 +25,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from ..linalg import solve as dense_solve
+
 __all__ = ["solve_unilateral", "unilateral_solve_pairwise", "active_set_solve", "te_contact"]
 
 
@@ -114,7 +116,7 @@ def active_set_solve(k_cc, f_c, vecs, k, gap, active0, max_iter: int):
         ka = jnp.where(active, k, 0.0)
         kt = k_cc + (vecs.T * ka[None, :]) @ vecs
         rhs = f_c + vecs.T @ (ka * gap)
-        return jnp.linalg.solve(kt, rhs)
+        return dense_solve(kt, rhs)  # no LAPACK under vmap (gearjax.linalg)
 
     def new_set(x):
         return (k > 0) & (vecs @ x - gap > 0)

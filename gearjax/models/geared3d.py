@@ -72,6 +72,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ModelError
+from ..linalg import solve as dense_solve
 from ..excitation.mesh3d import (QuasiStaticMesh3D, fourier_coefficients, harmonic_response,
                                  tabulate)
 from ..excitation.te_file import TETable
@@ -484,7 +485,7 @@ class Geared3DModel(AbstractGearModel):
             cells, _, _ = contact_gaps(self.mesh, self.mods, theta)
             f_loc = self.quasi_static_mesh().vectors(cells).T @ qs.cell_load_N
             rhs = -(self.t_local.T @ f_loc) + self.k_m * self.v_r * (self.v_local @ qs.x_local)
-            return self.q0 + jnp.linalg.solve(self.kbar_r, rhs)
+            return self.q0 + dense_solve(self.kbar_r, rhs)
         d, _ = self._excitation(theta)
         return self.q0 + d / self.c_wv * self.c_v_r
 
