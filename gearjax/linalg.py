@@ -42,10 +42,9 @@ def lu_factor(a):
         m = m.at[jnp.stack([k, p])].set(m[jnp.stack([p, k])])
         perm = perm.at[jnp.stack([k, p])].set(perm[jnp.stack([p, k])])
         piv = m[k, k]
-        below = rows > k
+        below = rows > k  # rows below the pivot; as a column mask, right of it
         f = jnp.where(below, m[:, k] / jnp.where(piv == 0, 1.0, piv), 0.0)
-        upd = jnp.where(rows > k, m[k], 0.0)  # row k right of the diagonal
-        m = m - f[:, None] * upd[None, :]
+        m = m - f[:, None] * jnp.where(below, m[k], 0.0)[None, :]
         m = m.at[:, k].set(jnp.where(below, f, m[:, k]))
         return m, perm
 
