@@ -8,6 +8,7 @@
 * Modal reduction with static correction agrees with the full modal model.
 """
 
+import dataclasses
 import math
 
 import equinox as eqx
@@ -299,6 +300,65 @@ def test_reduced_model_close_to_full():
     a, b = run(full), run(red)
     np.testing.assert_allclose(float(a.max_mesh_force_N), float(b.max_mesh_force_N), rtol=2e-3)
     np.testing.assert_allclose(float(a.dte_ptp_m), float(b.dte_ptp_m), rtol=2e-2)
+
+
+def test_structured_modal_products_equal_dense(rig_te):
+    """The vector field applies K_bar_r as its diagonal and C_r as diagonal plus the
+    static-correction block (modal damping); with the dense products forced it is the
+    same to round-off, for all three formulations; a damping matrix with modal coupling is
+    detected and applied dense."""
+    from gearjax.models.geared3d import modal_structure
+
+    ref = dataclasses.replace(rig_te, formulation="reference")
+    y = jnp.asarray(np.random.default_rng(3).normal(size=rig_te.state_size)) * 0.3
+    for m in (rig_te, ref):
+        assert m.diagonal_stiffness and m.damping_split == m.n_modes and m.n_static > 0
+        dense = dataclasses.replace(m, diagonal_stiffness=False, damping_split=0)
+        for th in (0.01, 0.13):
+            a = np.asarray(m.vector_field(th, y, 400.0))
+            b = np.asarray(dense.vector_field(th, y, 400.0))
+            # the dropped off-diagonal entries are round-off (~2e-15 of the largest
+            # diagonal entry, 6e6 times the slowest mode's): 1e-11 of the largest rate
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-10 * np.max(np.abs(b)))
+    c = np.array(rig_te.c_r)
+    c[0, 1] = c[1, 0] = 1e-4 * np.sqrt(c[0, 0] * c[1, 1])  # non-proportional damping between two modes
+    assert modal_structure(rig_te.kbar_r, c, rig_te.n_modes)["damping_split"] == 0
+    k = np.array(rig_te.kbar_r)
+    k[2, 0] = 1e-4 * np.sqrt(k[0, 0] * k[2, 2])
+    assert not modal_structure(k, rig_te.c_r, rig_te.n_modes)["diagonal_stiffness"]
+
+
+def test_modal_transient_amplitudes_closed_form():
+    """What is left of a free damped mode after one period, from its state change over
+    that period alone (the convergence measure of simulate): against the closed-form
+    free response z = A exp(-zeta w t) cos(w_d t) in the state (z / a, z' / (w a))."""
+    from gearjax.models.base import modal_transient_amplitudes
+
+    om, zeta, speed, p_rad, a = np.array([300.0, 5000.0]), 0.02, 100.0, 0.25, 2e-6
+    big_a, t0 = 3e-5, 0.37
+    period = p_rad / speed
+    wd = om[0] * np.sqrt(1 - zeta**2)
+
+    def state(t):
+        e = np.exp(-zeta * om[0] * t)
+        z = big_a * e * np.cos(wd * t)
+        zd = big_a * e * (-zeta * om[0] * np.cos(wd * t) - wd * np.sin(wd * t))
+        return np.array([z / a, 0.0, zd / (om[0] * a), 0.0])
+
+    dy = jnp.asarray(state(t0 + period) - state(t0))
+    f, d, acc = modal_transient_amplitudes(dy, speed, p_rad, om, zeta, a,
+                                           np.array([3.0, 7.0]), np.array([1.0, 1.0]),
+                                           np.array([0.5, 0.0]))
+    left = big_a * np.exp(-zeta * om[0] * (t0 + period))  # envelope after the period
+    np.testing.assert_allclose([float(f), float(d), float(acc)],
+                               [3.0 * left, left, 0.5 * om[0] ** 2 * left], rtol=0.05)
+    # a fast mode's change is not amplified like a slow one's (30 rad/s: 1/|1 - mu| ~ 13)
+    om2 = np.array([30.0, 5300.0])
+    fast = modal_transient_amplitudes(jnp.asarray([0.0, 1.0, 0.0, 0.0]), speed, p_rad, om2,
+                                      zeta, 1.0, np.ones(2), np.ones(2), None)
+    slow = modal_transient_amplitudes(jnp.asarray([1.0, 0.0, 0.0, 0.0]), speed, p_rad, om2,
+                                      zeta, 1.0, np.ones(2), np.ones(2), None)
+    assert fast[2] is None and float(fast[0]) < 2.0 < 10.0 < float(slow[0])
 
 
 def test_clear_errors(torsional_setup):

@@ -85,7 +85,7 @@ from ..structure.condensation import Condensation, QuasiStatic3D, quasi_static_3
 from ..structure.element import PinionGearElement
 from ..structure.geared import Eccentricity, disc_mass, geared_structure
 from .base import (FORMULATIONS, AbstractGearModel, ModelOutputs, modal_slowest_output_mode,
-                   modal_transient_start)
+                   modal_transient_amplitudes, modal_transient_start)
 from .geared3d_excitation import file_mean_stiffness, own_table_fields, te_file_fields
 from .geared3d_inertial import inertial_vectors, nlte_derivatives
 from .cutoff import (CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS,  # re-exported
@@ -97,6 +97,29 @@ __all__ = ["Geared3DModel", "MESH_VECTORS", "default_max_frequency_hz", "CUTOFF_
 MESH_VECTORS = ("cells", "mean")
 EXCITATIONS = ("table", "inline")
 Formulation = Literal["reference", "te", "perturbation"]
+
+
+def modal_structure(kbar_r, c_r, n_modes: int, tol: float = 1e-6) -> dict:
+    """How the vector field may apply the reduced matrices (static fields of
+    :class:`Geared3DModel`): ``diagonal_stiffness`` when every off-diagonal entry of
+    ``kbar_r`` is below ``tol`` of the geometric mean of its two diagonal entries (the modes
+    of ``(M, K_bar)``, static corrections orthogonalised: round-off, ~1e-8 for the slowest
+    mode of the Baud-Velex rig); ``damping_split = n_modes`` when ``c_r`` passes the same
+    test except on its trailing static-correction block (modal damping), else 0 (dense). A
+    step of the 3D rig (146 coordinates) spent most of its time in these two dense
+    products."""
+    k, c = np.asarray(kbar_r, dtype=float), np.asarray(c_r, dtype=float)
+
+    def diagonal(a):  # off-diagonal entries small against sqrt(a_ii a_jj)
+        d = np.sqrt(np.abs(np.diag(a)))
+        off = np.abs(a - np.diag(np.diag(a)))
+        return bool(np.all(off <= tol * np.outer(d, d)))
+
+    p = int(n_modes)
+    head = np.array(c, copy=True)
+    head[p:, p:] = np.diag(np.diag(c)[p:])  # the static-correction block may be dense
+    split = p if 0 < p <= c.shape[0] and diagonal(head) else 0
+    return {"diagonal_stiffness": diagonal(k), "damping_split": split}
 
 
 class Geared3DModel(AbstractGearModel):
@@ -124,6 +147,9 @@ class Geared3DModel(AbstractGearModel):
     structure_ok : (bool array) this design keeps the discrete structure of the build.
 
     Static attributes: formulation, mesh_vectors, nlte_terms, nlte_inertia, n_modes, n_static,
+    diagonal_stiffness and damping_split (:func:`modal_structure`: ``kbar_r`` is applied as
+    its diagonal, ``c_r`` as its diagonal on the first ``damping_split`` coordinates and a
+    dense block on the rest),
     period_rad, jump_thetas, decay_omega_rad_s (slowest mode with a mesh participation
     above ``participation_tol``), qs_max_iter, table_origin, table_cells,
     table_max_extra, excitation, harmonic_start, event_thetas, event_kinds, event_cells,
@@ -177,6 +203,8 @@ class Geared3DModel(AbstractGearModel):
     event_cells: tuple = eqx.field(static=True)
     te_source: str | None = eqx.field(static=True, default=None)
     nlte_inertia: bool = eqx.field(static=True, default=True)
+    diagonal_stiffness: bool = eqx.field(static=True, default=False)
+    damping_split: int = eqx.field(static=True, default=0)
 
     def __check_init__(self):
         if self.formulation not in FORMULATIONS:
@@ -375,7 +403,8 @@ class Geared3DModel(AbstractGearModel):
             qs_max_iter=int(qs_max_iter), excitation=excitation,
             harmonic_start=bool(harmonic_start),
             te_source=None if te_table is None else te_table.source,
-            nlte_inertia=bool(nlte_inertia), **layout,
+            nlte_inertia=bool(nlte_inertia), **modal_structure(red.kbar_r, red.c_r, red.n_modes),
+            **layout,
         )
 
     # ------------------------------------------------------------------ constants
@@ -512,6 +541,19 @@ class Geared3DModel(AbstractGearModel):
         u = y[nr:] * r * self.scale_a
         return z, u, r
 
+    def _stiffness(self, z):
+        """``kbar_r @ z``, as the diagonal product where the modal stiffness is diagonal."""
+        return jnp.diagonal(self.kbar_r) * z if self.diagonal_stiffness else self.kbar_r @ z
+
+    def _damping(self, qp):
+        """``c_r @ qp``: diagonal on the first ``damping_split`` (modal) coordinates, dense
+        on the static-correction block (modal damping leaves only that block coupled)."""
+        p = self.damping_split
+        if p == 0:
+            return self.c_r @ qp
+        head = jnp.diagonal(self.c_r)[:p] * qp[:p]
+        return jnp.concatenate([head, self.c_r[p:, p:] @ qp[p:]])
+
     def _elastic(self, s, q, contact: bool = True):
         """(restoring minus static force in modal coordinates, mesh force F_D (N)) at the
         simulation angle ``s``; te/perturbation with the contact law of
@@ -525,7 +567,8 @@ class Geared3DModel(AbstractGearModel):
             loads = cells.stiffness_N_per_m * jnp.maximum(vecs @ x_loc - de, 0.0)
             f_loc = vecs.T @ loads
             # K q - F0 = K_bar z - k_m V (V^T q) + k_m v_x0 V ... with K_bar q0 = F0
-            force = self.kbar_r @ z - self.k_m * self.v_r * (self.v_r @ q) + self.t_local.T @ f_loc
+            force = (self._stiffness(z) - self.k_m * self.v_r * (self.v_r @ q)
+                     + self.t_local.T @ f_loc)
             return force, jnp.sum(loads)
         d, k = self._excitation(s)
         v_q = self.v_r @ q
@@ -536,7 +579,7 @@ class Geared3DModel(AbstractGearModel):
             f_eq = k * v_q - k * self.cos_bb * d - (k - self.k_m) * f_s / self.k_m
         else:
             f_eq = self.k_m * (v_q - self.cos_bb * d)
-        force = self.kbar_r @ z + (f_eq - self.k_m * v_q) * self.v_r
+        force = self._stiffness(z) + (f_eq - self.k_m * v_q) * self.v_r
         if not contact:
             return force, f_d
         cut, f_d = te_contact(f_eq, f_d)
@@ -555,7 +598,7 @@ class Geared3DModel(AbstractGearModel):
         else:
             qp = u
         force, _ = self._elastic(s, q, contact)
-        up = -(force + omega * (self.c_r @ qp)) / omega**2
+        up = -(force + omega * self._damping(qp)) / omega**2
         if e is not None:
             up = up + nl1 * ep
             if f is not None:
@@ -670,6 +713,14 @@ class Geared3DModel(AbstractGearModel):
         """(omega_s (rad/s), zeta) of the slowest mode the mesh force or the DTE sees
         (:func:`gearjax.models.base.modal_slowest_output_mode` on ``omega_r, v_r, w_r``)."""
         return modal_slowest_output_mode(self.omega_r, self.v_r, self.w_r, self.damping_ratio)
+
+    def transient_amplitudes(self, dy, omega):
+        """Free response left in a transient (:func:`gearjax.models.base.modal_transient_amplitudes`
+        on the modes and static corrections of the basis): mesh force ``k_m v_j``, DTE
+        ``w_j`` and pinion-centre acceleration ``acc_j`` per unit modal displacement."""
+        return modal_transient_amplitudes(dy, omega, self.period_rad, self.omega_r,
+                                          self.damping_ratio, self.scale_a,
+                                          self.k_m * self.v_r, self.w_r, self.acc_r)
 
     def natural_frequency_rad_s(self):
         """Frequency (rad/s) of the mode of ``(M, K_bar)`` with the largest share of strain
