@@ -229,6 +229,11 @@ def sweep(
         w = jnp.asarray(speeds[sel])
         if n_dev > 1:
             w = _global_speeds(np.asarray(speeds[sel]), devices)
+        if progress and c == 0:  # a chunk can take minutes: say what runs before it ends
+            print(f"[gearjax.dynamics.sweep] {formulation:12s} chunk 1/{n_chunks}: "
+                  f"{len(set(sel.tolist()))} speeds {speeds[sel].min():.4g}-"
+                  f"{speeds[sel].max():.4g} rad/s, compiling and integrating ...",
+                  file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         out = fn(model, w, sim_kwargs)
         if multi_process and n_dev > 1:
@@ -363,8 +368,10 @@ def _harmonic(model, speeds, chunk_size, progress, out_csv, devices, simulate_kw
               f"{int((~(hb.stable & hb.stability_known)).sum())} not proven stable)",
               file=sys.stderr, flush=True)
     if np.any(~keep):
-        rest = sweep(model, speeds[~keep], chunk_size=chunk_size, progress=progress,
-                     method="transient", **simulate_kwargs)
+        n_rest = int((~keep).sum())  # a larger chunk would integrate padding copies
+        rest = sweep(model, speeds[~keep], progress=progress, method="transient",
+                     chunk_size=None if chunk_size is None else min(chunk_size, n_rest),
+                     **simulate_kwargs)
         for f in METRIC_FIELDS:
             fields[f][~keep] = getattr(rest, f)
     res = MethodSweepResult(**fields, formulation=model.formulation, method=method)
