@@ -88,6 +88,7 @@ from .base import (FORMULATIONS, AbstractGearModel, ModelOutputs, modal_slowest_
                    modal_transient_amplitudes, modal_transient_start)
 from .geared3d_excitation import file_mean_stiffness, own_table_fields, te_file_fields
 from .geared3d_inertial import inertial_vectors, nlte_derivatives
+from .geared3d_modal import damping_product, modal_structure, stiffness_product
 from .cutoff import (CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS,  # re-exported
                      default_max_frequency_hz)
 
@@ -97,29 +98,6 @@ __all__ = ["Geared3DModel", "MESH_VECTORS", "default_max_frequency_hz", "CUTOFF_
 MESH_VECTORS = ("cells", "mean")
 EXCITATIONS = ("table", "inline")
 Formulation = Literal["reference", "te", "perturbation"]
-
-
-def modal_structure(kbar_r, c_r, n_modes: int, tol: float = 1e-6) -> dict:
-    """How the vector field may apply the reduced matrices (static fields of
-    :class:`Geared3DModel`): ``diagonal_stiffness`` when every off-diagonal entry of
-    ``kbar_r`` is below ``tol`` of the geometric mean of its two diagonal entries (the modes
-    of ``(M, K_bar)``, static corrections orthogonalised: round-off, ~1e-8 for the slowest
-    mode of the Baud-Velex rig); ``damping_split = n_modes`` when ``c_r`` passes the same
-    test except on its trailing static-correction block (modal damping), else 0 (dense). A
-    step of the 3D rig (146 coordinates) spent most of its time in these two dense
-    products."""
-    k, c = np.asarray(kbar_r, dtype=float), np.asarray(c_r, dtype=float)
-
-    def diagonal(a):  # off-diagonal entries small against sqrt(a_ii a_jj)
-        d = np.sqrt(np.abs(np.diag(a)))
-        off = np.abs(a - np.diag(np.diag(a)))
-        return bool(np.all(off <= tol * np.outer(d, d)))
-
-    p = int(n_modes)
-    head = np.array(c, copy=True)
-    head[p:, p:] = np.diag(np.diag(c)[p:])  # the static-correction block may be dense
-    split = p if 0 < p <= c.shape[0] and diagonal(head) else 0
-    return {"diagonal_stiffness": diagonal(k), "damping_split": split}
 
 
 class Geared3DModel(AbstractGearModel):
@@ -541,19 +519,6 @@ class Geared3DModel(AbstractGearModel):
         u = y[nr:] * r * self.scale_a
         return z, u, r
 
-    def _stiffness(self, z):
-        """``kbar_r @ z``, as the diagonal product where the modal stiffness is diagonal."""
-        return jnp.diagonal(self.kbar_r) * z if self.diagonal_stiffness else self.kbar_r @ z
-
-    def _damping(self, qp):
-        """``c_r @ qp``: diagonal on the first ``damping_split`` (modal) coordinates, dense
-        on the static-correction block (modal damping leaves only that block coupled)."""
-        p = self.damping_split
-        if p == 0:
-            return self.c_r @ qp
-        head = jnp.diagonal(self.c_r)[:p] * qp[:p]
-        return jnp.concatenate([head, self.c_r[p:, p:] @ qp[p:]])
-
     def _elastic(self, s, q, contact: bool = True):
         """(restoring minus static force in modal coordinates, mesh force F_D (N)) at the
         simulation angle ``s``; te/perturbation with the contact law of
@@ -567,7 +532,7 @@ class Geared3DModel(AbstractGearModel):
             loads = cells.stiffness_N_per_m * jnp.maximum(vecs @ x_loc - de, 0.0)
             f_loc = vecs.T @ loads
             # K q - F0 = K_bar z - k_m V (V^T q) + k_m v_x0 V ... with K_bar q0 = F0
-            force = (self._stiffness(z) - self.k_m * self.v_r * (self.v_r @ q)
+            force = (stiffness_product(self, z) - self.k_m * self.v_r * (self.v_r @ q)
                      + self.t_local.T @ f_loc)
             return force, jnp.sum(loads)
         d, k = self._excitation(s)
@@ -579,7 +544,7 @@ class Geared3DModel(AbstractGearModel):
             f_eq = k * v_q - k * self.cos_bb * d - (k - self.k_m) * f_s / self.k_m
         else:
             f_eq = self.k_m * (v_q - self.cos_bb * d)
-        force = self._stiffness(z) + (f_eq - self.k_m * v_q) * self.v_r
+        force = stiffness_product(self, z) + (f_eq - self.k_m * v_q) * self.v_r
         if not contact:
             return force, f_d
         cut, f_d = te_contact(f_eq, f_d)
@@ -598,7 +563,7 @@ class Geared3DModel(AbstractGearModel):
         else:
             qp = u
         force, _ = self._elastic(s, q, contact)
-        up = -(force + omega * self._damping(qp)) / omega**2
+        up = -(force + omega * damping_product(self, qp)) / omega**2
         if e is not None:
             up = up + nl1 * ep
             if f is not None:
