@@ -53,6 +53,24 @@ def test_repeated_sweeps_trace_once(model, monkeypatch):
     assert np.all(np.isnan(a.accel_ptp_m_s2))  # torsional model: no acceleration observable
 
 
+def test_default_chunk_fits_memory(model, monkeypatch, capsys):
+    """Without chunk_size a sweep takes as many speeds per call as memory_chunk allows:
+    the saved states of one speed are the output grid (samples plus both sides of every
+    jump, per measured period; counted here from the model's jumps) times the state size,
+    for the measured leg and the 6 refinement windows."""
+    from gearjax.dynamics.simulate import N_REFINE
+
+    n_jumps = len(np.unique(np.mod(np.asarray(model.jump_thetas), model.period_rad)))
+    n_out = max(2 * (128 + 2 * n_jumps), 2 * N_REFINE)  # n_measured_periods=2, one mesh period
+    per_speed = sweep_mod._BYTES_PER_ENTRY * n_out * model.state_size
+    assert n_out > 2 * N_REFINE
+    assert sweep_mod.memory_chunk(model, OPTS, budget_bytes=10.5 * per_speed) == 10
+    assert sweep_mod.memory_chunk(model, OPTS, budget_bytes=0.5 * per_speed) == 1
+    monkeypatch.setattr(sweep_mod, "memory_chunk", lambda *a, **k: 2)
+    sweep(model, [120.0, 640.0, 330.0, 880.0, 450.0], **OPTS)
+    assert "chunk 3/3" in capsys.readouterr().err
+
+
 def test_csv_rows_and_progress(model, tmp_path, capsys):
     out = tmp_path / "sweep.csv"
     speeds = [120.0, 640.0, 330.0, 880.0, 450.0]

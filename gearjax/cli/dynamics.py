@@ -346,7 +346,7 @@ def _check_te_file(args, forms) -> None:
 
 def cmd_sweep(args) -> int:
     from ..rigs.registry import get_rig
-    from ..dynamics.sweep import sweep
+    from ..dynamics.sweep import memory_chunk, sweep
     from .outputs import prepare_output_dir
     from .results import (RESULT_FILES, check_resume, done_speeds, max_force_by_speed,
                           read_rows, summarise_rows, write_case)
@@ -457,7 +457,10 @@ def cmd_sweep(args) -> int:
                 branches[form] = run_branches(model, todo, args.direction, csv_path,
                                               progress=not args.json)
             elif todo.size:
-                res = sweep(model, todo, chunk_size=min(chunk, todo.size),
+                size = min(chunk, todo.size)
+                if args.chunk is None:  # and what the saved states of a chunk fit in
+                    size = min(size, memory_chunk(model, tolerances))
+                res = sweep(model, todo, chunk_size=size,
                             progress=not args.json, out_csv=csv_path, method=args.method,
                             orders_csv=orders_path,
                             **periodic_start_options(model), **tolerances)

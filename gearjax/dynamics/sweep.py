@@ -111,8 +111,9 @@ def sweep(
     ----------
     model : a model with the simulation interface (see :mod:`gearjax.dynamics.simulate`).
     speeds_rad_s : (n,) pinion speeds Omega1 (rad/s), finite and > 0.
-    chunk_size : speeds per compiled call (default: all, rounded up to a multiple of the
-        device count). Smaller chunks give earlier progress/CSV output; chunks are padded
+    chunk_size : speeds per compiled call (default: all, or as many as
+        :func:`memory_chunk` allows per device; rounded up to a multiple of the device
+        count). Smaller chunks give earlier progress/CSV output; chunks are padded
         so that every call has the same shape (one compilation).
     progress : print one line per chunk to stderr.
     out_csv : append one row per speed (columns :data:`CSV_COLUMNS`) as chunks complete.
@@ -190,7 +191,7 @@ def sweep(
     if n_dev < 1:
         raise SimulationError("devices", devices, "need at least one device")
     if chunk_size is None:
-        chunk_size = speeds.size
+        chunk_size = min(speeds.size, memory_chunk(model, simulate_kwargs) * n_dev)
     if int(chunk_size) != chunk_size or chunk_size < 1:
         raise SimulationError("chunk_size", chunk_size, "must be a positive integer")
     chunk = int(math.ceil(int(chunk_size) / n_dev) * n_dev)
@@ -289,6 +290,45 @@ def sweep(
 
 
 METHODS = ("transient", "steady", "harmonic", "auto")
+
+# share of the machine's memory that one chunk's saved states may take (memory_chunk)
+CHUNK_MEMORY_FRACTION = 0.4
+# bytes per saved state entry of one speed, over the 7 legs of simulate's scan: calibrated
+# on the one measurement, XLA's 85.45 GB allocation for 45 speeds of the helical rig with
+# pitch errors (n_out = 25.6k grid points, n = 294): 4.5 times 7 n_out n doubles
+_BYTES_PER_ENTRY = 5 * 7 * 8
+
+
+def memory_chunk(model, simulate_kwargs: dict | None = None,
+                 budget_bytes: float | None = None) -> int:
+    """Most speeds per vmapped ``simulate`` call whose saved states fit in ``budget_bytes``
+    (default :data:`CHUNK_MEMORY_FRACTION` of the machine's memory, of 16 GiB where
+    unknown).
+
+    Each speed keeps its output grid (``n_out`` points: mid-cell samples and both sides of
+    every jump, per measured period) for the measured leg and each of the 6 refinement
+    windows of :func:`gearjax.dynamics.simulate.simulate` (one scan, legs of one length),
+    with the batched loop's copies: :data:`_BYTES_PER_ENTRY` bytes per ``n_out x n``
+    entry. The spur 3D rig: 43 MB per speed; the helical rig with pitch errors (a pinion
+    revolution of 26 mesh periods, 240 jumps per mesh period): 2.1 GB, where 45 speeds in
+    one call asked XLA for 85 GB (the CLI's earlier chunks of 5 ran)."""
+    from .metrics import output_grid
+    from .simulate import N_REFINE
+
+    kw = dict(simulate_kwargs or {})
+    n_meas = int(kw.get("n_measured_periods", 3))
+    n_mesh = max(1, int(round(float(model.period_rad) / model.mesh_period_rad)))
+    n_samples = int(kw.get("samples_per_mesh_period", 128)) * n_mesh
+    grid = output_grid(float(model.period_rad), n_samples, model.jump_thetas, n_meas)
+    n_out = max(grid.offsets.size, 2 * N_REFINE)
+    per_speed = float(_BYTES_PER_ENTRY) * n_out * int(model.state_size)
+    if budget_bytes is None:
+        try:
+            total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        except (ValueError, OSError, AttributeError):
+            total = 16 * 2**30
+        budget_bytes = CHUNK_MEMORY_FRACTION * total
+    return max(1, int(budget_bytes // per_speed))
 
 
 def tolerance_options(rtol: float | None) -> dict:
