@@ -69,10 +69,13 @@ def test_paper_command_bad_cases_is_one_line(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_paper_command_tiny_run(tmp_path, capsys):
-    """One case of the torsional model at two speeds (35 s): folders, README, commands."""
+    """One case of the torsional model at two speeds (35 s): folders, README, commands;
+    --overwrite replaces a case folder that a stopped run left with case.json only."""
     out = tmp_path / "paper"
+    (out / "fig09").mkdir(parents=True)
+    (out / "fig09" / "case.json").write_text("{}")
     assert main(["paper", "--model", "torsional", "--speeds", "600:700:2", "--cases",
-                 "fig09,encoders2", "--out", str(out)]) == 0
+                 "fig09,encoders2", "--out", str(out), "--overwrite"]) == 0
     capsys.readouterr()
     text = (out / "README.md").read_text()
     assert "![fig09](fig09/response_curves.png)" in text and "encoders2" not in os.listdir(out)

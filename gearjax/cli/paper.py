@@ -102,7 +102,8 @@ def cmd_paper(args) -> int:
     for c in cases:
         folder = os.path.join(args.out, c.key)
         argv = ["sweep", "--model", args.model, "--speeds", args.speeds, *c.argv, "--out", folder]
-        if os.path.exists(os.path.join(folder, "results.csv")):
+        # a run stopped before its first rows leaves case.json only: the same folder state
+        if any(os.path.exists(os.path.join(folder, f)) for f in ("results.csv", "case.json")):
             if args.resume:
                 argv.append("--resume")
             elif args.overwrite:
