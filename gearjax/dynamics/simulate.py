@@ -474,11 +474,11 @@ def simulate(
         dy = ys[(n_measured_periods - 1) * grid.per_period] - ys[
             (n_measured_periods - 2) * grid.per_period]
         amps = model.transient_amplitudes(dy, omega) if extrapolate else None
-        slow = model.slowest_output_mode()
+        slow = model.slowest_output_mode() if extrapolate and amps is None else None
         if amps is not None:
             left = [amps[0] / f_s, amps[1] / dte_s] + ([amps[2] / acc_s] if has_acc else [])
             conv = jnp.maximum(conv, jnp.max(jnp.stack(left)))
-        elif slow is not None and extrapolate:
+        elif slow is not None:
             w_s, z_s = slow
             arg = jnp.where(jnp.isfinite(w_s), w_s, 0.0) * period / omega
             wd = arg * jnp.sqrt(jnp.clip(1.0 - z_s**2, 0.0, 1.0))
