@@ -132,7 +132,8 @@ def register(sub, add_rig, add_scenario):
                     help="speeds per compiled call (progress and CSV rows per chunk; default "
                          f"a tenth of the speeds, at least {MIN_DEFAULT_CHUNK} or all: the "
                          "speeds of a chunk run in lockstep, and small chunks pay the "
-                         "per-step overhead once per chunk)")
+                         "per-step overhead once per chunk; at most what memory holds of "
+                         "their saved states)")
     dist = sw.add_argument_group("several hosts (jax.distributed)")
     dist.add_argument("--distributed", action="store_true",
                       help="join a multi-process run (jax.distributed.initialize with cluster "
