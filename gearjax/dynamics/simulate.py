@@ -70,7 +70,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from ..errors import SimulationError
-from ..models.base import AbstractGearModel
+from ..models.base import AbstractGearModel, free_decay_per_period
 from .metrics import output_grid, refine_windows, window_extrema
 from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
 
@@ -292,17 +292,32 @@ def transient_start(model, omega):
     return model.transient_start(omega)
 
 
+DEFAULT_MEASURED_PERIODS = 3  # simulate's measured periods
+DEFAULT_SAMPLES_PER_MESH_PERIOD = 128  # and its output grid density
+
+
+def measured_grid(model, n_measured_periods: int, samples_per_mesh_period: int):
+    """(output grid of the measured periods (:func:`gearjax.dynamics.metrics.output_grid`),
+    samples per excitation period, length of each leg of :func:`simulate`'s solve: the
+    grid, or the ``2 N_REFINE`` points of a refinement window if longer)."""
+    period = float(model.period_rad)
+    n_samples = samples_per_mesh_period * int(round(period / model.mesh_period_rad))
+    grid = output_grid(period, n_samples, np.asarray(model.jump_thetas, dtype=float),
+                       n_measured_periods)
+    return grid, n_samples, max(grid.offsets.size, 2 * N_REFINE)
+
+
 def simulate(
     model,
     omega,
     n_transient_periods: int | None = None,
-    n_measured_periods: int = 3,
+    n_measured_periods: int = DEFAULT_MEASURED_PERIODS,
     *,
     solver=None,
     rtol: float | None = None,
     atol: float | None = None,
     save_signals: bool = False,
-    samples_per_mesh_period: int = 128,
+    samples_per_mesh_period: int = DEFAULT_SAMPLES_PER_MESH_PERIOD,
     transient_decay: float = 1e-6,
     min_transient_mesh_periods: int = 8,
     max_transient_mesh_periods: int = 400,
@@ -373,8 +388,6 @@ def simulate(
     omega = jnp.asarray(omega, dtype=float)
     period = float(model.period_rad)
     jumps = np.asarray(model.jump_thetas, dtype=float)
-    n_mesh = int(round(period / model.mesh_period_rad))
-    n_samples = samples_per_mesh_period * n_mesh
     term = diffrax.ODETerm(lambda t, y, args: model.vector_field(t, y, args))
 
     # ---------------------------------------------------------------- one solve
@@ -388,7 +401,7 @@ def simulate(
     t_end = t_tr + n_measured_periods * period
     # output grid: mid-cell samples (never on an engagement angle) plus both sides of
     # every jump, per measured period (gearjax.dynamics.metrics)
-    grid = output_grid(period, n_samples, jumps, n_measured_periods)
+    grid, n_samples, n_out = measured_grid(model, n_measured_periods, samples_per_mesh_period)
     ts = t_tr + jnp.asarray(grid.offsets)
     ctrl = jump_controller(model, rtol, atol)
     if start not in ("auto", "initial"):
@@ -410,7 +423,6 @@ def simulate(
     # computed once, after leg 0 (a cond on the unbatched leg index, also under vmap).
     n_grid = ts.shape[0]
     n_win = 2 * jax.eval_shape(observed, ts[0], y0).shape[0]  # a max and a min per output
-    n_out = max(n_grid, 2 * N_REFINE)
 
     def pad(t):  # (m,) -> (n_out,): the last angle repeated
         return jnp.concatenate([t, jnp.broadcast_to(t[-1], (n_out - t.shape[0],))])
@@ -471,19 +483,18 @@ def simulate(
         # extrema's change over the slowest mode the outputs see (a component decaying
         # like mu^k per period changes by |1 - mu| of what is left of it; faster
         # components and integration noise are over-counted by the same factor)
-        dy = ys[(n_measured_periods - 1) * grid.per_period] - ys[
-            (n_measured_periods - 2) * grid.per_period]
-        amps = model.transient_amplitudes(dy, omega) if extrapolate else None
+        amps = None
+        if extrapolate:  # the state's change over the last period, at one phase
+            last = (n_measured_periods - 1) * grid.per_period
+            amps = model.transient_amplitudes(ys[last] - ys[last - grid.per_period], omega)
         slow = model.slowest_output_mode() if extrapolate and amps is None else None
         if amps is not None:
             left = [amps[0] / f_s, amps[1] / dte_s] + ([amps[2] / acc_s] if has_acc else [])
             conv = jnp.maximum(conv, jnp.max(jnp.stack(left)))
         elif slow is not None:
             w_s, z_s = slow
-            arg = jnp.where(jnp.isfinite(w_s), w_s, 0.0) * period / omega
-            wd = arg * jnp.sqrt(jnp.clip(1.0 - z_s**2, 0.0, 1.0))
-            decay = jnp.exp(-z_s * arg)
-            gap = jnp.sqrt((1.0 - decay * jnp.cos(wd)) ** 2 + (decay * jnp.sin(wd)) ** 2)
+            _, gap = free_decay_per_period(jnp.where(jnp.isfinite(w_s), w_s, 0.0), z_s,
+                                           period / omega)
             factor = jnp.where(jnp.isfinite(w_s), 1.0 / jnp.clip(gap, 1e-12, 1.0), 1.0)
             conv = conv * factor
     else:

@@ -312,15 +312,13 @@ def memory_chunk(model, simulate_kwargs: dict | None = None,
     entry. The spur 3D rig: 43 MB per speed; the helical rig with pitch errors (a pinion
     revolution of 26 mesh periods, 240 jumps per mesh period): 2.1 GB, where 45 speeds in
     one call asked XLA for 85 GB (the CLI's earlier chunks of 5 ran)."""
-    from .metrics import output_grid
-    from .simulate import N_REFINE
+    from .simulate import (DEFAULT_MEASURED_PERIODS, DEFAULT_SAMPLES_PER_MESH_PERIOD,
+                           measured_grid)
 
     kw = dict(simulate_kwargs or {})
-    n_meas = int(kw.get("n_measured_periods", 3))
-    n_mesh = max(1, int(round(float(model.period_rad) / model.mesh_period_rad)))
-    n_samples = int(kw.get("samples_per_mesh_period", 128)) * n_mesh
-    grid = output_grid(float(model.period_rad), n_samples, model.jump_thetas, n_meas)
-    n_out = max(grid.offsets.size, 2 * N_REFINE)
+    _, _, n_out = measured_grid(
+        model, int(kw.get("n_measured_periods", DEFAULT_MEASURED_PERIODS)),
+        int(kw.get("samples_per_mesh_period", DEFAULT_SAMPLES_PER_MESH_PERIOD)))
     per_speed = float(_BYTES_PER_ENTRY) * n_out * int(model.state_size)
     if budget_bytes is None:
         try:

@@ -298,6 +298,16 @@ def modal_slowest_output_mode(omega_r, v_r, w_r, damping_ratio, share_tol: float
     return w_s, jnp.asarray(damping_ratio)
 
 
+def free_decay_per_period(omega_n, zeta, period_s):
+    """``(|mu|, |1 - mu|)`` of a free mode of natural frequency ``omega_n`` (rad/s) and
+    damping ratio ``zeta`` over ``period_s`` seconds: ``mu = exp((-zeta + i sqrt(1 -
+    zeta^2)) omega_n period_s)``, its multiplier per period."""
+    arg = omega_n * period_s
+    decay = jnp.exp(-zeta * arg)
+    wd = arg * jnp.sqrt(jnp.clip(1.0 - zeta**2, 0.0, 1.0))
+    return decay, jnp.sqrt((1.0 - decay * jnp.cos(wd)) ** 2 + (decay * jnp.sin(wd)) ** 2)
+
+
 def modal_transient_amplitudes(dy, omega, period_rad: float, omega_r, damping_ratio, scale,
                                force_per_coord, dte_per_coord, accel_per_coord):
     """Free response left in a modal state (:meth:`AbstractGearModel.transient_amplitudes`):
@@ -315,11 +325,8 @@ def modal_transient_amplitudes(dy, omega, period_rad: float, omega_r, damping_ra
     by a slow mode's ``1 / |1 - mu|`` (~15-500 on the 3D rig)."""
     om = jnp.asarray(omega_r)
     r = om.shape[0]
-    arg = om * period_rad / omega
     zeta = jnp.clip(jnp.asarray(damping_ratio), 0.0, 1.0)
-    decay = jnp.exp(-zeta * arg)
-    wd = arg * jnp.sqrt(1.0 - zeta**2)
-    gap = jnp.sqrt((1.0 - decay * jnp.cos(wd)) ** 2 + (decay * jnp.sin(wd)) ** 2)
+    decay, gap = free_decay_per_period(om, zeta, period_rad / omega)
     # only the modes whose remainder exceeds their change (|mu| > |1 - mu|): the others'
     # change shows in the extrema's change itself, and their state change is mostly
     # integration noise, which omega_j^2 would blow up in the acceleration (25 kHz static
