@@ -21,11 +21,12 @@ from gearjax import Mesh, ToothModifications, baud_velex_pair, quasi_static, tab
 from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.structure.analytic import analytic_relations
 from gearjax.structure.element import PinionGearElement
+from gearjax.models.base import WithoutContactLaw
 from gearjax.models.geared3d import Geared3DModel
 from gearjax.structure.condensation import Condensation, quasi_static_3d
 from gearjax.models.torsional import ModelError, TorsionalModel, solid_cylinder_inertias
 from gearjax.gears.quasistatic import static_mesh_force
-from gearjax.dynamics.simulate import simulate as _simulate
+from gearjax.dynamics.simulate import simulate as _simulate, transient_periods
 
 simulate = eqx.filter_jit(_simulate)  # one compilation per model structure, no eager tracing
 from gearjax.structure import (
@@ -465,3 +466,73 @@ def test_perturbation_harmonic_start_is_periodic(torsional_setup):
                                                   jump_ts=jnp.asarray(m.jump_thetas)),
         max_steps=200_000)
     assert float(jnp.max(jnp.abs(sol.ys[-1] - bad))) > 1e-3 * float(jnp.max(jnp.abs(bad)))
+
+
+# ---------------------------------------------------------------------- accelerated transient
+def test_accelerated_transient_reaches_the_frequency_domain_orbit(torsional_setup):
+    """Eq. (48a) without NLTE terms has constant coefficients, so each mode's transient
+    decays by its own free-decay multiplier and the per-period periodic estimate
+    (modal_periodic_estimate) is exact: the accelerated transient must stop after ~2
+    periods on the orbit solved harmonic by harmonic (frequency domain, independent of
+    any integration), where the plain automatic transient integrates tens of periods."""
+    mesh, _, _, s, fixed = torsional_setup
+    m = WithoutContactLaw(Geared3DModel.build(
+        s, mesh, table1_relief("short"), fixed_dofs=fixed, n_table=128, damping_ratio=0.05,
+        formulation="perturbation", mesh_vectors="mean"))
+    for omega in (jnp.asarray(500.0), jnp.asarray(800.0)):
+        exact = simulate(m, omega, n_transient_periods=0, y0=m.harmonic_state(omega),
+                         rtol=1e-10, atol=1e-12)
+        acc = simulate(m, omega, rtol=1e-10, atol=1e-12)
+        plain_count = transient_periods(m, omega, 1e-6, 8, 400)  # accelerate=False's
+        assert float(acc.transient_periods) <= 3 < 10 <= float(plain_count)
+        # the frequency-domain orbit itself: 128 harmonics per mesh period, state tail
+        # ~1e-6 of |y0| (test_perturbation_harmonic_start_is_periodic)
+        f_s = float(m.static_force_N)
+        for f in ("max_mesh_force_N", "min_mesh_force_N"):
+            assert abs(float(getattr(acc, f)) - float(getattr(exact, f))) < 1e-6 * f_s, f
+        np.testing.assert_allclose(float(acc.dte_ptp_m), float(exact.dte_ptp_m), rtol=1e-6)
+        assert bool(acc.converged) and float(acc.convergence) < 1e-6
+
+
+def test_misleading_periodic_estimate_falls_back_to_the_plain_transient(torsional_setup):
+    """The estimate is used only while the change over a period falls: a model whose
+    estimate overshoots (five times the period's change the wrong way) must integrate the
+    plain transient's periods and end on the orbit that the model's own estimate reaches
+    in a fraction of them (reference formulation: contact per cell), not diverge."""
+    class Misleading(Geared3DModel):
+        def periodic_estimate(self, y_start, y_end, omega):
+            return y_end - 5.0 * (y_end - y_start)
+
+    mesh, _, _, s, fixed = torsional_setup
+    m = Geared3DModel.build(s, mesh, table1_relief("short"), fixed_dofs=fixed, n_table=64,
+                            damping_ratio=0.05, formulation="reference")
+    bad = Misleading(**{f.name: getattr(m, f.name) for f in dataclasses.fields(m)})
+    omega = jnp.asarray(500.0)
+    plain_count = float(transient_periods(m, omega, 1e-6, 8, 400))
+    res = simulate(bad, omega)
+    good = simulate(m, omega)
+    assert bool(res.converged) and bool(good.converged)
+    assert float(res.transient_periods) == plain_count
+    assert float(good.transient_periods) <= plain_count / 2
+    np.testing.assert_allclose(float(res.dynamic_factor), float(good.dynamic_factor), rtol=1e-5)
+
+
+def test_fixed_switching_angles_give_the_same_model_at_the_build_design(rig_te):
+    """moving_events=False (forward sweeps) drops the angle map, not the physics: the same
+    jumps, the same excitation table (values and slopes) and the same vector field as the
+    model whose switching angles move with the design, which has a map to drop."""
+    fixed = build_model(baud_velex_rig(False), table1_relief("long"), cells_per_line=4,
+                        formulation="te", max_frequency_hz=6000.0, n_table=32,
+                        moving_events=False)
+    assert rig_te.angle_map is not None and len(rig_te.event_thetas) > 0
+    assert fixed.angle_map is None and fixed.event_thetas == () and fixed.table_codes is None
+    assert fixed.jump_thetas == rig_te.jump_thetas
+    for f in ("values", "slopes"):
+        a, b = np.asarray(getattr(fixed.table, f)), np.asarray(getattr(rig_te.table, f))
+        for j in range(b.shape[1]):  # d (m), k (N/m), NLTE (m): round-off of each column
+            np.testing.assert_allclose(a[:, j], b[:, j], rtol=1e-9,
+                                       atol=1e-12 * np.max(np.abs(b[:, j])))
+    y = rig_te.initial_state(500.0) + 0.01
+    for s in (0.1, 0.2):
+        np.testing.assert_allclose(fixed.vector_field(s, y, 500.0),
+                                   rig_te.vector_field(s, y, 500.0), rtol=1e-9, atol=1e-9)

@@ -440,7 +440,7 @@ def cmd_sweep(args) -> int:
                                 law=args.stiffness, damping_ratio=args.damping,
                                 encoder_position=args.encoders, **nlte,
                                 max_frequency_hz=cutoff_hz, nlte_reaction=reaction,
-                                te_table=te)
+                                te_table=te, moving_events=False)  # forward only
             _check_modes(args, model, cutoff_hz)
             t_build = time.perf_counter() - t0
             if "predicted" not in summary:
@@ -645,7 +645,8 @@ def cmd_stability(args) -> int:
                         law=args.stiffness, damping_ratio=args.damping,
                         encoder_position=args.encoders,
                         **nlte_options_of(args),
-                        max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te)
+                        max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te,
+                        moving_events=False)
     _check_modes(args, model, cutoff_hz)
     t0 = time.perf_counter()
     rho = np.asarray(spectral_radius(model, speeds), dtype=float)

@@ -25,7 +25,7 @@ import jax.numpy as jnp
 from ..errors import ModelError
 
 __all__ = ["AbstractGearModel", "ModelOutputs", "FORMULATIONS", "WithoutContactLaw",
-           "modal_transient_start", "modal_slowest_output_mode"]
+           "modal_transient_start", "modal_slowest_output_mode", "modal_periodic_estimate"]
 
 # the three dynamic formulations of the paper: reference Eq. (14)/(16), transmission-error
 # based Eq. (42)/(20), main-order perturbation Eq. (48a)/(47a)
@@ -154,6 +154,14 @@ class AbstractGearModel(eqx.Module):
         when the model has no modal state (see :func:`modal_transient_amplitudes`)."""
         return None
 
+    def periodic_estimate(self, y_start, y_end, omega):
+        """Estimate of the periodic state at the end of one excitation period of a
+        transient, from its start ``y_start`` and end ``y_end`` (a quasi-Newton step on
+        the periodicity residual, used by :func:`gearjax.dynamics.simulate.simulate` to cut
+        the transient short); None (default) when the model has no modal state (see
+        :func:`modal_periodic_estimate`)."""
+        return None
+
     @property
     def periodic_start(self) -> bool:
         """True when :meth:`initial_state` is already the periodic steady state (then no
@@ -249,6 +257,9 @@ class WithoutContactLaw(AbstractGearModel):
     def transient_amplitudes(self, dy, omega):
         return self.model.transient_amplitudes(dy, omega)
 
+    def periodic_estimate(self, y_start, y_end, omega):
+        return self.model.periodic_estimate(y_start, y_end, omega)
+
     def harmonic_state(self, omega, theta0=0.0):
         return self.model.harmonic_state(omega, theta0)
 
@@ -335,3 +346,41 @@ def modal_transient_amplitudes(dy, omega, period_rad: float, omega_r, damping_ra
     amp = scale * jnp.sqrt(dy[:r] ** 2 + dy[r:2 * r] ** 2) * jnp.where(weight > 1.0, weight, 0.0)
     acc = None if accel_per_coord is None else jnp.sum(jnp.abs(accel_per_coord) * om**2 * amp)
     return (jnp.sum(jnp.abs(force_per_coord) * amp), jnp.sum(jnp.abs(dte_per_coord) * amp), acc)
+
+
+def modal_periodic_estimate(y_start, y_end, omega, period_rad: float, omega_r, damping_ratio,
+                            min_gap: float = 1e-3):
+    """Periodic state of a modal model estimated from one period of its transient
+    (:meth:`AbstractGearModel.periodic_estimate`; state ``y = (z / a, z' / (omega_j a))`` per
+    mode ``j``, ``omega_r`` (r,) rad/s, as in :func:`modal_transient_amplitudes`).
+
+    Shooting with the free-decay monodromy as the Jacobian: over one period ``P``
+    (``period_rad / omega`` s) the free response of mode ``j`` in its scaled coordinates
+    ``u = (x, x' / omega_j)``, ``u' = omega_j [[0, 1], [-1, -2 zeta]] u``, is mapped by
+    ``M_j = exp(omega_j P [[0, 1], [-1, -2 zeta]]) = e^(-zeta w) (cos(w_d) I + sin(w_d) /
+    sqrt(1 - zeta^2) [[zeta, 1], [-1, -zeta]])`` (``w = omega_j P``, ``w_d = w sqrt(1 -
+    zeta^2)``). With ``y = p + e`` (periodic part ``p``, transient ``e``), the change over the
+    period is ``dy = (M - I) e_start``, so what is left at the end is ``e_end = M (M -
+    I)^-1 dy`` and ``p = y_end - e_end``: exact for uncoupled linear modes, a Newton step
+    with an approximate Jacobian where the time-varying mesh stiffness or the contact law
+    couples them (iterated by ``simulate``, which checks that the residual falls). Modes
+    whose ``|1 - mu_j| = sqrt(det(M_j - I))`` is below ``min_gap`` (barely damped at a
+    multiple of the excitation frequency) keep ``y_end``."""
+    om = jnp.asarray(omega_r)
+    r = om.shape[0]
+    zeta = jnp.clip(jnp.asarray(damping_ratio), 0.0, 1.0 - 1e-12)
+    w = om * (period_rad / omega)
+    root = jnp.sqrt(1.0 - zeta**2)
+    e = jnp.exp(-zeta * w)
+    c, sn = e * jnp.cos(w * root), e * jnp.sin(w * root) / root
+    m11, m12, m21, m22 = c + zeta * sn, sn, -sn, c - zeta * sn
+    a11, a22 = m11 - 1.0, m22 - 1.0
+    det = a11 * a22 - m12 * m21  # = |1 - mu|^2
+    use = det > min_gap**2
+    det = jnp.where(use, det, 1.0)
+    d = y_end - y_start
+    dx, dv = d[:r], d[r:2 * r]
+    ex, ev = (a22 * dx - m12 * dv) / det, (a11 * dv - m21 * dx) / det  # (M - I)^-1 dy
+    left = jnp.concatenate([jnp.where(use, m11 * ex + m12 * ev, 0.0),
+                            jnp.where(use, m21 * ex + m22 * ev, 0.0)])
+    return y_end.at[: 2 * r].add(-left)

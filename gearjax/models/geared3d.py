@@ -73,8 +73,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..linalg import solve as dense_solve
-from ..excitation.mesh3d import (QuasiStaticMesh3D, fourier_coefficients, harmonic_response,
-                                 tabulate)
+from ..excitation.mesh3d import QuasiStaticMesh3D, tabulate
 from ..excitation.te_file import TETable
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..gears.mesh import Mesh
@@ -85,10 +84,12 @@ from ..structure.condensation import Condensation, QuasiStatic3D, quasi_static_3
 from ..structure.element import PinionGearElement
 from ..structure.geared import Eccentricity, disc_mass, geared_structure
 from .base import (FORMULATIONS, AbstractGearModel, ModelOutputs, modal_slowest_output_mode,
-                   modal_transient_amplitudes, modal_transient_start)
+                   modal_periodic_estimate, modal_transient_amplitudes,
+                   modal_transient_start)
 from .geared3d_excitation import file_mean_stiffness, own_table_fields, te_file_fields
 from .geared3d_inertial import inertial_vectors, nlte_derivatives
-from .geared3d_modal import damping_product, modal_structure, stiffness_product
+from .geared3d_modal import (damping_product, harmonic_modal_state, modal_structure,
+                             stiffness_product)
 from .cutoff import (CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS,  # re-exported
                      default_max_frequency_hz)
 
@@ -224,6 +225,7 @@ class Geared3DModel(AbstractGearModel):
         harmonic_start: bool = False,
         te_table: TETable | None = None,
         nlte_inertia: bool = True,
+        moving_events: bool = True,
     ) -> "Geared3DModel":
         """Build a complete 3D model (outside ``jit``: checks, modal basis, k_m, jump and
         event angles, excitation table).
@@ -275,6 +277,9 @@ class Geared3DModel(AbstractGearModel):
             :mod:`gearjax.models.geared3d_excitation`); its mean stiffness is k_m unless
             ``mean_stiffness_N_per_m`` is given; ``nlte_terms`` None: kept iff its NLTE is
             not identically 0.
+        moving_events : te/perturbation table: False keeps the switching angles at the build
+            angles (no angle map: the same model at the build design, built ~3x faster for
+            forward sweeps; :meth:`with_modifications` then moves no switching angle).
 
         Raises
         ------
@@ -362,7 +367,7 @@ class Geared3DModel(AbstractGearModel):
 
         # speed-independent RHS jumps (te/perturbation: + table events: NLTE' jumps at zone kinks)
         tabulated = formulation != "reference" and excitation == "table"
-        jumps, layout = own_table_fields(qsm, theta_tab, period, tabulated)
+        jumps, layout = own_table_fields(qsm, theta_tab, period, tabulated, moving_events)
         if te_table is not None:
             jumps, layout, period = te_file_fields(te_table, layout, jumps, red.w_r @ red.q0,
                                                    nlte_terms)
@@ -621,15 +626,7 @@ class Geared3DModel(AbstractGearModel):
             raise ModelError("formulation", self.formulation,
                              "harmonic_state needs the perturbation formulation without NLTE "
                              "or eccentricity terms and with the excitation table")
-        m = self
-        n_mesh = max(1, round(m.period_rad / m.mesh_period_rad))
-        n_h = 128 * n_mesh if n_harmonics is None else int(n_harmonics)
-        # d sampled 8x finer than the table knots (aliasing of a kinked signal)
-        c = fourier_coefficients(lambda t: m._excitation(t)[0], m.table_origin, m.period_rad,
-                                 8 * max(m.table_cells, 2 * n_h + 2), n_h, theta0)
-        z, zp = harmonic_response(m.kbar_r, m.c_r, m.v_r, m.k_m * m.cos_bb * c, m.period_rad, omega)
-        rr = m.omega_r / omega
-        return jnp.concatenate([z / m.scale_a, zp / (rr * m.scale_a)])
+        return harmonic_modal_state(self, omega, theta0, n_harmonics)
 
     def initial_state(self, omega, theta0=0.0):
         """Scaled state at ``theta0``: :meth:`harmonic_state` when :attr:`periodic_start`,
@@ -686,6 +683,12 @@ class Geared3DModel(AbstractGearModel):
         return modal_transient_amplitudes(dy, omega, self.period_rad, self.omega_r,
                                           self.damping_ratio, self.scale_a,
                                           self.k_m * self.v_r, self.w_r, self.acc_r)
+
+    def periodic_estimate(self, y_start, y_end, omega):
+        """Periodic state estimated from one period of a transient, mode by mode
+        (:func:`gearjax.models.base.modal_periodic_estimate`)."""
+        return modal_periodic_estimate(y_start, y_end, omega, self.period_rad, self.omega_r,
+                                       self.damping_ratio)
 
     def natural_frequency_rad_s(self):
         """Frequency (rad/s) of the mode of ``(M, K_bar)`` with the largest share of strain

@@ -53,22 +53,28 @@ def _no_table() -> dict:
                 table_cells=0, table_max_extra=1, event_thetas=(), event_kinds=(), event_cells=())
 
 
-def own_table_fields(qsm: QuasiStaticMesh3D, theta_tab, period: float, tabulated: bool):
+def own_table_fields(qsm: QuasiStaticMesh3D, theta_tab, period: float, tabulated: bool,
+                     moving_events: bool = True):
     """(jump angles (rad), layout fields) of a model excited by its own quasi-static mesh:
     the speed-independent right-hand-side jumps and, when ``tabulated`` (te/perturbation
     with ``excitation="table"``), the table of ``(d, k, NLTE)`` with the zone kinks of NLTE'
-    as events (moving with the design through the angle map)."""
+    as events (moving with the design through the angle map; with ``moving_events=False``
+    they stay at the build angles: no angle map, the same table at the build design, and
+    about a third of the table's compilation)."""
     jumps = jump_angles(qsm, theta_tab, period)
     if not tabulated:
         return jumps, _no_table()
     lay = table_layout(qsm, theta_tab, period, jumps)
     jumps = distinct_angles(np.concatenate([jumps, lay.event_thetas]), period)
     ev = dict(event_thetas=lay.event_thetas, event_kinds=lay.event_kinds, event_cells=lay.event_cells)
+    codes = lay.codes
+    if not moving_events:
+        ev, codes = dict(event_thetas=(), event_kinds=(), event_cells=()), None
     table, amap, ok = tabulate_jit(
         qsm, lay.knots, lay.side, lay.cell_first, origin=lay.origin, period=float(period),
-        n_cells=lay.n_cells, max_extra=lay.max_extra, table_codes=lay.codes, **ev)
+        n_cells=lay.n_cells, max_extra=lay.max_extra, table_codes=codes, **ev)
     return jumps, dict(table_knots=lay.knots, table_cell_first=lay.cell_first,
-                       table_side=lay.side, table_codes=lay.codes, table=table,
+                       table_side=lay.side, table_codes=codes, table=table,
                        angle_map=amap, structure_ok=ok, table_origin=lay.origin,
                        table_cells=lay.n_cells, table_max_extra=lay.max_extra, **ev)
 

@@ -14,7 +14,9 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["modal_structure", "stiffness_product", "damping_product"]
+from ..excitation.mesh3d import fourier_coefficients, harmonic_response
+
+__all__ = ["modal_structure", "stiffness_product", "damping_product", "harmonic_modal_state"]
 
 
 def modal_structure(kbar_r, c_r, n_modes: int, tol: float = 1e-6) -> dict:
@@ -56,3 +58,17 @@ def damping_product(model, qp):
         return model.c_r @ qp
     head = jnp.diagonal(model.c_r)[:p] * qp[:p]
     return jnp.concatenate([head, model.c_r[p:, p:] @ qp[p:]])
+
+
+def harmonic_modal_state(m, omega, theta0=0.0, n_harmonics: int | None = None):
+    """Scaled periodic state of the constant-coefficient Eq. (48a) of the model ``m`` at
+    ``theta0`` (:meth:`Geared3DModel.harmonic_state`): ``d = TE_S - NLTE - w_x0`` sampled 8x
+    finer than the table knots (aliasing of a kinked signal), ``n_harmonics`` (default 128
+    per mesh period) each answered by the modal receptance."""
+    n_mesh = max(1, round(m.period_rad / m.mesh_period_rad))
+    n_h = 128 * n_mesh if n_harmonics is None else int(n_harmonics)
+    c = fourier_coefficients(lambda t: m._excitation(t)[0], m.table_origin, m.period_rad,
+                             8 * max(m.table_cells, 2 * n_h + 2), n_h, theta0)
+    z, zp = harmonic_response(m.kbar_r, m.c_r, m.v_r, m.k_m * m.cos_bb * c, m.period_rad, omega)
+    rr = m.omega_r / omega
+    return jnp.concatenate([z / m.scale_a, zp / (rr * m.scale_a)])
