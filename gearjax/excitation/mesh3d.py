@@ -211,14 +211,16 @@ class TableLayout(NamedTuple):
     codes: jax.Array | None
 
 
-def table_layout(qsm: QuasiStaticMesh3D, theta, period: float, jumps) -> TableLayout:
+def table_layout(qsm: QuasiStaticMesh3D, theta, period: float, jumps,
+                 moving_events: bool = True) -> TableLayout:
     """Knots of the excitation table: the ``len(theta)`` uniform cells from an origin far
     from the ``jumps`` plus the two adjacent floats of every state change (relief-zone
     kinks included), bisected *in table coordinates* ``[origin, origin + P)`` (folding
     adjacent floats near 0 into the table would merge them), with the side (-1, +1) each
     is evaluated on; the events of those brackets (:func:`classify_events`, checked by
     :func:`check_event_roots`) and, with moving events, the state codes on each side of
-    every knot (for the structure flag of :func:`tabulate`)."""
+    every knot (for the structure flag of :func:`tabulate`). ``moving_events=False``: the
+    events stay at the bracket angles (no root check, no codes: two compilations less)."""
     n_cells = len(theta)
     origin = quiet_origin(jumps, period)
     lo, hi, c_lo, c_hi = scan_brackets(qsm, origin + np.asarray(theta), period, kinks=True)
@@ -229,10 +231,11 @@ def table_layout(qsm: QuasiStaticMesh3D, theta, period: float, jumps) -> TableLa
     side[np.isin(knots, hi)] = 1.0
     events = distinct_angles(0.5 * (lo + hi), period)
     kinds, cells = classify_events(events, lo, hi, c_lo, c_hi, qsm.mesh.n_cells, period)
-    kinds, cells = check_event_roots(qsm.switch_function, events, kinds, cells,
-                                     qsm.mesh.pair.mesh_period_rad)
+    if moving_events:
+        kinds, cells = check_event_roots(qsm.switch_function, events, kinds, cells,
+                                         qsm.mesh.pair.mesh_period_rad)
     codes = None
-    if events.size:  # discrete state on each side of every knot
+    if events.size and moving_events:  # discrete state on each side of every knot
         codes = jnp.asarray(state_codes(qsm, knots + side * (1e-9 * period), True))
     return TableLayout(
         knots=jnp.asarray(knots), side=jnp.asarray(side),

@@ -64,12 +64,12 @@ def own_table_fields(qsm: QuasiStaticMesh3D, theta_tab, period: float, tabulated
     jumps = jump_angles(qsm, theta_tab, period)
     if not tabulated:
         return jumps, _no_table()
-    lay = table_layout(qsm, theta_tab, period, jumps)
+    lay = table_layout(qsm, theta_tab, period, jumps, moving_events)
     jumps = distinct_angles(np.concatenate([jumps, lay.event_thetas]), period)
     ev = dict(event_thetas=lay.event_thetas, event_kinds=lay.event_kinds, event_cells=lay.event_cells)
     codes = lay.codes
     if not moving_events:
-        ev, codes = dict(event_thetas=(), event_kinds=(), event_cells=()), None
+        ev = dict(event_thetas=(), event_kinds=(), event_cells=())
     table, amap, ok = tabulate_jit(
         qsm, lay.knots, lay.side, lay.cell_first, origin=lay.origin, period=float(period),
         n_cells=lay.n_cells, max_extra=lay.max_extra, table_codes=codes, **ev)
