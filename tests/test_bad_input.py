@@ -285,7 +285,9 @@ def test_ctrl_c_keeps_results_and_resume_finishes(tmp_path):
             "signal.default_int_handler); runpy.run_module('gearjax.cli.main', "
             "run_name='__main__')"] + SWEEP + [
         "--speeds", "100:900:40", "--chunk", "1", "--out", str(out)]
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    # and the command line's persistent compilation cache in $XDG_CACHE_HOME/gearjax/jax
+    env = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}
+    env.update(PYTHONUNBUFFERED="1", XDG_CACHE_HOME=str(tmp_path / "xdg"))
     p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     csv_path = out / "results.csv"
     t0 = time.monotonic()
@@ -306,6 +308,8 @@ def test_ctrl_c_keeps_results_and_resume_finishes(tmp_path):
     assert (out / "response_curves.png").exists()
     rows = len(csv_path.read_text().splitlines()) - 1
     assert rows == done
+    cache = tmp_path / "xdg" / "gearjax" / "jax"
+    assert cache.is_dir() and any(cache.iterdir())  # the resume loads what it can
     # resume: only the missing speeds are computed, every speed once
     r = subprocess.run(argv[:-2] + ["--chunk", "20", "--out", str(out), "--resume"],
                        capture_output=True, text=True, timeout=600, env=env)

@@ -479,7 +479,7 @@ def test_accelerated_transient_reaches_the_frequency_domain_orbit(torsional_setu
     m = WithoutContactLaw(Geared3DModel.build(
         s, mesh, table1_relief("short"), fixed_dofs=fixed, n_table=128, damping_ratio=0.05,
         formulation="perturbation", mesh_vectors="mean"))
-    for omega in (jnp.asarray(500.0), jnp.asarray(800.0)):
+    for omega in (jnp.asarray(800.0),):  # near the mode: 23 plain periods
         exact = simulate(m, omega, n_transient_periods=0, y0=m.harmonic_state(omega),
                          rtol=1e-10, atol=1e-12)
         acc = simulate(m, omega, rtol=1e-10, atol=1e-12)
