@@ -5,7 +5,14 @@ import os
 import shutil
 import tempfile
 
-import jax
+# equinox.error_if as NaN instead of a host callback, read at equinox's import (before any
+# test module imports gearjax): JAX does not store executables with host callbacks in the
+# persistent cache below, and diffrax's SaveAt checks put one in every simulate program,
+# so without this no sweep program is shared between the workers. No test expects an
+# equinox runtime error; a NaN from one fails the finite checks of every metric.
+os.environ.setdefault("EQX_ON_ERROR", "nan")
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_rank_promotion", "raise")
