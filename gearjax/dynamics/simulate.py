@@ -292,15 +292,23 @@ def jump_controller(model, rtol, atol):
     return PeriodicJumpController(pid, jnp.asarray(np.sort(jumps)), float(model.period_rad))
 
 
+def transient_period_bounds(model, min_transient_mesh_periods: int,
+                            max_transient_mesh_periods: int) -> tuple[int, int]:
+    """(min, max) excitation periods of the automatic transient: the bounds in mesh periods
+    rounded up to whole excitation periods (max at least min)."""
+    n_mesh = int(round(float(model.period_rad) / model.mesh_period_rad))
+    n_min = int(math.ceil(min_transient_mesh_periods / n_mesh))
+    return n_min, max(n_min, int(math.ceil(max_transient_mesh_periods / n_mesh)))
+
+
 def transient_periods(model, omega, transient_decay: float, min_transient_mesh_periods: int,
                       max_transient_mesh_periods: int):
     """Excitation periods of the automatic transient (module docstring): until the
     slowest free mode of the linearised model decays by ``transient_decay``, clipped to
     ``[min, max]_transient_mesh_periods`` (the maximum where the model is undamped)."""
     period = float(model.period_rad)
-    n_mesh = int(round(period / model.mesh_period_rad))
-    n_min = int(math.ceil(min_transient_mesh_periods / n_mesh))
-    n_max = max(n_min, int(math.ceil(max_transient_mesh_periods / n_mesh)))
+    n_min, n_max = transient_period_bounds(model, min_transient_mesh_periods,
+                                           max_transient_mesh_periods)
     n = jnp.ceil(math.log(1.0 / transient_decay) / (model.decay_rate_per_rad(omega) * period))
     return jnp.clip(jnp.nan_to_num(n, nan=n_max, posinf=n_max), n_min, n_max)
 
@@ -433,8 +441,8 @@ def simulate(
     ok_tr = jnp.asarray(True)
     if (accelerate and n_transient_periods is None
             and model.periodic_estimate(y0, y0, omega) is not None):
-        n_mesh = round(period / model.mesh_period_rad)
-        n_max = math.ceil(max(min_transient_mesh_periods, max_transient_mesh_periods) / n_mesh)
+        _, n_max = transient_period_bounds(model, min_transient_mesh_periods,
+                                           max_transient_mesh_periods)
         y0, n_tr, steps_tr, ok_tr = _accelerated_transient(
             model, term, solver, ctrl, omega, y0, n_tr, n_max, 10.0 * rtol, max_steps, adjoint)
         t_tr = 0.0

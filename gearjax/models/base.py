@@ -309,13 +309,17 @@ def modal_slowest_output_mode(omega_r, v_r, w_r, damping_ratio, share_tol: float
     return w_s, jnp.asarray(damping_ratio)
 
 
-def free_decay_per_period(omega_n, zeta, period_s):
-    """``(|mu|, |1 - mu|)`` of a free mode of natural frequency ``omega_n`` (rad/s) and
-    damping ratio ``zeta`` over ``period_s`` seconds: ``mu = exp((-zeta + i sqrt(1 -
-    zeta^2)) omega_n period_s)``, its multiplier per period."""
+def free_decay(omega_n, zeta, period_s):
+    """``(|mu|, arg mu)`` of the multiplier ``mu = exp((-zeta + i sqrt(1 - zeta^2)) omega_n
+    period_s)`` of a free mode of natural frequency ``omega_n`` (rad/s) and damping ratio
+    ``zeta`` over ``period_s`` seconds."""
     arg = omega_n * period_s
-    decay = jnp.exp(-zeta * arg)
-    wd = arg * jnp.sqrt(jnp.clip(1.0 - zeta**2, 0.0, 1.0))
+    return jnp.exp(-zeta * arg), arg * jnp.sqrt(jnp.clip(1.0 - zeta**2, 0.0, 1.0))
+
+
+def free_decay_per_period(omega_n, zeta, period_s):
+    """``(|mu|, |1 - mu|)`` of :func:`free_decay`'s multiplier per period."""
+    decay, wd = free_decay(omega_n, zeta, period_s)
     return decay, jnp.sqrt((1.0 - decay * jnp.cos(wd)) ** 2 + (decay * jnp.sin(wd)) ** 2)
 
 
@@ -369,10 +373,8 @@ def modal_periodic_estimate(y_start, y_end, omega, period_rad: float, omega_r, d
     om = jnp.asarray(omega_r)
     r = om.shape[0]
     zeta = jnp.clip(jnp.asarray(damping_ratio), 0.0, 1.0 - 1e-12)
-    w = om * (period_rad / omega)
-    root = jnp.sqrt(1.0 - zeta**2)
-    e = jnp.exp(-zeta * w)
-    c, sn = e * jnp.cos(w * root), e * jnp.sin(w * root) / root
+    e, wd = free_decay(om, zeta, period_rad / omega)
+    c, sn = e * jnp.cos(wd), e * jnp.sin(wd) / jnp.sqrt(1.0 - zeta**2)
     m11, m12, m21, m22 = c + zeta * sn, sn, -sn, c - zeta * sn
     a11, a22 = m11 - 1.0, m22 - 1.0
     det = a11 * a22 - m12 * m21  # = |1 - mu|^2

@@ -619,14 +619,14 @@ class Geared3DModel(AbstractGearModel):
         frequency domain while contact holds: without NLTE inertial and eccentricity terms Eq.
         (48a) has *constant* coefficients and the forcing ``k_m cos(b_b) d(theta) V``, ``d =
         TE_S - NLTE - w_x0`` (``TE_S - w_x0`` without NLTE), so each harmonic answers alone
-        (:func:`gearjax.excitation.mesh3d.harmonic_response`; ``d`` sampled 8x finer than the
-        table, ``n_harmonics`` kept, default 128 per mesh period: ``d_h = O(h^-2)``, ``z_h =
-        O(h^-4)``)."""
+        (:func:`~gearjax.models.geared3d_modal.harmonic_modal_state`; ``n_harmonics``
+        kept, default 128 per mesh period: ``d_h = O(h^-2)``, ``z_h = O(h^-4)``)."""
         if not self._constant_coefficients:
             raise ModelError("formulation", self.formulation,
                              "harmonic_state needs the perturbation formulation without NLTE "
                              "or eccentricity terms and with the excitation table")
-        return harmonic_modal_state(self, omega, theta0, n_harmonics)
+        return harmonic_modal_state(self, lambda t: self._excitation(t)[0], omega, theta0,
+                                    n_harmonics)
 
     def initial_state(self, omega, theta0=0.0):
         """Scaled state at ``theta0``: :meth:`harmonic_state` when :attr:`periodic_start`,

@@ -66,15 +66,14 @@ def own_table_fields(qsm: QuasiStaticMesh3D, theta_tab, period: float, tabulated
         return jumps, _no_table()
     lay = table_layout(qsm, theta_tab, period, jumps, moving_events)
     jumps = distinct_angles(np.concatenate([jumps, lay.event_thetas]), period)
-    ev = dict(event_thetas=lay.event_thetas, event_kinds=lay.event_kinds, event_cells=lay.event_cells)
-    codes = lay.codes
-    if not moving_events:
-        ev = dict(event_thetas=(), event_kinds=(), event_cells=())
+    ev = (dict(event_thetas=lay.event_thetas, event_kinds=lay.event_kinds,
+               event_cells=lay.event_cells) if moving_events
+          else dict(event_thetas=(), event_kinds=(), event_cells=()))  # (and no codes)
     table, amap, ok = tabulate_jit(
         qsm, lay.knots, lay.side, lay.cell_first, origin=lay.origin, period=float(period),
-        n_cells=lay.n_cells, max_extra=lay.max_extra, table_codes=codes, **ev)
+        n_cells=lay.n_cells, max_extra=lay.max_extra, table_codes=lay.codes, **ev)
     return jumps, dict(table_knots=lay.knots, table_cell_first=lay.cell_first,
-                       table_side=lay.side, table_codes=codes, table=table,
+                       table_side=lay.side, table_codes=lay.codes, table=table,
                        angle_map=amap, structure_ok=ok, table_origin=lay.origin,
                        table_cells=lay.n_cells, table_max_extra=lay.max_extra, **ev)
 

@@ -60,14 +60,14 @@ def damping_product(model, qp):
     return jnp.concatenate([head, model.c_r[p:, p:] @ qp[p:]])
 
 
-def harmonic_modal_state(m, omega, theta0=0.0, n_harmonics: int | None = None):
+def harmonic_modal_state(m, d, omega, theta0=0.0, n_harmonics: int | None = None):
     """Scaled periodic state of the constant-coefficient Eq. (48a) of the model ``m`` at
-    ``theta0`` (:meth:`Geared3DModel.harmonic_state`): ``d = TE_S - NLTE - w_x0`` sampled 8x
-    finer than the table knots (aliasing of a kinked signal), ``n_harmonics`` (default 128
-    per mesh period) each answered by the modal receptance."""
+    ``theta0`` (:meth:`Geared3DModel.harmonic_state`): the forcing ``d(theta) = TE_S - NLTE
+    - w_x0`` (m) sampled 8x finer than the table knots (aliasing of a kinked signal),
+    ``n_harmonics`` (default 128 per mesh period) each answered by the modal receptance."""
     n_mesh = max(1, round(m.period_rad / m.mesh_period_rad))
     n_h = 128 * n_mesh if n_harmonics is None else int(n_harmonics)
-    c = fourier_coefficients(lambda t: m._excitation(t)[0], m.table_origin, m.period_rad,
+    c = fourier_coefficients(d, m.table_origin, m.period_rad,
                              8 * max(m.table_cells, 2 * n_h + 2), n_h, theta0)
     z, zp = harmonic_response(m.kbar_r, m.c_r, m.v_r, m.k_m * m.cos_bb * c, m.period_rad, omega)
     rr = m.omega_r / omega
