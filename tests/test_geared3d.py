@@ -536,3 +536,20 @@ def test_fixed_switching_angles_give_the_same_model_at_the_build_design(rig_te):
     for s in (0.1, 0.2):
         np.testing.assert_allclose(fixed.vector_field(s, y, 500.0),
                                    rig_te.vector_field(s, y, 500.0), rtol=1e-9, atol=1e-9)
+
+
+def test_te_and_perturbation_share_one_build(rig_te):
+    """Eqs. (42) and (48a) take the same table, k_m and modal basis: the te build turned
+    into the perturbation formulation is the perturbation build, leaf for leaf (what the
+    command line relies on to build once); the reference formulation has no such table."""
+    built = build_model(baud_velex_rig(False), table1_relief("long"), cells_per_line=4,
+                        formulation="perturbation", max_frequency_hz=6000.0, n_table=32)
+    shared = rig_te.with_formulation("perturbation")
+    a, tree_a = jax.tree_util.tree_flatten(shared)
+    b, tree_b = jax.tree_util.tree_flatten(built)
+    assert tree_a == tree_b and shared.formulation == "perturbation"
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    assert shared.with_formulation("te").formulation == "te"
+    with pytest.raises(ModelError, match="formulation"):
+        rig_te.with_formulation("reference")
