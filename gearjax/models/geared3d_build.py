@@ -55,8 +55,8 @@ def build_geared3d(
     nlte_inertia: bool = True,
     moving_events: bool = True,
 ):
-    """Build a complete 3D model (a :class:`~gearjax.models.geared3d.Geared3DModel` (outside ``jit``: checks, modal basis, k_m, jump and
-    event angles, excitation table).
+    """Build a complete 3D model, a :class:`~gearjax.models.geared3d.Geared3DModel`
+    (outside ``jit``: checks, modal basis, k_m, jump and event angles, excitation table).
 
     Parameters
     ----------
