@@ -73,13 +73,17 @@ def test_speeds_from_quasi_static_to_three_times_critical(spur):
 
 @pytest.mark.slow
 def test_quasi_static_speed_by_transient_hits_step_limit_or_agrees(spur):
-    """simulate at 1 rad/s: either agrees with the steady state or says solver_ok=False
-    (step limit), never a wrong number."""
+    """simulate at 1 rad/s: either agrees with the steady state (shooting, an independent
+    solver; DF - 1 = 4e-4 there, O(Omega / omega_n) from the kinks of TE_S) or says
+    solver_ok=False (step limit, which applies to each leg of the integration: transient,
+    each measured period), never a wrong number."""
     model = _model(spur)
     res = eqx.filter_jit(lambda m, w: simulate(m, w, max_steps=20_000))(model, jnp.asarray(1.0))
     _no_silent_nan(jax.tree.map(lambda a: np.asarray(a)[None], res))
     if bool(res.solver_ok):
-        assert abs(float(res.dynamic_factor) - 1) < 1e-5
+        st = steady_sweep(model, np.array([1.0]), progress=False)
+        assert bool(st.converged[0])
+        assert abs(float(res.dynamic_factor) - float(st.dynamic_factor[0])) < 1e-6
     else:
         assert not bool(res.converged)
 

@@ -49,8 +49,9 @@ The state is saved on the output grid of :mod:`gearjax.dynamics.metrics` (mid-ce
 samples plus both sides of every jump, by the solver's dense interpolant, which does not
 constrain the steps); max and min mesh force, DTE and acceleration are read there and
 refined between grid points, so they are exact to the integration tolerance (the
-refinement windows are further legs of the same ``diffeqsolve`` call, in a ``lax.scan``:
-one solver in the compiled program, not two). Per speed:
+refinement windows are further legs of the same ``diffeqsolve`` call site, as are the
+transient and each measured period, :mod:`gearjax.dynamics.legs`: one solver in the compiled
+program). Per speed:
 max and min mesh force F_D (N, Eqs. (22)/(24)), dynamic factor ``max F_D / F_S``, DTE and
 acceleration peak-to-peak, ``contact_loss`` (``min F_D <= 0``: separation for the reference
 formulation, a tensile -- unphysical -- force for the linear te/perturbation ones), the
@@ -90,6 +91,7 @@ import jax.numpy as jnp
 import numpy as np
 from ..errors import SimulationError
 from ..models.base import AbstractGearModel, free_decay_per_period
+from .legs import solve_legs
 from .metrics import output_grid, refine_windows, window_extrema
 from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
 
@@ -325,13 +327,14 @@ DEFAULT_SAMPLES_PER_MESH_PERIOD = 128  # and its output grid density
 
 def measured_grid(model, n_measured_periods: int, samples_per_mesh_period: int):
     """(output grid of the measured periods (:func:`gearjax.dynamics.metrics.output_grid`),
-    samples per excitation period, length of each leg of :func:`simulate`'s solve: the
-    grid, or the ``2 N_REFINE`` points of a refinement window if longer)."""
+    samples per excitation period, length of each leg of :func:`simulate`'s solve
+    (:mod:`gearjax.dynamics.legs`): one period's grid and its end, or the ``2 N_REFINE``
+    points of a refinement window if longer)."""
     period = float(model.period_rad)
     n_samples = samples_per_mesh_period * int(round(period / model.mesh_period_rad))
     grid = output_grid(period, n_samples, np.asarray(model.jump_thetas, dtype=float),
                        n_measured_periods)
-    return grid, n_samples, max(grid.offsets.size, 2 * N_REFINE)
+    return grid, n_samples, max(grid.per_period + 1, 2 * N_REFINE)
 
 
 def simulate(
@@ -376,7 +379,9 @@ def simulate(
     transient_decay, min_transient_mesh_periods, max_transient_mesh_periods : automatic
         transient (bounds in mesh periods, rounded up to whole excitation periods).
     convergence_tol : threshold on ``convergence`` for ``converged``.
-    max_steps : step limit of each ``diffeqsolve`` (exceeded -> ``solver_ok=False``).
+    max_steps : step limit of each leg of the integration (the transient, or each of its
+        periods when accelerated; each measured period; each refinement window);
+        exceeded -> ``solver_ok=False``.
     adjoint : diffrax adjoint, default ``diffrax.ForwardMode()``.
     start : ``"auto"`` (:func:`transient_start`: modal models start their slow modes on
         the period mean of the quasi-static state) or ``"initial"``
@@ -437,18 +442,12 @@ def simulate(
         y0 = model.transient_start(omega) if start == "auto" else model.initial_state(omega)
     y0 = jnp.asarray(y0)
     ctrl = jump_controller(model, rtol, atol)
-    steps_tr = jnp.asarray(0)
-    ok_tr = jnp.asarray(True)
-    if (accelerate and n_transient_periods is None
-            and model.periodic_estimate(y0, y0, omega) is not None):
-        _, n_max = transient_period_bounds(model, min_transient_mesh_periods,
-                                           max_transient_mesh_periods)
-        y0, n_tr, steps_tr, ok_tr = _accelerated_transient(
-            model, term, solver, ctrl, omega, y0, n_tr, n_max, 10.0 * rtol, max_steps, adjoint)
-        t_tr = 0.0
-    else:
-        t_tr = n_tr * period
-    t_end = t_tr + n_measured_periods * period
+    accelerated = (accelerate and n_transient_periods is None
+                   and model.periodic_estimate(y0, y0, omega) is not None)
+    n_max = transient_period_bounds(model, min_transient_mesh_periods,
+                                    max_transient_mesh_periods)[1] if accelerated else 0
+    accelerated = accelerated and n_max > 0
+    t_tr = 0.0 if accelerated else n_tr * period
     # output grid: mid-cell samples (never on an engagement angle) plus both sides of
     # every jump, per measured period (gearjax.dynamics.metrics)
     grid, n_samples, n_out = measured_grid(model, n_measured_periods, samples_per_mesh_period)
@@ -459,50 +458,31 @@ def simulate(
         cols = [o.mesh_force_N, o.dte_m] + ([] if o.accel_m_s2 is None else [o.accel_m_s2])
         return jnp.stack(cols)
 
-    # one diffeqsolve call site for the measured run (leg 0) and the refinement windows of
-    # gearjax.dynamics.metrics (legs 1..2q, each integrated again from its first grid
-    # point): a second call site (a vmapped solve over the windows) doubled the tracing
-    # and XLA compile time of simulate. The legs share one output length (padded with
-    # their last angle) and run one after the other in a scan; the window inputs are
-    # computed once, after leg 0 (a cond on the unbatched leg index, also under vmap).
     n_grid = ts.shape[0]
     n_win = 2 * jax.eval_shape(observed, ts[0], y0).shape[0]  # a max and a min per output
 
-    def pad(t):  # (m,) -> (n_out,): the last angle repeated
-        return jnp.concatenate([t, jnp.broadcast_to(t[-1], (n_out - t.shape[0],))])
+    def windows_of(g):  # the measured states on the grid -> the windows' legs
+        j0, tf = refine_windows(jax.vmap(observed)(ts, g), ts, N_REFINE)
+        return ts[j0], g[j0], tf
 
-    def leg(carry, k):
-        w_t0, w_y0, w_ts = carry
-        main = k == 0
-        i = jnp.maximum(k - 1, 0)
-        # a window of a failed run starts from a finite state (its values are not used)
-        y_w = jnp.where(jnp.isfinite(w_y0[i]), w_y0[i], 0.0)
-        sol = diffrax.diffeqsolve(
-            term, solver, t0=jnp.where(main, 0.0, w_t0[i]),
-            t1=jnp.where(main, t_end, w_ts[i, -1]), dt0=None,
-            y0=jnp.where(main, y0, y_w), args=omega,
-            saveat=diffrax.SaveAt(ts=jnp.where(main, pad(ts), w_ts[i])),
-            stepsize_controller=ctrl, max_steps=max_steps, adjoint=adjoint, throw=False,
-        )
-
-        def windows(_):
-            g = sol.ys[:n_grid]
-            j0, tf = refine_windows(jax.vmap(observed)(ts, g), ts, N_REFINE)
-            return ts[j0], g[j0], jax.vmap(pad)(tf)
-
-        carry = jax.lax.cond(main, windows, lambda _: carry, None)
-        return carry, (sol.ys, sol.result == diffrax.RESULTS.successful, sol.stats["num_steps"])
-
-    init = (jnp.zeros(n_win), jnp.zeros((n_win,) + y0.shape, y0.dtype), jnp.zeros((n_win, n_out)))
-    _, (legs, success, n_steps) = jax.lax.scan(leg, init, jnp.arange(1 + n_win))
-    ys = legs[0, :n_grid]
-    ok = ok_tr & success[0] & jnp.all(jnp.isfinite(ys))
-    steps = steps_tr + n_steps[0]
+    # transient, measured periods and refinement windows: legs of one diffeqsolve call
+    # site (gearjax.dynamics.legs; a second one cost ~3 s of compile per program)
+    grid_ys, win_ys, success, n_steps, (k_tr, steps_tr, ok_tr) = solve_legs(
+        model, term, solver, ctrl, omega, y0, ts=ts.reshape(n_measured_periods, -1),
+        n_out=n_out, n_win=n_win, windows_of=windows_of, t_transient=t_tr,
+        accelerated=accelerated, n_transient=n_tr, n_max_transient=n_max, tol=10.0 * rtol,
+        max_steps=max_steps, adjoint=adjoint)
+    if accelerated:
+        n_tr = k_tr
+    n_meas = n_measured_periods
+    ys = grid_ys.reshape((n_grid,) + y0.shape)
+    ok = ok_tr & jnp.all(success[:n_meas]) & jnp.all(jnp.isfinite(ys))
+    steps = steps_tr + jnp.sum(n_steps[:n_meas])
     vals = jax.vmap(observed)(ts, ys)
     j0, tf = refine_windows(vals, ts, N_REFINE)
     cols = jnp.repeat(jnp.arange(vals.shape[1]), 2)  # window k refines output k // 2
     wvals = jax.vmap(lambda y, c, t: jax.vmap(observed)(t, y)[:, c])(
-        legs[1:, : 2 * N_REFINE], cols, tf)
+        win_ys, cols, tf)
     v_max, v_min = window_extrema(vals, ts, j0, wvals)
     has_acc = vals.shape[1] > 2
     per = vals.reshape(n_measured_periods, grid.per_period, -1)
@@ -577,41 +557,6 @@ def simulate(
         accel_orders_m_s2=bad(orders[2]) if has_acc else jnp.full(N_MESH_ORDERS, jnp.nan),
         signals=signals,
     )
-
-
-def _accelerated_transient(model, term, solver, ctrl, omega, y0, n_tr, n_max: int, tol: float,
-                           max_steps: int, adjoint):
-    """The transient period by period (module docstring, "Transient"): each period's end
-    state is replaced by ``model.periodic_estimate`` while the largest change of the
-    (dimensionless) state over a period keeps falling, then left as integrated; stops
-    after ``n_tr`` periods or when the change is below ``tol``. Returns (start state of
-    the measured periods, periods integrated, steps, success)."""
-    period = float(model.period_rad)
-
-    def cond(c):
-        k, _, _, _, _, _, done = c
-        return (k < n_tr) & ~done
-
-    def body(c):
-        k, y, change_before, estimating, steps, ok, _ = c
-        sol = diffrax.diffeqsolve(term, solver, t0=0.0, t1=period, dt0=None, y0=y, args=omega,
-                                  saveat=diffrax.SaveAt(t1=True), stepsize_controller=ctrl,
-                                  max_steps=max_steps, adjoint=adjoint, throw=False)
-        y_end = sol.ys[-1]
-        good = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y_end))
-        change = jnp.max(jnp.abs(y_end - y))
-        estimating = estimating & (change < change_before)  # else: the estimate misleads
-        y_next = jnp.where(estimating, model.periodic_estimate(y, y_end, omega), y_end)
-        y_next = jnp.where(good, y_next, y)
-        return (k + 1, y_next, change, estimating, steps + sol.stats["num_steps"], ok & good,
-                ~good | (change <= tol))
-
-    init = (jnp.asarray(0.0), y0, jnp.asarray(jnp.inf), jnp.asarray(True), jnp.asarray(0),
-            jnp.asarray(True), jnp.asarray(False))
-    kind = "lax" if isinstance(adjoint, diffrax.ForwardMode) else "checkpointed"
-    k, y, _, _, steps, ok, _ = eqxi.while_loop(cond, body, init, max_steps=max(n_max, 1),
-                                               kind=kind)
-    return y, k, steps, ok
 
 
 def _check_config(n_tr, n_meas, n_samp, decay, n_min, n_max):

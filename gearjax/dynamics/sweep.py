@@ -293,10 +293,12 @@ METHODS = ("transient", "steady", "harmonic", "auto")
 
 # share of the machine's memory that one chunk's saved states may take (memory_chunk)
 CHUNK_MEMORY_FRACTION = 0.4
-# bytes per saved state entry of one speed, over the 7 legs of simulate's scan: calibrated
-# on the one measurement, XLA's 85.45 GB allocation for 45 speeds of the helical rig with
-# pitch errors (n_out = 25.6k grid points, n = 294): 4.5 times 7 n_out n doubles
-_BYTES_PER_ENTRY = 5 * 7 * 8
+# bytes per saved state entry (output grid point x state component) of one speed: XLA's
+# temporary memory (compile-time memory_analysis) of simulate vmapped over 8 and 14 speeds
+# of the helical rig with pitch errors (17,076 grid points, n = 294) grows by 0.75 GB per
+# speed, 149 bytes per entry (the measured states, the solver's saves, the windows'
+# output evaluations on the grid and the batched loop's copies of them); 20 doubles
+_BYTES_PER_ENTRY = 20 * 8
 
 
 def memory_chunk(model, simulate_kwargs: dict | None = None,
@@ -305,21 +307,20 @@ def memory_chunk(model, simulate_kwargs: dict | None = None,
     (default :data:`CHUNK_MEMORY_FRACTION` of the machine's memory, of 16 GiB where
     unknown).
 
-    Each speed keeps its output grid (``n_out`` points: mid-cell samples and both sides of
-    every jump, per measured period) for the measured leg and each of the 6 refinement
-    windows of :func:`gearjax.dynamics.simulate.simulate` (one scan, legs of one length),
-    with the batched loop's copies: :data:`_BYTES_PER_ENTRY` bytes per ``n_out x n``
-    entry. The spur 3D rig: 43 MB per speed; the helical rig with pitch errors (a pinion
-    revolution of 26 mesh periods, 240 jumps per mesh period): 2.1 GB, where 45 speeds in
-    one call asked XLA for 85 GB (the CLI's earlier chunks of 5 ran)."""
+    Each speed keeps its states on the output grid (mid-cell samples and both sides of
+    every jump, per measured period) through the legs of
+    :func:`gearjax.dynamics.simulate.simulate` (:mod:`gearjax.dynamics.legs`):
+    :data:`_BYTES_PER_ENTRY` bytes per grid point and state component. The spur 3D rig:
+    16 MB per speed; the helical rig with pitch errors (a pinion revolution of 26 mesh
+    periods, 240 jumps per mesh period): 0.8 GB."""
     from .simulate import (DEFAULT_MEASURED_PERIODS, DEFAULT_SAMPLES_PER_MESH_PERIOD,
                            measured_grid)
 
     kw = dict(simulate_kwargs or {})
-    _, _, n_out = measured_grid(
+    grid, _, _ = measured_grid(
         model, int(kw.get("n_measured_periods", DEFAULT_MEASURED_PERIODS)),
         int(kw.get("samples_per_mesh_period", DEFAULT_SAMPLES_PER_MESH_PERIOD)))
-    per_speed = float(_BYTES_PER_ENTRY) * n_out * int(model.state_size)
+    per_speed = float(_BYTES_PER_ENTRY) * grid.offsets.size * int(model.state_size)
     if budget_bytes is None:
         try:
             total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")

@@ -1,0 +1,145 @@
+"""Every integration of one :func:`gearjax.dynamics.simulate.simulate` call at one
+``diffeqsolve`` call site.
+
+A call integrates up to three kinds of *legs*, one after the other:
+
+1. the accelerated transient (optional): one excitation period per leg from the state the
+   last leg left, each period's end replaced by ``model.periodic_estimate`` while the
+   state's change over a period keeps falling (:mod:`gearjax.dynamics.simulate`,
+   "Transient");
+2. the measured run from the transient's end, saved on the output grid;
+3. the refinement windows of :mod:`gearjax.dynamics.metrics`, each integrated again from
+   its first grid point of the measured run.
+
+They are the iterations of one ``while`` loop around one ``diffeqsolve``: its tracing and
+XLA compilation dominate the cost of a sweep of the 3D model (a second call site for the
+transient cost ~3 s of compile per formulation of the main job, measured). The legs share
+one output length (``n_out`` saved angles, padded with the last one). Under ``vmap`` the
+loop runs in lockstep: a speed still in its transient integrates a period while another
+integrates its measured run or a window (same arithmetic, the inputs differ).
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import diffrax
+import equinox.internal as eqxi
+import jax
+import jax.numpy as jnp
+
+__all__ = ["solve_legs"]
+
+
+def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: int,
+               windows_of: Callable, t_transient, accelerated: bool, n_transient,
+               n_max_transient: int, tol: float, max_steps: int, adjoint):
+    """Integrate the legs of one simulation (module docstring).
+
+    Parameters
+    ----------
+    model, term, solver, ctrl, omega, max_steps, adjoint : as in ``simulate`` (the term is
+        the model's vector field, ``ctrl`` its jump controller).
+    y0 : state at theta = 0, the start of the transient.
+    ts : (n_meas, n) output angles (rad) of each measured period, in
+        ``[t_transient + p P, t_transient + (p + 1) P)``, ``n < n_out``.
+    n_win : refinement windows; ``windows_of(ys)`` maps the measured states on ``ts``
+        (flattened, (n_meas n, m)) to the windows' start angles (n_win,), start states
+        (n_win, m) and output angles (n_win, k), ``k <= n_out``.
+    t_transient : angle (rad) at which the measured periods start: the plain transient is
+        one leg from 0 to it (none if 0). ``accelerated``: it is 0 and the transient is
+        period legs, at most ``n_transient`` (traced; static bound ``n_max_transient``),
+        stopping when the largest change of the state over a period is below ``tol``.
+
+    Returns
+    -------
+    grid : (n_meas, n, m) the measured states on ``ts``.
+    windows : (n_win, k, m) the windows' states on their output angles.
+    success, n_steps : (n_meas + n_win,) each leg ended successfully; its steps.
+    transient : (periods of the accelerated transient (None if not accelerated), steps,
+        all successful) of the transient legs.
+    """
+    period = float(model.period_rad)
+    n_meas = ts.shape[0]
+    n_legs = n_meas + n_win
+
+    def pad(t, end):  # (k,) -> (n_out,): the leg's end angle repeated
+        return jnp.concatenate([t, jnp.broadcast_to(end, (n_out - t.shape[0],))])
+
+    t1_tr = period if accelerated else t_transient
+    tr_ts = jnp.full(n_out, t1_tr)
+
+    def cond(c):
+        return c["leg"] < n_legs
+
+    def body(c):
+        leg, y = c["leg"], c["y"]
+        tr = leg < 0  # the plain transient, or a period of the accelerated one
+        meas = (leg >= 0) & (leg < n_meas)  # a measured period
+        j = jnp.maximum(leg, 0)
+        p = jnp.clip(leg, 0, n_meas - 1)
+        i = jnp.clip(leg - n_meas, 0, max(n_win - 1, 0))
+        w_t0, w_y0, w_ts = c["windows"]
+        # a window of a failed run starts from a finite state (its values are not used)
+        y_w = jnp.where(jnp.isfinite(w_y0[i]), w_y0[i], 0.0)
+        t0_meas = t_transient + p * period
+        t1_meas = t0_meas + period
+        t0 = jnp.where(tr, 0.0, jnp.where(meas, t0_meas, w_t0[i]))
+        t1 = jnp.where(tr, t1_tr, jnp.where(meas, t1_meas, w_ts[i, -1]))
+        save = jnp.where(tr, tr_ts, jnp.where(meas, pad(ts[p], t1_meas), pad(w_ts[i], w_ts[i, -1])))
+        sol = diffrax.diffeqsolve(
+            term, solver, t0=t0, t1=t1, dt0=None, y0=jnp.where(tr | meas, y, y_w), args=omega,
+            saveat=diffrax.SaveAt(ts=save), stepsize_controller=ctrl, max_steps=max_steps,
+            adjoint=adjoint, throw=False,
+        )
+        good = sol.result == diffrax.RESULTS.successful
+        steps = sol.stats["num_steps"]
+        y_end = sol.ys[-1]
+        out = dict(c)
+        good_tr = good & jnp.all(jnp.isfinite(y_end))
+        if accelerated:
+            change = jnp.max(jnp.abs(y_end - y))
+            estimating = c["estimating"] & (change < c["change"])  # else: the estimate misleads
+            y_next = jnp.where(estimating, model.periodic_estimate(y, y_end, omega), y_end)
+            y_next = jnp.where(good_tr, y_next, y)
+            k = c["k"] + 1
+            stop = ~good_tr | (change <= tol) | (k >= n_transient)
+            out.update(k=jnp.where(tr, k, c["k"]), change=jnp.where(tr, change, c["change"]),
+                       estimating=jnp.where(tr, estimating, c["estimating"]))
+        else:
+            y_next, stop = y_end, True
+        out["y"] = jnp.where(tr, y_next, jnp.where(meas, y_end, y))
+        out["steps_tr"] = c["steps_tr"] + jnp.where(tr, steps, 0)
+        out["ok_tr"] = c["ok_tr"] & (~tr | good_tr)
+        out["leg"] = jnp.where(tr, jnp.where(stop, 0, -1), leg + 1)
+        keep = lambda a, k, on, new: a.at[k].set(jnp.where(on, new, a[k]))  # noqa: E731
+        out["grid"] = keep(c["grid"], p, meas, sol.ys[: ts.shape[1]])
+        out["wins"] = keep(c["wins"], i, ~tr & ~meas, sol.ys[: n_fine])
+        out["success"] = keep(c["success"], j, ~tr, good)
+        out["n_steps"] = keep(c["n_steps"], j, ~tr, steps)
+        # after the last measured period: the windows (a cond on a per-speed flag: under
+        # vmap both sides are evaluated, a few hundred output evaluations per leg)
+        grid = out["grid"].reshape((-1,) + y0.shape)
+        out["windows"] = jax.lax.cond(leg == n_meas - 1, lambda: windows_of(grid),
+                                      lambda: c["windows"])
+        return out
+
+    grid0 = jax.ShapeDtypeStruct((ts.size,) + y0.shape, y0.dtype)
+    zero_windows = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype),
+                                jax.eval_shape(windows_of, grid0))
+    n_fine = zero_windows[2].shape[1]
+    has_transient = (n_transient > 0) if accelerated else (t_transient > 0)
+    init = dict(
+        leg=jnp.where(has_transient, -1, 0), y=y0, windows=zero_windows,
+        grid=jnp.zeros(ts.shape + y0.shape, y0.dtype),
+        wins=jnp.zeros((n_win, n_fine) + y0.shape, y0.dtype),
+        success=jnp.zeros(n_legs, bool), n_steps=jnp.zeros(n_legs, jnp.asarray(0).dtype),
+        steps_tr=jnp.asarray(0), ok_tr=jnp.asarray(True),
+    )
+    if accelerated:
+        init.update(k=jnp.asarray(0.0), change=jnp.asarray(jnp.inf), estimating=jnp.asarray(True))
+    kind = "lax" if isinstance(adjoint, diffrax.ForwardMode) else "checkpointed"
+    bound = (n_max_transient if accelerated else 1) + n_legs
+    c = eqxi.while_loop(cond, body, init, max_steps=bound, kind=kind)
+    k = c["k"] if accelerated else None
+    return c["grid"], c["wins"], c["success"], c["n_steps"], (k, c["steps_tr"], c["ok_tr"])
