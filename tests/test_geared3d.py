@@ -553,3 +553,33 @@ def test_te_and_perturbation_share_one_build(rig_te):
     assert shared.with_formulation("te").formulation == "te"
     with pytest.raises(ModelError, match="formulation"):
         rig_te.with_formulation("reference")
+
+
+def test_perturbation_runs_in_the_te_program(rig_te, monkeypatch):
+    """Eq. (48a) is Eq. (42) with k_m in place of k(theta) in the linear mesh term: the
+    perturbation model handed to compiled sweeps (compiled_form: the te label, te_weight
+    0) has the vector field of Eq. (48a) as written, k_m (v_q - cos b_b d) (the static
+    branch, te_weight None), and the te model keeps its own; a sweep of te then of
+    perturbation traces simulate once."""
+    import gearjax.dynamics.sweep as sweep_mod
+
+    pert = rig_te.with_formulation("perturbation")
+    shared = pert.compiled_form()
+    assert shared.formulation == "te" and float(shared.te_weight) == 0.0
+    as_written = dataclasses.replace(pert, te_weight=None)
+    te_as_written = dataclasses.replace(rig_te, te_weight=None)
+    assert rig_te.compiled_form() is rig_te
+    y = rig_te.initial_state(500.0) + 0.01 * jnp.sin(jnp.arange(rig_te.state_size))
+    for s in (0.05, 0.2):
+        np.testing.assert_allclose(shared.vector_field(s, y, 500.0),
+                                   as_written.vector_field(s, y, 500.0), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(rig_te.vector_field(s, y, 500.0),
+                                   te_as_written.vector_field(s, y, 500.0), rtol=1e-12, atol=1e-12)
+        assert np.max(np.abs(np.asarray(shared.vector_field(s, y, 500.0)
+                                        - rig_te.vector_field(s, y, 500.0)))) > 1e-6
+    counted = eqx.debug.assert_max_traces(_simulate, max_traces=1)
+    monkeypatch.setattr(sweep_mod, "simulate", counted)
+    kw = dict(n_transient_periods=1, n_measured_periods=2, progress=False)
+    a = sweep_mod.sweep(rig_te, [300.0], **kw)
+    b = sweep_mod.sweep(pert, [300.0], **kw)
+    assert b.formulation == "perturbation" and a.dynamic_factor[0] != b.dynamic_factor[0]

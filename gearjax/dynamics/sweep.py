@@ -199,6 +199,7 @@ def sweep(
     total = n_chunks * chunk
     sim_kwargs = tuple(sorted(simulate_kwargs.items()))
     formulation = model.formulation
+    compiled = model.compiled_form()  # 3D te and perturbation: one program for both
 
     # order: the whole sweep sorted by cost (speed), chunks of consecutive speeds, each chunk
     # dealt round-robin to the devices
@@ -236,7 +237,7 @@ def sweep(
                   f"{speeds[sel].max():.4g} rad/s, compiling and integrating ...",
                   file=sys.stderr, flush=True)
         t0 = time.perf_counter()
-        out = fn(model, w, sim_kwargs)
+        out = fn(compiled, w, sim_kwargs)
         if multi_process and n_dev > 1:
             from jax.experimental import multihost_utils
 

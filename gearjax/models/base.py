@@ -168,6 +168,13 @@ class AbstractGearModel(eqx.Module):
         transient needs integrating). Default False."""
         return False
 
+    def compiled_form(self) -> "AbstractGearModel":
+        """The model as a compiled sweep program receives it
+        (:func:`gearjax.dynamics.sweep.sweep`): models whose equations differ only in
+        array data get the same static fields here, so that one compilation serves them
+        all (the 3D te and perturbation formulations). Default: the model itself."""
+        return self
+
     def harmonic_state(self, omega, theta0=0.0):
         """Periodic steady state at ``theta0`` solved in the frequency domain, for models
         whose :attr:`periodic_start` is True; the default has none."""

@@ -215,5 +215,6 @@ def build_geared3d(
         harmonic_start=bool(harmonic_start),
         te_source=None if te_table is None else te_table.source,
         nlte_inertia=bool(nlte_inertia), **modal_structure(red.kbar_r, red.c_r, red.n_modes),
+        te_weight=None if formulation == "reference" else jnp.asarray(float(formulation == "te")),
         **layout,
     )
