@@ -11,6 +11,11 @@ import tempfile
 # so without this no sweep program is shared between the workers. No test expects an
 # equinox runtime error; a NaN from one fails the finite checks of every metric.
 os.environ.setdefault("EQX_ON_ERROR", "nan")
+# the command line's subprocesses on one CPU device, like the library calls of the tests:
+# their programs then share the compilation cache below (one device per core is the
+# command line's default, gearjax.cli.main.host_device_count; the sharded sweep itself is
+# tested in test_sweep.py with four fake devices)
+os.environ.setdefault("GEARJAX_HOST_DEVICES", "1")
 
 import jax  # noqa: E402
 

@@ -108,3 +108,31 @@ def test_sweep_writes_csv_json_and_figure(torsional_cli_sweep):
 def test_sweep_bad_speeds(capsys):
     assert main(["sweep", "--speeds", "900:20:5"]) == 2
     assert "--speeds='900:20:5'" in capsys.readouterr().err
+
+
+def test_one_cpu_device_per_core_unless_told(monkeypatch):
+    """The command line asks XLA for one CPU device per usable core (a transient sweep
+    shares its speeds over them), honours GEARJAX_HOST_DEVICES and never overrides a
+    device count already in XLA_FLAGS (it must act before JAX starts its CPU backend)."""
+    import os
+
+    import importlib
+
+    cli = importlib.import_module("gearjax.cli.main")  # the package exports main()
+
+    monkeypatch.delenv("GEARJAX_HOST_DEVICES", raising=False)
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_foo=1")
+    cores = len(os.sched_getaffinity(0))
+    assert cli.host_device_count() == cores
+    cli._use_host_devices()
+    expected = "--xla_cpu_foo=1" + (f" --xla_force_host_platform_device_count={cores}"
+                                    if cores > 1 else "")
+    assert os.environ["XLA_FLAGS"] == expected
+    monkeypatch.setenv("GEARJAX_HOST_DEVICES", "3")
+    monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=5")
+    assert cli.host_device_count() == 3
+    cli._use_host_devices()  # an explicit count stays
+    assert os.environ["XLA_FLAGS"] == "--xla_force_host_platform_device_count=5"
+    monkeypatch.setenv("XLA_FLAGS", "")
+    cli._use_host_devices()
+    assert os.environ["XLA_FLAGS"] == "--xla_force_host_platform_device_count=3"

@@ -293,6 +293,25 @@ def default_chunk(n_speeds: int) -> int:
     return max(1, min(n_speeds, max(MIN_DEFAULT_CHUNK, math.ceil(n_speeds / 10))))
 
 
+def sweep_devices(method: str):
+    """Devices of one process that a transient sweep shares its speeds over: ``"all"``
+    where the default backend has several (the CPU devices of
+    :func:`gearjax.cli.main.host_device_count`, or several GPUs), else None; None for the
+    frequency-domain and steady-state methods (one device). Several processes
+    (``--distributed``) share every device by themselves."""
+    import jax
+
+    if method not in ("auto", "transient") or jax.process_count() > 1:
+        return None
+    return "all" if jax.device_count() > 1 else None
+
+
+def _device_count(devices) -> int:
+    import jax
+
+    return 1 if devices is None else len(jax.devices())
+
+
 def _init_distributed(args) -> bool:
     """Join a ``jax.distributed`` run when asked; returns whether this process leads
     (prints and writes). Must run before any JAX computation."""
@@ -414,6 +433,7 @@ def cmd_sweep(args) -> int:
             read_rows(orders_path, repair=True)
         write_case(out, record)
     chunk = args.chunk or default_chunk(speeds.size)
+    devices = sweep_devices(args.method)
     nlte = nlte_options_of(args)
     summary = {
         "case": case, "rig": rig.name, "model": args.model,
@@ -422,7 +442,7 @@ def cmd_sweep(args) -> int:
         "nlte_terms": not args.zero_nlte, "nlte_inertia": nlte["nlte_inertia"],
         "nlte_reaction": reaction, "encoders": args.encoders, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
-        "rtol": args.rtol,
+        "rtol": args.rtol, "devices": _device_count(devices),
         "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
         "formulations": {},
     }
@@ -471,7 +491,7 @@ def cmd_sweep(args) -> int:
                 size = min(chunk, todo.size)
                 if args.chunk is None:  # and what the saved states of a chunk fit in
                     size = min(size, memory_chunk(model, tolerances))
-                res = sweep(model, todo, chunk_size=size,
+                res = sweep(model, todo, chunk_size=size, devices=devices,
                             progress=not args.json, out_csv=csv_path, method=args.method,
                             orders_csv=orders_path,
                             **periodic_start_options(model), **tolerances)

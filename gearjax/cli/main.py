@@ -316,10 +316,41 @@ def _use_compilation_cache() -> None:
         jax.config.update("jax_compilation_cache_dir", path)
 
 
+_DEVICE_FLAG = "--xla_force_host_platform_device_count"
+
+
+def host_device_count() -> int:
+    """CPU devices the command line asks XLA for: one per usable core (each runs its share
+    of a sweep's speeds on its own thread: the main job's 45 speeds integrate ~2x faster on
+    2 cores than in one vmapped batch, which XLA runs on one thread); 1 with
+    ``GEARJAX_HOST_DEVICES=1``, or an explicit count there. An ``XLA_FLAGS`` that already
+    sets the count is left alone."""
+    setting = os.environ.get("GEARJAX_HOST_DEVICES", "")
+    if setting:
+        try:
+            return max(1, int(setting))
+        except ValueError:
+            return 1
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def _use_host_devices() -> None:
+    """Before JAX starts its CPU backend: :func:`host_device_count` CPU devices."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    n = host_device_count()
+    if _DEVICE_FLAG in flags or n <= 1:
+        return
+    os.environ["XLA_FLAGS"] = f"{flags} {_DEVICE_FLAG}={n}".strip()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the ``gearjax`` command line; returns the exit status (0 done, 2 bad input,
     3 stalled: no progress for ``--stall-timeout`` seconds, 130 interrupted by Ctrl-C)."""
     args = _parser().parse_args(argv)
+    _use_host_devices()
     _use_compilation_cache()
     stall = getattr(args, "stall_timeout", None)
     if stall is not None and not (stall >= 0 and math.isfinite(stall)):
