@@ -59,6 +59,7 @@ from ..excitation.te_file import read_te_csv
 from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
+from .devices import device_count, init_distributed, sweep_devices
 from .scenario import add_nlte_reaction, add_nlte_switches, nlte_options_of, nlte_reaction_of
 
 __all__ = ["register", "case_name", "summarise_sweep",
@@ -293,46 +294,6 @@ def default_chunk(n_speeds: int) -> int:
     return max(1, min(n_speeds, max(MIN_DEFAULT_CHUNK, math.ceil(n_speeds / 10))))
 
 
-def sweep_devices(method: str):
-    """Devices of one process that a transient sweep shares its speeds over: ``"all"``
-    where the default backend has several (the CPU devices of
-    :func:`gearjax.cli.main.host_device_count`, or several GPUs), else None; None for the
-    frequency-domain and steady-state methods (one device). Several processes
-    (``--distributed``) share every device by themselves."""
-    import jax
-
-    if method not in ("auto", "transient") or jax.process_count() > 1:
-        return None
-    return "all" if jax.device_count() > 1 else None
-
-
-def _device_count(devices) -> int:
-    import jax
-
-    return 1 if devices is None else len(jax.devices())
-
-
-def _init_distributed(args) -> bool:
-    """Join a ``jax.distributed`` run when asked; returns whether this process leads
-    (prints and writes). Must run before any JAX computation."""
-    explicit = (args.coordinator, args.num_processes, args.process_id)
-    if not args.distributed and all(v is None for v in explicit):
-        return True
-    if args.coordinator is not None and (args.num_processes is None or args.process_id is None):
-        raise ValueError("--coordinator needs --num-processes and --process-id (or use "
-                         "--distributed alone on a cluster JAX detects)")
-    if args.num_processes is not None and args.num_processes < 1:
-        raise ValueError(f"--num-processes={args.num_processes}: must be >= 1")
-    if args.process_id is not None and args.num_processes is not None and not (
-            0 <= args.process_id < args.num_processes):
-        raise ValueError(f"--process-id={args.process_id}: must be in 0..{args.num_processes - 1}")
-    import jax
-
-    jax.distributed.initialize(coordinator_address=args.coordinator,
-                               num_processes=args.num_processes, process_id=args.process_id)
-    return jax.process_index() == 0
-
-
 def _check_cutoff(args, rig, cutoff_hz) -> None:
     """Refuse a 3D ``--max-frequency`` below the lowest natural frequency (it would keep no
     vibration mode), from the rig's modal analysis alone, before the model is built."""
@@ -378,7 +339,7 @@ def cmd_sweep(args) -> int:
         raise ValueError("--resume: not with several processes (resume on one process, or "
                          "start a new --out folder)")
     check_direction(args)
-    lead = _init_distributed(args)
+    lead = init_distributed(args)
     speeds = _parse_speeds(args.speeds)
     forms = _forms(args.formulations or ("te,perturbation" if args.te_file
                                          else "reference,te,perturbation"))
@@ -442,7 +403,7 @@ def cmd_sweep(args) -> int:
         "nlte_terms": not args.zero_nlte, "nlte_inertia": nlte["nlte_inertia"],
         "nlte_reaction": reaction, "encoders": args.encoders, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
-        "rtol": args.rtol, "devices": _device_count(devices),
+        "rtol": args.rtol, "devices": device_count(devices),
         "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
         "formulations": {},
     }
