@@ -215,6 +215,7 @@ def _free_port():
         return s.getsockname()[1]
 
 
+@pytest.mark.slow  # 31 s (two processes compiling the same program); a non-default path
 def test_multi_process_sweep_equals_single_device(tmp_path):
     """``gearjax sweep --coordinator ...`` on two processes with two fake CPU devices each
     (jax.distributed, gloo collectives): the speeds are shared over the 4 devices of both
@@ -288,6 +289,7 @@ def test_method_steady_matches_steady_sweep(tmp_path):
         sweep(model, speeds, progress=False, method="fast")
 
 
+@pytest.mark.slow  # 35 s; --method harmonic is not the default (the solver itself: test_harmonic)
 def test_method_harmonic_keeps_the_linear_orbit_only_where_it_is_the_models(tmp_path):
     """sweep(method="harmonic") on the sdof te model (damping 0.1, short relief): at the
     speeds where the linear orbit stays compressive it is the model's orbit, so the peak
