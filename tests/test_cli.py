@@ -111,9 +111,10 @@ def test_sweep_bad_speeds(capsys):
 
 
 def test_one_cpu_device_per_core_unless_told(monkeypatch):
-    """The command line asks XLA for one CPU device per usable core (a transient sweep
-    shares its speeds over them), honours GEARJAX_HOST_DEVICES and never overrides a
-    device count already in XLA_FLAGS (it must act before JAX starts its CPU backend)."""
+    """The sweeping commands ask XLA for one CPU device per usable core (a transient sweep
+    shares its speeds over them), the others do not; GEARJAX_HOST_DEVICES is honoured and
+    a device count already in XLA_FLAGS never overridden (it must act before JAX starts
+    its CPU backend)."""
     import os
 
     import importlib
@@ -124,15 +125,17 @@ def test_one_cpu_device_per_core_unless_told(monkeypatch):
     monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_foo=1")
     cores = len(os.sched_getaffinity(0))
     assert cli.host_device_count() == cores
-    cli._use_host_devices()
+    cli._use_host_devices("optimise")  # no sweep to shard: XLA's own device count
+    assert os.environ["XLA_FLAGS"] == "--xla_cpu_foo=1"
+    cli._use_host_devices("sweep")
     expected = "--xla_cpu_foo=1" + (f" --xla_force_host_platform_device_count={cores}"
                                     if cores > 1 else "")
     assert os.environ["XLA_FLAGS"] == expected
     monkeypatch.setenv("GEARJAX_HOST_DEVICES", "3")
     monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=5")
     assert cli.host_device_count() == 3
-    cli._use_host_devices()  # an explicit count stays
+    cli._use_host_devices("paper")  # an explicit count stays
     assert os.environ["XLA_FLAGS"] == "--xla_force_host_platform_device_count=5"
     monkeypatch.setenv("XLA_FLAGS", "")
-    cli._use_host_devices()
+    cli._use_host_devices("sweep")
     assert os.environ["XLA_FLAGS"] == "--xla_force_host_platform_device_count=3"

@@ -52,7 +52,7 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
     default_max_frequency_hz,
 )
 from ..dynamics import watchdog
-from ..dynamics.harmonic import LINEAR_FORMULATIONS
+from ..models.base import LINEAR_FORMULATIONS
 from ..dynamics.sweep import METHODS, tolerance_options
 from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv

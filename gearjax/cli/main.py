@@ -337,8 +337,14 @@ def host_device_count() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _use_host_devices() -> None:
-    """Before JAX starts its CPU backend: :func:`host_device_count` CPU devices."""
+_SHARDED_COMMANDS = ("sweep", "paper")  # the commands whose transient sweeps use them
+
+
+def _use_host_devices(command: str) -> None:
+    """Before JAX starts its CPU backend: :func:`host_device_count` CPU devices for the
+    commands that shard sweeps over them; the others keep XLA's one."""
+    if command not in _SHARDED_COMMANDS:
+        return
     flags = os.environ.get("XLA_FLAGS", "")
     n = host_device_count()
     if _DEVICE_FLAG in flags or n <= 1:
@@ -350,7 +356,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the ``gearjax`` command line; returns the exit status (0 done, 2 bad input,
     3 stalled: no progress for ``--stall-timeout`` seconds, 130 interrupted by Ctrl-C)."""
     args = _parser().parse_args(argv)
-    _use_host_devices()
+    _use_host_devices(args.command)
     _use_compilation_cache()
     stall = getattr(args, "stall_timeout", None)
     if stall is not None and not (stall >= 0 and math.isfinite(stall)):

@@ -73,7 +73,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from ..excitation.events import distinct_angles
-from ..models.base import AbstractGearModel
+from ..models.base import LINEAR_FORMULATIONS, AbstractGearModel
 from .krylov import gmres
 from .metrics import output_grid, refined_extrema
 from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
@@ -86,7 +86,6 @@ __all__ = ["HarmonicOrbit", "HarmonicResult", "harmonic_steady_state",
            "harmonic_steady_states", "harmonic_sweep", "HarmonicSweepResult",
            "LINEAR_FORMULATIONS"]
 
-LINEAR_FORMULATIONS = ("te", "perturbation")
 _JUMP_SIDE = 1e-9  # one-sided evaluation at theta_j -/+ _JUMP_SIDE * period
 _N_REFINE = 64  # points per grid interval in the refinement windows (parabolic vertex)
 _FORCING_RANK = 48  # columns kept for the forcing b (its rank: a few; checked)

@@ -24,12 +24,15 @@ import jax.numpy as jnp
 
 from ..errors import ModelError
 
-__all__ = ["AbstractGearModel", "ModelOutputs", "FORMULATIONS", "WithoutContactLaw",
+__all__ = ["AbstractGearModel", "ModelOutputs", "FORMULATIONS", "LINEAR_FORMULATIONS",
+           "WithoutContactLaw",
            "modal_transient_start", "modal_slowest_output_mode", "modal_periodic_estimate"]
 
 # the three dynamic formulations of the paper: reference Eq. (14)/(16), transmission-error
 # based Eq. (42)/(20), main-order perturbation Eq. (48a)/(47a)
 FORMULATIONS = ("reference", "te", "perturbation")
+# the two linearised about the quasi-static contact (one build, one mesh term apart)
+LINEAR_FORMULATIONS = ("te", "perturbation")
 
 
 class ModelOutputs(eqx.Module):

@@ -81,9 +81,9 @@ from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..structure.condensation import Condensation, QuasiStatic3D
 from ..structure.element import PinionGearElement
 from ..structure.geared import Eccentricity
-from .base import (FORMULATIONS, AbstractGearModel, ModelOutputs, modal_slowest_output_mode,
-                   modal_periodic_estimate, modal_transient_amplitudes,
-                   modal_transient_start)
+from .base import (FORMULATIONS, LINEAR_FORMULATIONS, AbstractGearModel, ModelOutputs,
+                   modal_periodic_estimate, modal_slowest_output_mode,
+                   modal_transient_amplitudes, modal_transient_start)
 from .geared3d_build import EXCITATIONS, MESH_VECTORS, build_geared3d
 from .geared3d_inertial import inertial_vectors, nlte_derivatives
 from .geared3d_modal import damping_product, harmonic_modal_state, stiffness_product
@@ -205,10 +205,9 @@ class Geared3DModel(AbstractGearModel):
         Eqs. (42) and (48a) take the same quasi-static table, ``k_m`` and modal basis from
         the build (only the mesh term of the equations differs), so a sweep of both
         builds once (the reference formulation has no table: build it)."""
-        linear = ("te", "perturbation")
-        if self.formulation not in linear or formulation not in linear:
-            raise ModelError("formulation", formulation,
-                             f"only {linear} share a build; this model is {self.formulation!r}")
+        if self.formulation not in LINEAR_FORMULATIONS or formulation not in LINEAR_FORMULATIONS:
+            raise ModelError("formulation", formulation, f"only {LINEAR_FORMULATIONS} share a "
+                             f"build; this model is {self.formulation!r}")
         return dataclasses.replace(self, formulation=formulation,
                                    te_weight=jnp.asarray(float(formulation == "te")))
 
