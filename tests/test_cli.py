@@ -139,3 +139,7 @@ def test_one_cpu_device_per_core_unless_told(monkeypatch):
     monkeypatch.setenv("XLA_FLAGS", "")
     cli._use_host_devices("sweep")
     assert os.environ["XLA_FLAGS"] == "--xla_force_host_platform_device_count=3"
+    for bad in ("two", "0", "-1"):  # a clear error naming the variable, not a silent 1
+        monkeypatch.setenv("GEARJAX_HOST_DEVICES", bad)
+        with pytest.raises(ValueError, match="GEARJAX_HOST_DEVICES"):
+            cli.host_device_count()

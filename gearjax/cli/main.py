@@ -323,14 +323,14 @@ def host_device_count() -> int:
     """CPU devices the command line asks XLA for: one per usable core (each runs its share
     of a sweep's speeds on its own thread: the main job's 45 speeds integrate ~2x faster on
     2 cores than in one vmapped batch, which XLA runs on one thread); 1 with
-    ``GEARJAX_HOST_DEVICES=1``, or an explicit count there. An ``XLA_FLAGS`` that already
-    sets the count is left alone."""
-    setting = os.environ.get("GEARJAX_HOST_DEVICES", "")
+    ``GEARJAX_HOST_DEVICES=1``, or an explicit count there (ValueError for anything but a
+    whole number >= 1). An ``XLA_FLAGS`` that already sets the count is left alone."""
+    setting = os.environ.get("GEARJAX_HOST_DEVICES", "").strip()
     if setting:
-        try:
-            return max(1, int(setting))
-        except ValueError:
-            return 1
+        if not (setting.isdigit() and int(setting) >= 1):
+            raise ValueError(f"GEARJAX_HOST_DEVICES={setting!r}: must be a whole number of "
+                             "CPU devices >= 1 (1: no sharding)")
+        return int(setting)
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
@@ -356,7 +356,10 @@ def main(argv: list[str] | None = None) -> int:
     """Run the ``gearjax`` command line; returns the exit status (0 done, 2 bad input,
     3 stalled: no progress for ``--stall-timeout`` seconds, 130 interrupted by Ctrl-C)."""
     args = _parser().parse_args(argv)
-    _use_host_devices(args.command)
+    try:
+        _use_host_devices(args.command)
+    except ValueError as exc:
+        return _fail(str(exc))
     _use_compilation_cache()
     stall = getattr(args, "stall_timeout", None)
     if stall is not None and not (stall >= 0 and math.isfinite(stall)):
