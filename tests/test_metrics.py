@@ -4,9 +4,10 @@ Perfect spur teeth with the uniform stiffness law have a square-wave mesh stiffn
 tooth pairs (k2) for (eps_alpha - 1) of each mesh period from the engagement at theta = 0,
 one pair (k1) for the rest. The TE-based Eq. (20) is then, in time and with NLTE = 0,
 ``m x_tt + c x_t + k(t) x = F_S`` (spur: cos b_b = 1, k x_S = F_S), piecewise linear with
-constant coefficients: the periodic orbit is a product of matrix exponentials
-(scipy.linalg.expm), independent of gearjax's integration, and the mesh force of Eq. (24)
-is ``F_D = F_S + k (x - x_S) = k(t) x(t)``. Its maximum sits at a stiffness jump at low
+constant coefficients: the periodic orbit is the fixed point of the segments' flows, written
+out in :mod:`gearjax.dynamics.closed_form` (checked here against scipy.linalg.expm),
+independent of gearjax's integration, and the mesh force of Eq. (24) is
+``F_D = F_S + k (x - x_S) = k(t) x(t)``. Its maximum sits at a stiffness jump at low
 speed, where a sampled grid reads it late (-5.7e-2 F_S at 100 rad/s with 128 samples).
 """
 
@@ -20,6 +21,7 @@ import pytest
 from scipy.linalg import expm, solve
 
 from gearjax import Mesh, ToothModifications, baud_velex_pair, static_mesh_force
+from gearjax.dynamics.closed_form import piecewise_oscillator_orbit, square_wave_segments
 from gearjax.dynamics.metrics import output_grid, refined_extrema
 from gearjax.dynamics.steady import steady_sweep
 from gearjax.models.torsional import TorsionalModel
@@ -28,41 +30,57 @@ ZETA = 0.1
 TORQUE = 254.8
 
 
-def exact_force_extrema(pair, k1, k2, inertias, omega, f_s, n_dense=20001):
-    """(max, min) of F_D = k(t) x(t) on the periodic orbit of m x'' + c x' + k(t) x = F."""
+def exact_force_extrema(pair, k1, k2, inertias, omega, f_s):
+    """(max, min) of F_D = k(t) x(t) on the periodic orbit of m x'' + c x' + k(t) x = F
+    (:func:`gearjax.dynamics.closed_form.piecewise_oscillator_orbit`)."""
+    m, c, segments = _oscillator(pair, k1, k2, inertias, omega)
+    orbit = piecewise_oscillator_orbit(m, c, segments, f_s)
+    return orbit.max_force_N, orbit.min_force_N
+
+
+def _oscillator(pair, k1, k2, inertias, omega):
     j1, j2 = inertias
     rb1, rb2 = pair.base_radii_m
     m = j1 * j2 / (j1 * rb2**2 + j2 * rb1**2)
     eps = pair.transverse_contact_ratio
     k_m = (eps - 1) * k2 + (2 - eps) * k1
     c = 2 * ZETA * math.sqrt(k_m * m)
-    t_mesh = pair.mesh_period_rad / omega
-    segments = [(k2, (eps - 1) * t_mesh), (k1, (2 - eps) * t_mesh)]
-    b = np.array([0.0, f_s / m])
+    return m, c, square_wave_segments(eps, pair.mesh_period_rad / omega, k1, k2)
 
-    def flow(k, tau):
-        """z(tau) = E z0 + g for z' = A z + b."""
-        a = np.array([[0.0, 1.0], [-k / m, -c / m]])
-        e = expm(a * tau)
-        return e, solve(a, (e - np.eye(2)) @ b)
 
-    (e2, g2), (e1, g1) = flow(*segments[0]), flow(*segments[1])
-    phi, g = e1 @ e2, e1 @ g2 + g1
-    z0 = solve(np.eye(2) - phi, g)  # periodic start at the engagement
-    f_max, f_min, z = -np.inf, np.inf, z0
-    for k, tau in segments:
-        # the force along the segment, densely (the flow of a constant-coefficient system)
-        a = np.array([[0.0, 1.0], [-k / m, -c / m]])
-        w, v = np.linalg.eig(a)
-        zp = solve(a, -b)  # equilibrium F/k
-        coef = solve(v, z - zp)
-        t = np.linspace(0.0, tau, n_dense)
-        x = np.real((v[0] * coef) @ np.exp(np.outer(w, t))) + zp[0]
-        f_max, f_min = max(f_max, (k * x).max()), min(f_min, (k * x).min())
-        e, gg = flow(k, tau)
-        z = e @ z + gg
-    np.testing.assert_allclose(z, z0, rtol=1e-9, atol=1e-15)  # periodic
-    return f_max, f_min
+def test_closed_form_orbit_against_matrix_exponentials(square_wave):
+    """The closed form (written-out damped oscillations, stationary points solved for) against
+    an independent evaluation: scipy.linalg.expm of each segment's state matrix for the
+    periodic start, and the force sampled densely along the orbit for its extrema (the dense
+    samples can only under-read them, by less than the sampling step's change)."""
+    model, pair, k1, k2 = square_wave
+    f_s = static_mesh_force(pair, TORQUE)
+    inert = tuple(np.asarray(model.inertias_kg_m2))
+    for omega in (100.0, 600.0, 1200.0):
+        m, c, segments = _oscillator(pair, k1, k2, inert, omega)
+        b = np.array([0.0, f_s / m])
+        flows = []
+        for k, tau in segments:
+            a = np.array([[0.0, 1.0], [-k / m, -c / m]])
+            e = expm(a * tau)
+            flows.append((a, e, solve(a, (e - np.eye(2)) @ b)))
+        (_, e2, g2), (_, e1, g1) = flows
+        z0 = solve(np.eye(2) - e1 @ e2, e1 @ g2 + g1)
+        orbit = piecewise_oscillator_orbit(m, c, segments, f_s)
+        np.testing.assert_allclose([orbit.x0_m, orbit.v0_m_s], z0, rtol=1e-9, atol=1e-15)
+        forces, z = [], z0
+        for (k, tau), (a, e, g) in zip(segments, flows):
+            w, v = np.linalg.eig(a)
+            zp = solve(a, -b)
+            coef = solve(v, z - zp)
+            t = np.linspace(0.0, tau, 20001)
+            forces.append(k * (np.real((v[0] * coef) @ np.exp(np.outer(w, t))) + zp[0]))
+            z = e @ z + g
+        forces = np.concatenate(forces)
+        assert orbit.max_force_N >= forces.max() - 1e-9 * f_s
+        assert orbit.min_force_N <= forces.min() + 1e-9 * f_s
+        assert orbit.max_force_N == pytest.approx(forces.max(), abs=1e-6 * f_s)
+        assert orbit.min_force_N == pytest.approx(forces.min(), abs=1e-6 * f_s)
 
 
 @pytest.fixture(scope="module")
@@ -153,3 +171,13 @@ def test_rtol_option_tightens_the_transient_to_the_closed_form(square_wave):
         assert float(res.min_mesh_force_N[i]) == pytest.approx(f_min, abs=1e-7 * f_s), w
     with pytest.raises(Exception, match="rtol"):
         tolerance_options(0.5)
+
+
+def test_closed_form_refuses_what_it_does_not_cover():
+    """Overdamped segments and a contact ratio outside (1, 2) are named errors, not NaNs."""
+    from gearjax.errors import ModelError
+
+    with pytest.raises(ModelError, match="underdamped"):
+        piecewise_oscillator_orbit(1.0, 10.0, [(1.0, 0.1)], 1.0)
+    with pytest.raises(ModelError, match="contact_ratio"):
+        square_wave_segments(2.3, 1e-3, 1e8, 2e8)
