@@ -13,7 +13,8 @@ methods carry their transient error too (that is what a user gets). Run time: th
 median of repeated calls after compilation (compile time reported apart, via a first
 call minus the run time).
 
-Methods: diffrax through :func:`gearjax.dynamics.simulate.simulate` (Tsit5, Dopri5, Dopri8,
+Methods: the frequency-domain solver :func:`gearjax.dynamics.harmonic.harmonic_sweep`
+(te/perturbation, speeds where its linear orbit keeps contact); diffrax through :func:`gearjax.dynamics.simulate.simulate` (Tsit5, Dopri5, Dopri8,
 Kvaerno5 implicit) with its automatic transient; a fixed-step Tsit5 (diffrax
 ``ConstantStepSize``, steps not aligned with the jumps); the shooting solver
 :func:`gearjax.dynamics.steady.steady_sweep`; ``scipy.integrate.solve_ivp`` (RK45, DOP853, LSODA)
@@ -52,6 +53,7 @@ from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import simulate
 from gearjax.dynamics.steady import steady_sweep
+from gearjax.dynamics.harmonic import harmonic_sweep
 from gearjax.dynamics.sweep import sweep
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -144,6 +146,18 @@ def run_steady(model, speeds, rtol):
                             measure_rtol=rtol, measure_atol=rtol / 100)
     res, run, comp = timed(f)
     return res.max_mesh_force_N, res.dte_ptp_m, run, comp
+
+
+def run_harmonic(model, speeds, rtol):
+    """The frequency-domain solver (:func:`gearjax.dynamics.harmonic.harmonic_sweep`,
+    te/perturbation): NaN at the speeds where its linear orbit loses contact (there the
+    contact law's orbit is not the linear one; ``sweep`` hands those to the transient)."""
+    def f():
+        return harmonic_sweep(model, speeds, rtol=rtol, floquet=False)
+    res, run, comp = timed(f)
+    keep = np.asarray(res.contact_holds)
+    return (np.where(keep, res.max_mesh_force_N, np.nan), np.where(keep, res.dte_ptp_m, np.nan),
+            run, comp)
 
 
 def run_fixed(model, speeds, steps_per_mesh, n_measured=3, samples=128):
@@ -336,6 +350,14 @@ def work_precision(args):
 
         for tol in tols:
             add("steady (shooting)", f"rtol {tol:g}", run_steady(model, speeds, tol))
+        for tol in (tols if form != "reference" else []):
+            fm, dp, run, comp = run_harmonic(model, speeds, tol)
+            ok = np.isfinite(fm)
+            if ok.any():
+                ef, ed = errors(fm[ok], dp[ok], rf[ok], rd[ok], f_s)
+                rows.append(("harmonic balance", f"rtol {tol:g}", ef, ed, run, comp))
+                say(f"| harmonic balance | rtol {tol:g} ({int(ok.sum())}/{len(speeds)} speeds "
+                    f"in contact) | {ef:.2e} | {ed:.2e} | {run:.3f} | {comp:.1f} |")
         for name, solver in [("Tsit5", diffrax.Tsit5()), ("Dopri5", diffrax.Dopri5()),
                              ("Dopri8", diffrax.Dopri8())]:
             for tol in tols:
@@ -362,8 +384,6 @@ def work_precision(args):
                 run_newmark(model, speeds, spm))
         rows_all[form] = rows
         fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
-        for k, (name, _, ef, ed, run, _) in enumerate(rows):
-            pass
         names = sorted({r[0] for r in rows})
         for name in names:
             rr = [r for r in rows if r[0] == name]
