@@ -47,6 +47,18 @@ def test_claims_read_the_differences_the_folders_hold(tmp_path):
     c1 = [r for r in claims(str(tmp_path)) if r[0] == "6.3.1"]
     assert c1[0][3] == "agree" and "max 10.0 %" in c1[0][2] and "away: max 1.0 %" in c1[0][2]
     assert "at 1 speeds (800)" in c1[0][2]
+    # te twice as far off at 400 rad/s, where te alone loses contact: the claim fails there
+    # and the table says where and why
+    te08[400.0] = ref[400.0] * 1.2
+    _case(tmp_path, "fig08", {"reference": ref, "te": te08}, loss=(800.0,))
+    with open(tmp_path / "fig08" / "results.csv") as fh:
+        text = fh.read().replace("400.0,te,1200.0,1.2,120.0,False", "400.0,te,1200.0,1.2,120.0,True")
+    (tmp_path / "fig08" / "results.csv").write_text(text)
+    c1x = next(r for r in claims(str(tmp_path)) if r[0] == "6.3.1")
+    assert c1x[3] == "disagree" and "away: max 20.0 % at 400 rad/s (0.50 x critical; te loses " \
+        "contact there, reference keeps it)" in c1x[2]
+    _case(tmp_path, "fig08", {"reference": ref, "te": {w: ref[w] * (1.10 if w == 800.0 else 1.01)
+                                                       for w in speeds}}, loss=(800.0,))
     assert c1[1][3] == "agree" and "max 2.0 %" in c1[1][2] and "max 4.0 %" in c1[1][2]
     c2 = next(r for r in rows.values() if r[0] == "6.3.2")
     assert c2[3] == "agree" and "median 5.0 %" in c2[2]

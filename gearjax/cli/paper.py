@@ -186,6 +186,20 @@ def _loss(rows, form="reference"):
             and r["contact_loss"] == "True"]
 
 
+def _at_max(rows, w, d, wc, forms=("reference", "te")) -> str:
+    """Where the largest of ``d`` (relative differences at speeds ``w``) sits: its speed, as
+    a fraction of the critical speed ``wc``, and which formulations lose contact there."""
+    if not np.size(d):
+        return ""
+    x = float(w[int(np.argmax(d))])
+    lost = [f for f in forms if x in _loss(rows, f)]
+    kept = [f for f in forms if f not in lost]
+    where = ("contact held there" if not lost else
+             f"{' and '.join(lost)} lose{'s' if len(lost) == 1 else ''} contact there"
+             + (f", {' and '.join(kept)} keep{'s' if len(kept) == 1 else ''} it" if kept else ""))
+    return f" at {x:.0f} rad/s ({x / wc:.2f} x critical; {where})"
+
+
 def _verdict(ok, *compared) -> str:
     """agree / disagree, or "incomplete" when a compared curve has no converged speed in
     common with its reference (a formulation not run, or every speed unconverged)."""
@@ -222,7 +236,8 @@ def claims(out: str) -> list[tuple[str, str, str, str, str]]:
         ok = np.size(near) and np.size(away) and np.max(near) > np.max(away)
         res.append(("6.3.1", words,
                     f"te vs reference, damping 0.03: median {_med(d)}, max {_pct(d)}; within ±10 % of "
-                    f"the critical speed {wc:.0f} rad/s: max {_pct(near)}, away: max {_pct(away)}; "
+                    f"the critical speed {wc:.0f} rad/s: max {_pct(near)}, away: max {_pct(away)}"
+                    f"{_at_max(R['fig08'], w[np.abs(w - wc) > 0.1 * wc], away, wc)}; "
                     f"reference loses contact at {len(loss)} speeds "
                     f"({', '.join(f'{x:.0f}' for x in loss[:6])}{' ...' if len(loss) > 6 else ''}); "
                     f"unconverged speeds (left out): reference {_unconverged(R['fig08'])}, te "
