@@ -176,8 +176,13 @@ def _med(x):
     return "n/a" if not np.size(x) else f"{100 * np.median(x):.1f} %"
 
 
+def _near(w, wc):
+    """Speeds within ±10 % of the critical speed ``wc``."""
+    return np.abs(w - wc) <= 0.1 * wc
+
+
 def _split(w, d, wc):
-    near = np.abs(w - wc) <= 0.1 * wc
+    near = _near(w, wc)
     return d[near], d[~near]
 
 
@@ -237,7 +242,7 @@ def claims(out: str) -> list[tuple[str, str, str, str, str]]:
         res.append(("6.3.1", words,
                     f"te vs reference, damping 0.03: median {_med(d)}, max {_pct(d)}; within ±10 % of "
                     f"the critical speed {wc:.0f} rad/s: max {_pct(near)}, away: max {_pct(away)}"
-                    f"{_at_max(R['fig08'], w[np.abs(w - wc) > 0.1 * wc], away, wc)}; "
+                    f"{_at_max(R['fig08'], w[~_near(w, wc)], away, wc)}; "
                     f"reference loses contact at {len(loss)} speeds "
                     f"({', '.join(f'{x:.0f}' for x in loss[:6])}{' ...' if len(loss) > 6 else ''}); "
                     f"unconverged speeds (left out): reference {_unconverged(R['fig08'])}, te "
