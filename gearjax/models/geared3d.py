@@ -519,11 +519,11 @@ class Geared3DModel(AbstractGearModel):
                                           self.damping_ratio, self.scale_a,
                                           self.k_m * self.v_r, self.w_r, self.acc_r)
 
-    def periodic_estimate(self, y_start, y_end, omega):
+    def periodic_estimate(self, y_start, y_end, omega, slow_only: bool = False):
         """Periodic state estimated from one period of a transient, mode by mode
         (:func:`gearjax.models.base.modal_periodic_estimate`)."""
         return modal_periodic_estimate(y_start, y_end, omega, self.period_rad, self.omega_r,
-                                       self.damping_ratio)
+                                       self.damping_ratio, slow_only=slow_only)
 
     def natural_frequency_rad_s(self):
         """Frequency (rad/s) of the mode of ``(M, K_bar)`` with the largest share of strain
