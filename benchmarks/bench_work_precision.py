@@ -189,14 +189,15 @@ def run_fixed(model, speeds, steps_per_mesh, n_measured=3, samples=128):
 
 def run_scipy(model, speeds, method, rtol, n_measured=3, samples=128):
     """solve_ivp looping over speeds, integration split at the jump angles, the same
-    automatic transient as simulate; te/perturbation: NumPy RHS on the model's table."""
+    automatic transient as simulate; sdof te/perturbation: NumPy RHS on the model's table,
+    else the jitted JAX right-hand side."""
     fm, dp = [], []
     total = 0.0
     for w in speeds:
         n_tr, mp = n_transient(model, w)
         period = model.period_rad
         n_mesh = int(round(period / model.mesh_period_rad))
-        if model.formulation == "reference":
+        if model.formulation == "reference" or not isinstance(model, TorsionalModel):
             vf = jax.jit(lambda t, y: mp.vector_field(t, y, w))
             f = lambda t, y: np.asarray(vf(t, y))  # noqa: E731
         else:
@@ -205,7 +206,9 @@ def run_scipy(model, speeds, method, rtol, n_measured=3, samples=128):
         t_end = t_tr + n_measured * period
         n_s = samples * n_mesh
         grid = t_tr + (np.arange(n_measured * n_s) + 0.5) * (period / n_s)
-        ys, dt = solve_ivp_piecewise(f, np.asarray(mp.initial_state(w)), period, mp.jump_thetas,
+        # the start simulate uses (3D: slow modes on their period mean; sdof: the
+        # quasi-static state), so that both integrate the same transient
+        ys, dt = solve_ivp_piecewise(f, np.asarray(mp.transient_start(w)), period, mp.jump_thetas,
                                      t_tr, t_end, grid, method, rtol, rtol / 100)
         total += dt
         a, b = metrics_from_samples(model, mp, w, grid, ys)
@@ -451,10 +454,18 @@ def study_3d(args):
         fm, dp, run, comp = run_steady(model, speeds, tol)
         ef, ed = errors(fm, dp, rf, rd, f_s)
         rows.append(("steady (shooting)", f"rtol {tol:g}", ef, ed, run, comp))
+    for tol in [1e-6, 1e-9]:
+        fm, dp, run, comp = run_harmonic(model, speeds, tol)
+        ef, ed = errors(fm, dp, rf, rd, f_s)
+        rows.append(("harmonic balance", f"rtol {tol:g}", ef, ed, run, comp))
     for name, solver, tol in [("Tsit5", diffrax.Tsit5(), 1e-7), ("Dopri8", diffrax.Dopri8(), 1e-7)]:
         fm, dp, run, comp = run_simulate(model, speeds, solver, tol, tol / 100)
         ef, ed = errors(fm, dp, rf, rd, f_s)
         rows.append((f"diffrax {name} (auto transient)", f"rtol {tol:g}", ef, ed, run, comp))
+    if not args.no_scipy_3d:  # the jitted JAX right-hand side, one speed at a time
+        fm, dp, run, comp = run_scipy(model, speeds, "DOP853", 1e-9)
+        ef, ed = errors(fm, dp, rf, rd, f_s)
+        rows.append(("scipy DOP853 (auto transient, 128 samples)", "rtol 1e-09", ef, ed, run, comp))
     for r in rows:
         say(f"| {r[0]} | {r[1]} | {r[2]:.2e} | {r[3]:.2e} | {r[4]:.3f} | {r[5]:.1f} |")
     say("The transients start from gearjax.dynamics.simulate.transient_start (the slow, weakly coupled "
@@ -468,16 +479,35 @@ def study_3d(args):
 def scaling(args):
     say("\n## Scaling")
     model = sdof("te")
-    counts = [1, 10, 100] if args.quick else [1, 10, 100, 1000]
+    counts = [n for n in (1, 10, 100, 1000, 10000) if n <= args.max_speeds]
     say("\n### time against number of speeds (sdof te, 100-1400 rad/s)\n")
-    say("| speeds | steady run s | steady compile s | sweep run s | sweep compile s |")
-    say("|---|---|---|---|---|")
+    say(f"devices: {len(jax.devices())} (the transient sweep shards its speeds over them)\n")
+    say("Above 100 speeds one call each, its time including compilation (marked +c; the "
+        "compile column of the rows above gives its size); the shooting stops at 100 speeds: "
+        "its contact-loss speeds are continued by simulate in one more batch and its Newton "
+        "iterations run in lockstep, 300 speeds took 18 s and 1000 did not finish in 10 min.\n")
+    say("| speeds | harmonic run s | compile s | steady run s | compile s | sweep (transient) run s "
+        "| compile s | transient s / speed |")
+    say("|---|---|---|---|---|---|---|---|")
+
+    def once(fn):
+        t0 = time.perf_counter()
+        fn()
+        return time.perf_counter() - t0
+
     for n in counts:
         sp = np.linspace(100.0, 1400.0, n)
-        _, rs, cs = timed(lambda: steady_sweep(model, sp, progress=False), repeats=1)
-        _, rt, ct = timed(lambda: sweep(model, sp, progress=False), repeats=1)
-        say(f"| {n} | {rs:.3f} | {cs:.1f} | {rt:.3f} | {ct:.1f} |")
+        if n <= 100:
+            _, rh, ch = timed(lambda: harmonic_sweep(model, sp, floquet=False), repeats=1)
+            _, rs, cs = timed(lambda: steady_sweep(model, sp, progress=False), repeats=1)
+            _, rt, ct = timed(lambda: sweep(model, sp, progress=False), repeats=1)
+            say(f"| {n} | {rh:.3f} | {ch:.1f} | {rs:.3f} | {cs:.1f} | {rt:.3f} | {ct:.1f} | {rt / n:.2e} |")
+        else:
+            rh = once(lambda: harmonic_sweep(model, sp, floquet=False))
+            rt = once(lambda: sweep(model, sp, progress=False))
+            say(f"| {n} | {rh:.1f} +c | - | - | - | {rt:.1f} +c | - | {rt / n:.2e} |")
     say(f"peak RSS so far: {rss_mb():.0f} MB")
+    harmonics_scaling(model)
 
     say("\n### time against number of contact cells (sdof reference, helical pair, 4 speeds)\n")
     say("| cells per line | cells | sweep run s | compile s |")
@@ -511,6 +541,26 @@ def scaling(args):
     say(f"peak RSS: {rss_mb():.0f} MB")
 
 
+def harmonics_scaling(model):
+    """Run time and error of the frequency-domain solver against its number of harmonics
+    (fixed: min = max), sdof te, 4 speeds; error against shooting at rtol 1e-12."""
+    say("\n### time and error against number of harmonics (sdof te, frequency domain, 4 speeds)\n")
+    speeds = np.linspace(150.0, 1400.0, 4)
+    f_s = float(model.static_force_N)
+    rf, rd, _, _ = run_steady(model, speeds, 1e-12)
+    say("| harmonics per excitation period | err max F_D / F_S | err DTE ptp (rel) | run s | compile s |")
+    say("|---|---|---|---|---|")
+    for h in (32, 64, 128, 256, 512, 1024, 2048):
+        def f():
+            return harmonic_sweep(model, speeds, rtol=0.5, min_harmonics=h, max_harmonics=h,
+                                  floquet=False)
+        res, run, comp = timed(f)
+        keep = np.asarray(res.contact_holds)
+        ef, ed = errors(np.where(keep, res.max_mesh_force_N, np.nan),
+                        np.where(keep, res.dte_ptp_m, np.nan), rf, rd, f_s)
+        say(f"| {h} | {ef:.2e} | {ed:.2e} | {run:.4f} | {comp:.1f} |")
+
+
 def stress_summary():
     say("\n## Stress tests (tests/test_stress.py, slow ones included)\n")
     xml = os.path.join(OUT, "stress_junit.xml")
@@ -536,7 +586,14 @@ def main():
     ap.add_argument("--skip", default="", help="comma list of: wp,3d,scaling,stress")
     ap.add_argument("--name", default=None,
                     help="results file name (default work_precision[_quick])")
+    ap.add_argument("--max-speeds", type=int, default=None,
+                    help="largest speed count of the scaling table (1, 10, ... 10000; default "
+                         "100 with --quick, else 10000)")
+    ap.add_argument("--no-scipy-3d", action="store_true",
+                    help="leave out the SciPy row of the 3D work-precision table")
     args = ap.parse_args()
+    if args.max_speeds is None:
+        args.max_speeds = 100 if args.quick else 10000
     skip = set(filter(None, args.skip.split(",")))
     os.makedirs(OUT, exist_ok=True)
     say("# gearjax work-precision benchmark" + (" (--quick)" if args.quick else ""))
