@@ -21,6 +21,11 @@ coordinates, periodic steady state by shooting, 2-core CPU shared with a noteboo
 compile 16 s / 25 s, run 4.7 s / 19.0 s (4.05x) for the forward value and jacfwd; the
 shooting differentiates in forward mode only (its period integrations carry the monodromy
 matrix with ``diffrax.ForwardMode``), so there is no reverse-mode row.
+
+Re-run 2026-11-24 (quiet 2-core CPU, one device): te, 4 speeds, 2 variables: compile 5.9 /
+10.2 / 25.0 s, run 0.038 / 0.050 (1.3x) / 1.59 s (41x), gradients equal to 3.1e-7;
+``--model 3d --speeds 2 --repeat 1`` (te, shooting): compile 18 / 26 s, run 48 / 164 s
+(3.4x).
 """
 
 from __future__ import annotations
