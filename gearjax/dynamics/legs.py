@@ -38,7 +38,8 @@ import jax.numpy as jnp
 
 __all__ = ["solve_legs"]
 
-SLOW_STAGE_GROWTH = 4.0  # the slow-mode estimate ends when a period's change exceeds this x its smallest
+# the slow-mode estimate ends when a period's change exceeds this times its smallest
+SLOW_STAGE_GROWTH = 4.0
 
 
 def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: int,

@@ -38,9 +38,9 @@ per speed instead of 18-400, 8 s instead of 42 s of integration, dynamic factors
 here. At zeta 0.03 the speeds of sustained contact loss (780-840 rad/s) took 400 plain
 periods and stayed unconverged (1.1-1.7e-3, reference; te 1.2-2.4e-3 to 860 rad/s): the
 rig's 9.8 Hz mode decays by 0.99943 per mesh period. With the slow-mode stage they converge
-in 155-262 periods (reference, convergence 6e-6-1.7e-5; te 160-200 periods, < 1e-6), their dynamic factors
-within 3.6e-5 of 3000 plain periods' (whose own measure is 3-5e-5). The ``convergence``
-measure below judges the result the same way whichever transient led to it.
+in 155-262 periods (reference, convergence 6e-6-1.7e-5; te 160-200 periods, < 1e-6), their
+dynamic factors within 3.6e-5 of 3000 plain periods' (whose own measure is 3-5e-5). The
+``convergence`` measure below judges the result the same way whichever transient led to it.
 
 The right-hand side jumps or kinks at angles independent of speed (cell engagement,
 quasi-static active-set changes, NLTE kinks: ``model.jump_thetas``);
