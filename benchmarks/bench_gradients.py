@@ -10,6 +10,7 @@ separate reliefs (4). Each timing is the median of ``--repeat`` runs after the f
 (compiling) call; ratios are to the forward value in the same process.
 
     python benchmarks/bench_gradients.py [--speeds 8] [--separate] [--repeat 3] [--model 3d]
+        [--method auto|transient|steady]
 
 Measured (te, 4 speeds, 2 variables, this 2-core CPU shared with other jobs): compile
 29 s / 58 s / 104 s and run 0.065 s / 0.34 s (5.2x) / 8.2 s (125x) for the forward value,
@@ -24,8 +25,14 @@ matrix with ``diffrax.ForwardMode``), so there is no reverse-mode row.
 
 Re-run 2026-11-24 (quiet 2-core CPU, one device): te, 4 speeds, 2 variables: compile 5.9 /
 10.2 / 25.0 s, run 0.038 / 0.050 (1.3x) / 1.59 s (41x), gradients equal to 3.1e-7;
-``--model 3d --speeds 2 --repeat 1`` (te, shooting): compile 18 / 26 s, run 48 / 164 s
-(3.4x).
+``--model 3d --speeds 2 --repeat 1`` (te, shooting, now ``--method steady``): compile 18 /
+26 s, run 48 / 164 s (3.4x).
+
+``--model 3d --speeds 2 --repeat 3`` with the objective's default since 2026-11-24, the
+accelerated transient (quiet 2-core CPU): model build 15 s; compile 23 / 41 / 79 s, run
+0.48 / 1.33 (2.8x) / 4.05 s (8.5x) for the forward value, jacfwd + ForwardMode and jacrev
++ RecursiveCheckpointAdjoint; the two gradients equal to 2.4e-10. Against shooting: 100x
+(value), 123x (jacfwd).
 """
 
 from __future__ import annotations
@@ -65,8 +72,10 @@ def main():
     ap.add_argument("--no-reverse", action="store_true")
     ap.add_argument("--model", default="torsional", choices=["torsional", "3d"],
                     help="3d: the rig's 3D model (the objective's automatic cut-off, 8.9 kHz "
-                         "at 480 rad/s; zeta 0.1) at its periodic "
-                         "steady state by shooting, forward mode only")
+                         "at 480 rad/s; zeta 0.1)")
+    ap.add_argument("--method", default="auto", choices=["auto", "transient", "steady"],
+                    help="the objective's solver (auto: the transient); steady (shooting) is "
+                         "forward mode only")
     args = ap.parse_args()
     rig = get_rig("baud-velex-spur")
     mesh = Mesh.build(rig.pair, "iso6336")
@@ -74,9 +83,9 @@ def main():
     speeds = np.linspace(330.0, 480.0, args.speeds)
     x = np.array([13.3e-6, 0.35]) if space.shared else np.array([13.3e-6, 12e-6, 0.35, 0.4])
     kw = dict(model="3d", rig=rig, damping_ratio=0.1) if args.model == "3d" else {}
-    if args.model == "3d":
-        args.no_reverse = True  # the shooting (steady method) is forward mode only
-    fwd = DynamicObjective(mesh, space, speeds, "peak-force", **kw)
+    if args.method == "steady":
+        args.no_reverse = True  # the shooting is forward mode only
+    fwd = DynamicObjective(mesh, space, speeds, "peak-force", method=args.method, **kw)
     fwd.model = fwd.build(x)
     rows = []
     c, r, ev = _time(lambda: fwd(x, grad=False).smooth, args.repeat)
@@ -84,8 +93,8 @@ def main():
     c, r, ev_f = _time(lambda: fwd(x, grad=True).grad, args.repeat)
     rows.append((f"jacfwd + ForwardMode ({space.size} vars)", c, r, ev_f))
     if not args.no_reverse:
-        rev = DynamicObjective(mesh, space, speeds, "peak-force",
-                               adjoint=diffrax.RecursiveCheckpointAdjoint())
+        rev = DynamicObjective(mesh, space, speeds, "peak-force", method=args.method,
+                               adjoint=diffrax.RecursiveCheckpointAdjoint(), **kw)
         rev.model = fwd.model
         c, r, ev_r = _time(lambda: rev(x, grad=True).grad, args.repeat)
         rows.append(("jacrev + RecursiveCheckpointAdjoint", c, r, ev_r))

@@ -68,6 +68,9 @@ CASES = [
     (["sweep", "--speeds=-5:10:3"], ["--speeds='-5:10:3'"]),
     (["sweep", "--speeds", "-5:10:3"], ["--speeds", "expected one argument"]),  # argparse
     (["stability", "--speeds", "1:2"], ["--speeds='1:2'"]),
+    (["stability", "--rtol", "0.5"], ["--rtol=0.5", "[1e-13, 1e-2]"]),
+    (["optimise", "--rtol", "nan"], ["--rtol=nan", "[1e-13, 1e-2]"]),
+    (["stability", "--method", "transient"], ["--method", "invalid choice"]),
     (["sweep", "--formulations", "reference,tee"], ["--formulations", "tee"]),
     (["sweep", "--signals", "100,abc"], ["--signals", "100,abc"]),
     (["sweep", "--signals", "-5"], ["--signals", "> 0"]),

@@ -179,6 +179,54 @@ def test_stability_finds_the_principal_zone(capsys):
     assert rho[0] < 1.0 < rho[1]
 
 
+def test_stability_small_gain_proof_agrees_with_the_monodromy(capsys):
+    """``stability --method harmonic`` proves stability by the small-gain bound without
+    a monodromy where the bound is below 0.95, and integrates the monodromy elsewhere;
+    ``--method steady`` integrates it everywhere. sdof te at damping 0.3: the bound (~0.5)
+    proves both speeds, and the monodromy's radius confirms it; at 0.1 the bound (~1.44)
+    cannot decide, so the radii are the monodromy's, equal under both methods; sdof
+    perturbation (no parametric term): bound 0 (to round-off), proven. ``auto`` is the
+    monodromy for the sdof model, the bound for the 3D one (te, modes < 3 kHz, damping
+    0.1: bound ~0.83, no monodromy; the monodromy there gives ~0.995, the slow rig mode)."""
+    sdof = ["stability", "--model", "torsional", "--speeds", "300:700:2", "--json"]
+    proof = _json(capsys, sdof + ["--damping", "0.3", "--method", "harmonic"])
+    radii = _json(capsys, sdof + ["--damping", "0.3", "--method", "steady"])
+    assert proof["monodromies"] == 0 and radii["monodromies"] == 2
+    for a, b in zip(proof["results"], radii["results"]):
+        assert a["small_gain_bound"] < 0.95 and a["spectral_radius"] is None
+        assert a["state"] == b["state"] == "stable" and b["spectral_radius"] < 1.0
+    hb = _json(capsys, sdof + ["--method", "harmonic"])
+    auto = _json(capsys, sdof)
+    assert auto["method"] == "steady" and hb["monodromies"] == 2
+    for a, b in zip(hb["results"], auto["results"]):
+        assert a["small_gain_bound"] > 1.0  # undecided: the monodromy's radius
+        assert a["spectral_radius"] == b["spectral_radius"] < 1.0
+    pert = _json(capsys, sdof + ["--formulation", "perturbation", "--method", "harmonic"])
+    assert pert["monodromies"] == 0
+    assert all(r["small_gain_bound"] < 1e-10 and r["state"] == "stable" for r in pert["results"])
+    rig3d = _json(capsys, ["stability", "--model", "3d", "--max-frequency", "3000",
+                           "--speeds", "300:800:2", "--json"])
+    assert rig3d["method"] == "harmonic" and rig3d["monodromies"] == 0
+    assert all(r["small_gain_bound"] < 0.95 and r["state"] == "stable" for r in rig3d["results"])
+
+
+def test_stability_rtol_sets_the_monodromy_tolerance(monkeypatch, capsys):
+    """``stability --rtol R`` integrates the monodromy at rtol R, atol R/100."""
+    import gearjax.dynamics.stability as stab
+
+    seen = {}
+    real = stab.spectral_radius
+
+    def spy(model, speeds, **kw):
+        seen.update(kw)
+        return real(model, speeds, **kw)
+
+    monkeypatch.setattr(stab, "spectral_radius", spy)
+    out = _json(capsys, ["stability", "--model", "torsional", "--speeds", "500:500:1",
+                         "--rtol", "1e-8", "--json"])
+    assert seen == dict(rtol=1e-8, atol=1e-10) and out["rtol"] == 1e-8
+
+
 # ---------------------------------------------------------------------- 3D modal cut-off
 @pytest.mark.parametrize("z1, max_speed", [(26, 20.0), (26, 300.0), (26, 900.0), (26, 1500.0),
                                            (17, 2500.0), (40, 700.0)])

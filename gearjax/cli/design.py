@@ -15,12 +15,14 @@ import time
 import numpy as np
 
 from ..dynamics import watchdog
+from ..design.objectives import DESIGN_METHODS, method_tolerances
 from ..errors import DesignError
 from .scenario import add_nlte_reaction, nlte_reaction_of
 
 __all__ = ["register"]
 
 _OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
+_DYNAMIC = _OBJECTIVES[:3]
 
 
 def _range(text: str, option: str, lo: float, hi: float, integer_n: bool = True):
@@ -38,10 +40,21 @@ def _common(p, add_rig):
     add_rig(p)
     p.add_argument("--model", default="torsional", choices=["torsional", "3d"],
                    help="dynamic model: torsional (sdof, default) or 3d (the rig's 3D model "
-                        "at its periodic steady state by shooting; ~1 min per gradient)")
+                        "at its periodic steady state; ~1 s per value and gradient of 2 speeds "
+                        "after a ~30 s first call)")
     p.add_argument("--max-frequency", type=float, default=None, metavar="HZ",
                    help="3D model: keep the modes below HZ (0 = all modes; default: 3 mesh "
                         "harmonics x 1.5 of the highest speed, at least 6 kHz, as for sweep)")
+    p.add_argument("--method", default="auto", choices=list(DESIGN_METHODS),
+                   help="periodic steady-state solver of the dynamic objectives: transient "
+                        "(diffrax, forward-mode gradients; on the 3D model cut short by a "
+                        "periodic estimate after every period), steady (shooting: Newton on "
+                        "the periodicity residual, ~100x dearer on the 3D model); auto "
+                        "(default): the transient")
+    p.add_argument("--rtol", type=float, default=None, metavar="R",
+                   help="requested relative accuracy of the dynamic metrics (default: the "
+                        "solvers' own, rtol 1e-7 and periodicity 1e-3): integrator rtol "
+                        "(atol R/100) and periodicity test, as sweep --rtol")
     p.add_argument("--objective", default="peak-force", choices=list(_OBJECTIVES),
                    help="peak-force (N), dynamic-factor, dte-ptp (m) over --speeds, or te-ptp / "
                         "te-rms (quasi-static TE_S fluctuation at the rig torque)")
@@ -92,6 +105,14 @@ def _setup(args, separate=False):
 
     if not (0.0 <= args.damping < 1.0):
         raise DesignError(f"--damping={args.damping!r}: must lie in [0, 1)")
+    if args.objective not in _DYNAMIC and (args.method != "auto" or args.rtol is not None):
+        raise DesignError(f"--method/--rtol: the quasi-static objective {args.objective} "
+                          "solves no dynamics (they set peak-force, dynamic-factor, dte-ptp)")
+    if args.objective in _DYNAMIC:
+        try:
+            method_tolerances(args.method, args.rtol)
+        except DesignError:
+            raise DesignError(f"--rtol={args.rtol!r}: must lie in [1e-13, 1e-2]") from None
     reaction = nlte_reaction_of(args)
     prepare_output_dir("--out", args.out)  # before any computing: created and writable
     speeds = _range(args.speeds, "--speeds", 1e-6, 1e6)
@@ -111,9 +132,9 @@ def _setup(args, separate=False):
         if len(inertias) != 2 or not all(math.isfinite(v) and v > 0 for v in inertias):
             raise DesignError(f"--inertias={args.inertias!r}: need two finite values > 0 (kg m^2)")
     kw = {}
-    if args.objective in ("peak-force", "dynamic-factor", "dte-ptp"):
+    if args.objective in _DYNAMIC:
         kw = dict(formulation=args.formulation, damping_ratio=args.damping,
-                  model=args.model)
+                  model=args.model, method=args.method, rtol=args.rtol)
         if args.model == "3d":
             kw.update(rig=rig, max_frequency_hz=("auto" if args.max_frequency is None
                                                  else args.max_frequency or None))
@@ -148,7 +169,7 @@ def _cmd_harris_map(args) -> int:
            "extents": exts.tolist(), "exact": hmap.exact.tolist(), "smooth": hmap.smooth.tolist(),
            "best_amplitude_m": float(amps[i]), "best_extent": float(exts[j]),
            "best_objective": float(hmap.exact[i, j]), "wall_time_s": hmap.wall_time_s,
-           "map_png": fig}
+           "map_png": fig, **_solver(obj)}
     with open(os.path.join(args.out, "harris_map.json"), "w") as fh:
         json.dump(out, fh, indent=2)
     if args.json:
@@ -191,7 +212,8 @@ def _cmd_optimise(args) -> int:
     watchdog.progress("optimiser done, Harris map next", expect_s=3.0 * amps.size * exts.size * slowest)
     os.makedirs(args.out, exist_ok=True)
     out = {"rig": rig.name, "model": args.model, "objective": args.objective,
-           "nlte_reaction": args.nlte_reaction, "shape": args.shape, "shared": not args.separate}
+           "nlte_reaction": args.nlte_reaction, "shape": args.shape, "shared": not args.separate,
+           **_solver(obj)}
     out.update(best.as_dict(obj.space))
     out["runs"] = [r.as_dict(obj.space) for r in runs]
     out["history_png"] = plot_history(runs, os.path.join(args.out, "history.png"), args.objective)
@@ -207,7 +229,8 @@ def _cmd_optimise(args) -> int:
         print(json.dumps(out, indent=2))
         return 0
     names = obj.space.names
-    print(f"  {rig.name}: {args.objective} ({args.model}, {args.shape} relief, NLTE'' "
+    how = f", {obj.method}" if hasattr(obj, "method") else ""
+    print(f"  {rig.name}: {args.objective} ({args.model}{how}, {args.shape} relief, NLTE'' "
           f"reaction at the {args.nlte_reaction}), {len(runs)} starts")
     for n in names:
         print(f"  {n:14s} {out[n]:.6g}")
@@ -215,6 +238,13 @@ def _cmd_optimise(args) -> int:
           f"(smoothed {best.smooth0:.6g} -> {best.smooth:.6g}), stop: {best.stop_reason}")
     print(f"  wrote {out['history_png']}" + (f", {out['map_png']}" if "map_png" in out else ""))
     return 0
+
+
+def _solver(obj) -> dict:
+    """The solver of a dynamic objective for the JSON outputs (method, requested rtol)."""
+    if not hasattr(obj, "method"):
+        return {}
+    return {"method": obj.method, "rtol": obj.rtol}
 
 
 def _fail(msg: str) -> int:

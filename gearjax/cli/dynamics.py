@@ -53,7 +53,8 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
 )
 from ..dynamics import watchdog
 from ..models.base import LINEAR_FORMULATIONS
-from ..dynamics.sweep import METHODS, tolerance_options
+from ..dynamics.stability import STABILITY_METHODS
+from ..dynamics.sweep import HARMONIC_FLOQUET_MAX_STATES, METHODS, tolerance_options
 from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv
 from ..rigs.factory import build_model
@@ -62,8 +63,7 @@ from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
 from .scenario import add_nlte_reaction, add_nlte_switches, nlte_options_of, nlte_reaction_of
 
-__all__ = ["register", "case_name", "summarise_sweep",
-           "default_max_frequency_hz", "modal_cutoff"]
+__all__ = ["register", "case_name", "default_max_frequency_hz", "modal_cutoff"]
 
 FORMULATIONS = ("reference", "te", "perturbation")
 # undamped stability: |spectral radius - 1| below this is round-off of the monodromy matrix
@@ -160,6 +160,16 @@ def register(sub, add_rig, add_scenario):
                          "about the quasi-static contact is the te equation)")
     st.add_argument("--speeds", default="100:1500:15", metavar="A:B:N",
                     help="N pinion speeds from A to B rad/s (default 100:1500:15)")
+    st.add_argument("--method", default="auto", choices=STABILITY_METHODS,
+                    help="steady: the spectral radius of the monodromy matrix (one period "
+                         "of n columns, as the shooting's; ~20 s per speed for the 3D rig); "
+                         "harmonic: the frequency-domain solver's small-gain bound first, "
+                         "which proves stability without integrating (3D, damping 0.1: "
+                         "every speed), the monodromy only where it does not; auto "
+                         "(default): steady up to "
+                         f"{HARMONIC_FLOQUET_MAX_STATES} states (sdof), harmonic above")
+    st.add_argument("--rtol", type=float, default=None, metavar="R",
+                    help="integrator rtol of the monodromy (atol R/100; default 1e-10)")
     st.set_defaults(func=cmd_stability)
 
 
@@ -243,35 +253,6 @@ def _forms(text: str) -> list[str]:
     return list(dict.fromkeys(forms))
 
 
-def summarise_sweep(res, speeds) -> dict:
-    """Per-formulation summary of a :class:`gearjax.dynamics.sweep.SweepResult`."""
-    df = np.asarray(res.dynamic_factor, dtype=float)
-    ok = np.isfinite(df) & np.asarray(res.converged, bool)  # peaks of converged speeds only
-    i = int(np.argmax(np.where(ok, df, -np.inf))) if ok.any() else 0
-    return {
-        "peak_dynamic_factor": float(df[i]) if ok.any() else float("nan"),
-        "critical_speed_rad_s": float(speeds[i]) if ok.any() else float("nan"),
-        "peak_over": "converged speeds only",
-        "max_mesh_force_N": (float(np.max(np.asarray(res.max_mesh_force_N)[ok])) if ok.any()
-                             else float("nan")),
-        "contact_loss_speeds": [float(w) for w in speeds[np.asarray(res.contact_loss, bool)]],
-        "unconverged_speeds": [float(w) for w in speeds[~np.asarray(res.converged, bool)]],
-        "failed_speeds": [float(w) for w in speeds[~np.asarray(res.solver_ok, bool)]],
-    }
-
-
-def method_counts(res, requested: str) -> dict:
-    """Speeds solved by each method in one sweep (``summary.json``): a harmonic sweep
-    reports per speed (its fallback speeds are ``transient``)."""
-    from ..dynamics.sweep import MethodSweepResult
-
-    if not isinstance(res, MethodSweepResult):
-        name = "transient" if requested == "auto" else requested
-        return {name: int(np.size(res.speed_rad_s))}
-    names, counts = np.unique(np.asarray(res.method), return_counts=True)
-    return {str(k): int(v) for k, v in zip(names, counts)}
-
-
 def periodic_start_options(model) -> dict:
     """simulate() options for a model whose initial state is already the periodic steady
     state (:attr:`Geared3DModel.periodic_start`: Eq. (48a) solved harmonic by harmonic):
@@ -331,7 +312,7 @@ def cmd_sweep(args) -> int:
     from ..dynamics.sweep import memory_chunk, sweep
     from .outputs import prepare_output_dir
     from .results import (RESULT_FILES, check_resume, done_speeds, max_force_by_speed,
-                          read_rows, summarise_rows, write_case)
+                          method_counts, read_rows, summarise_rows, write_case)
     from .scenario import scenario_modifications
 
     if args.resume and (args.distributed or args.coordinator is not None
@@ -618,6 +599,8 @@ def _print_summary(rig, summary, out):
 
 def cmd_stability(args) -> int:
     from ..rigs.registry import get_rig
+    from ..dynamics.harmonic import small_gain_bounds
+    from ..dynamics.small_gain import SMALL_GAIN_MARGIN
     from ..dynamics.stability import spectral_radius
 
     from .scenario import scenario_modifications
@@ -625,6 +608,8 @@ def cmd_stability(args) -> int:
     speeds = _parse_speeds(args.speeds)
     _check_damping(args.damping)
     _check_te_file(args, [args.formulation])
+    if args.rtol is not None and not (math.isfinite(args.rtol) and 1e-13 <= args.rtol <= 1e-2):
+        raise ValueError(f"--rtol={args.rtol!r}: must lie in [1e-13, 1e-2]")
     reaction = nlte_reaction_of(args)
     rig = get_rig(args.rig)
     scen = scenario_modifications(rig, args)
@@ -639,22 +624,39 @@ def cmd_stability(args) -> int:
                         max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te,
                         moving_events=False)
     _check_modes(args, model, cutoff_hz)
+    method = args.method
+    if method == "auto":  # the monodromy costs n columns: cheap for the sdof model only
+        method = "steady" if model.state_size <= HARMONIC_FLOQUET_MAX_STATES else "harmonic"
+    tols = {} if args.rtol is None else dict(rtol=args.rtol, atol=args.rtol / 100)
     t0 = time.perf_counter()
-    rho = np.asarray(spectral_radius(model, speeds), dtype=float)
+    bound = np.full(speeds.size, np.nan)
+    rho = np.full(speeds.size, np.nan)
+    proven = np.zeros(speeds.size, dtype=bool)
+    if method == "harmonic":
+        bound = small_gain_bounds(model, speeds)
+        proven = bound < SMALL_GAIN_MARGIN
+    need = np.flatnonzero(~proven)
+    if need.size:
+        rho[need] = np.asarray(spectral_radius(model, speeds[need], **tols), dtype=float)
     # Undamped, a stable linear time-periodic system has all Floquet multipliers on the unit
     # circle: radius 1 up to the round-off of the monodromy matrix is neutral, not unstable.
     tol = NEUTRAL_TOLERANCE if args.damping == 0 else 0.0
-    state = np.where(rho > 1.0 + tol, "unstable",
-                     np.where(rho >= 1.0 - tol, "neutral", "stable"))
+    state = np.where(proven, "stable", np.where(rho > 1.0 + tol, "unstable",
+                     np.where(rho >= 1.0 - tol, "neutral", "stable")))
+    state = np.where(~proven & ~np.isfinite(rho), "failed", state)
     out = {
         "rig": rig.name, "model": args.model, "formulation": args.formulation,
         "relief": args.relief or scen.key, **scen.summary(), "damping": args.damping,
         "stiffness_law": args.stiffness, "nlte_reaction": reaction, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
+        "method": method, "rtol": args.rtol, "monodromies": int(need.size),
         "wall_time_s": time.perf_counter() - t0,
         "neutral_tolerance": tol,
-        "results": [{"speed_rad_s": float(w), "spectral_radius": float(r), "state": str(st)}
-                    for w, r, st in zip(speeds, rho, state)],
+        "results": [{"speed_rad_s": float(w),
+                     "spectral_radius": None if p else float(r),
+                     **({} if np.isnan(b) else {"small_gain_bound": float(b)}),
+                     "state": str(st), **({"proof": "small-gain bound"} if p else {})}
+                    for w, r, b, st, p in zip(speeds, rho, bound, state, proven)],
         "unstable_speeds_rad_s": [float(w) for w, st in zip(speeds, state) if st == "unstable"],
     }
     if args.json:
@@ -664,11 +666,19 @@ def cmd_stability(args) -> int:
           f"damping {args.damping}, NLTE'' reaction at the {reaction}")
     if args.model == "3d":
         print(f"  modes {'below %.0f Hz' % cutoff_hz if cutoff_hz else 'all'} ({cutoff_source})")
+    print(f"  method {method}: " + (
+        f"small-gain bound, monodromy at {need.size} of {speeds.size} speed(s)"
+        if method == "harmonic" else "monodromy at every speed")
+        + f" ({out['wall_time_s']:.1f} s)")
     if tol:
         print(f"  undamped: a spectral radius within {tol:g} of 1 is neutral (Floquet "
               "multipliers on the unit circle), not unstable")
-    print(f"  {'speed [rad/s]':>14s} {'spectral radius':>16s}")
-    flag = {"unstable": "   UNSTABLE (parametric)", "neutral": "   neutral", "stable": ""}
-    for w, r, st in zip(speeds, rho, state):
-        print(f"  {w:14.1f} {r:16.6f}{flag[str(st)]}")
+    head = f"  {'speed [rad/s]':>14s} {'spectral radius':>16s}"
+    print(head + (f" {'small-gain bound':>17s}" if method == "harmonic" else ""))
+    flag = {"unstable": "   UNSTABLE (parametric)", "neutral": "   neutral", "stable": "",
+            "failed": "   monodromy integration failed"}
+    for w, r, b, st, p in zip(speeds, rho, bound, state, proven):
+        radius = f"{'< 1 (proven)':>16s}" if p else f"{r:16.6f}"
+        extra = f" {b:17.4f}" if method == "harmonic" else ""
+        print(f"  {w:14.1f} {radius}{extra}{flag[str(st)]}")
     return 0

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import GearjaxError
 
 __all__ = ["RESULT_FILES", "CASE_FILE", "write_case", "check_resume", "read_rows",
-           "done_speeds", "summarise_rows"]
+           "done_speeds", "summarise_rows", "method_counts"]
 
 CASE_FILE = "case.json"
 # files a sweep writes in its folder (an earlier run is recognised by any of them)
@@ -133,3 +133,15 @@ def summarise_rows(rows: list[dict], formulation: str, speeds: np.ndarray) -> di
 def max_force_by_speed(rows: list[dict], formulation: str) -> dict[float, float]:
     return {float(r["speed_rad_s"]): _float(r["max_mesh_force_N"])
             for r in rows if r["formulation"] == formulation}
+
+
+def method_counts(res, requested: str) -> dict:
+    """Speeds solved by each method in one sweep (``summary.json``): a harmonic sweep
+    reports per speed (its fallback speeds are ``transient``)."""
+    from ..dynamics.sweep import MethodSweepResult
+
+    if not isinstance(res, MethodSweepResult):
+        name = "transient" if requested == "auto" else requested
+        return {name: int(np.size(res.speed_rad_s))}
+    names, counts = np.unique(np.asarray(res.method), return_counts=True)
+    return {str(k): int(v) for k, v in zip(names, counts)}

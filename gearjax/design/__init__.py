@@ -95,19 +95,25 @@ loss.
 --------
 ``DynamicObjective(..., model="3d", rig=rig)`` drives the 3D model of a rig (Eqs. (14),
 (42), (48a), modes below ``max_frequency_hz``, by default 4.5 mesh harmonics of the
-highest speed, at least 6 kHz) at its periodic steady state
-by shooting (:func:`gearjax.dynamics.steady.steady_state`: no transient, whose 61.8 rad/s
-shaft-line mode would leave a residue larger than the design's effect). Its events (jumps
+highest speed, at least 6 kHz) at its periodic steady state, by default
+(``method="auto"``) through the accelerated transient of
+:func:`gearjax.dynamics.simulate.simulate` (its periodic estimate after every period
+removes the 61.8 rad/s shaft-line mode that a plain transient would leave as a residue
+larger than the design's effect), or by shooting (``method="steady"``,
+:func:`gearjax.dynamics.steady.steady_state`). Its events (jumps
 of ``k(theta)``, of NLTE', kinks of TE_S at the relief starts) follow the design through
 the same angle map (:mod:`gearjax.models.geared3d`, "Derivatives with respect to the
 design"), and ``prepare`` checks the discrete structure as the torsional model does
 (rebuild when it changes). Exact derivatives in the te formulation; the perturbation
 formulation holds its splitting constant ``k_m`` at the build design (the objective
 jumps by a little when a rebuild changes it). Measured (spur, short relief, 300 and 500
-rad/s, zeta 0.1, tight shooting tolerances): jacfwd against central differences of the
-same objective 1e-5 (te) and 4e-6 (perturbation) for the peak force, dynamic factor and
-DTE peak-to-peak; one value-and-gradient ~30-50 s on 2 loaded cores
-(``tests/test_design.py``).
+rad/s, zeta 0.1, modes < 3 kHz; ``tests/test_design.py``): jacfwd against central
+differences of the same objective 1.2e-5 (te) and 4.6e-6 (perturbation) by the
+transient at rtol 1e-10, 1e-5 and 4e-6 by shooting at 1e-11, for the peak force,
+dynamic factor and DTE peak-to-peak; the two methods' maxima 2.8e-9 apart. Cost (2
+speeds 330/480 rad/s, modes < 8.9 kHz, default tolerances, 2-core CPU): value and
+gradient 1.0 s by the transient after a ~30 s first call, 48 s + 164 s by shooting
+(``benchmarks/bench_gradients.py --model 3d``).
 
 Bounds of linear reliefs
 ------------------------
@@ -124,6 +130,7 @@ from .maps import harris_curves as harris_curves
 from .maps import harris_map as harris_map
 from .objectives import DEFAULT_SHARPNESS as DEFAULT_SHARPNESS
 from .objectives import DESIGN_INERTIAS as DESIGN_INERTIAS
+from .objectives import DESIGN_METHODS as DESIGN_METHODS
 from .objectives import DESIGN_MODELS as DESIGN_MODELS
 from .objectives import DYNAMIC_OBJECTIVES as DYNAMIC_OBJECTIVES
 from .objectives import OBJECTIVES as OBJECTIVES
@@ -132,6 +139,7 @@ from .objectives import Evaluation as Evaluation
 from .objectives import QuasiStaticObjective as QuasiStaticObjective
 from .objectives import design_inertias as design_inertias
 from .objectives import make_objective as make_objective
+from .objectives import method_tolerances as method_tolerances
 from .objectives import smooth_max as smooth_max
 from .optimise import OptimisationResult as OptimisationResult
 from .optimise import coarse_starts as coarse_starts
@@ -143,7 +151,10 @@ __all__ = [
     "OBJECTIVES",
     "DEFAULT_SHARPNESS",
     "DESIGN_INERTIAS",
+    "DESIGN_METHODS",
+    "DESIGN_MODELS",
     "design_inertias",
+    "method_tolerances",
     "DesignError",
     "ReliefSpace",
     "smooth_max",

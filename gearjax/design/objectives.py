@@ -19,12 +19,13 @@ from ..gears.mesh import Mesh
 from ..gears.quasistatic import quasi_static, static_mesh_force
 from .spaces import ReliefSpace
 
-__all__ = ["OBJECTIVES", "DYNAMIC_OBJECTIVES", "DESIGN_MODELS", "DEFAULT_SHARPNESS", "DESIGN_INERTIAS", "design_inertias", "smooth_max", "Evaluation", "QuasiStaticObjective", "DynamicObjective", "make_objective"]
+__all__ = ["OBJECTIVES", "DYNAMIC_OBJECTIVES", "DESIGN_MODELS", "DESIGN_METHODS", "DEFAULT_SHARPNESS", "method_tolerances", "DESIGN_INERTIAS", "design_inertias", "smooth_max", "Evaluation", "QuasiStaticObjective", "DynamicObjective", "make_objective"]
 
 
 OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
 DYNAMIC_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp")
 DESIGN_MODELS = ("torsional", "3d")
+DESIGN_METHODS = ("auto", "transient", "steady")  # "auto": the transient (DynamicObjective)
 DEFAULT_SHARPNESS = 200.0
 DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (module docstring)
 
@@ -43,6 +44,25 @@ def design_inertias(mesh: Mesh, inertias_kg_m2=DESIGN_INERTIAS) -> tuple:
     if j.shape != (2,) or not np.all(np.isfinite(j)) or np.any(j <= 0):
         raise DesignError("inertias_kg_m2", inertias_kg_m2, "need two finite values > 0 (kg m^2)")
     return (float(j[0]), float(j[1]))
+
+
+def method_tolerances(method: str, rtol: float | None) -> dict:
+    """Solver options of a dynamic objective for one requested relative accuracy ``rtol``
+    of its metrics (None: the solvers' own defaults). ``"transient"``:
+    :func:`gearjax.dynamics.sweep.tolerance_options` (integrator rtol, atol rtol/100,
+    transient decay and periodicity test, as ``sweep --rtol``); ``"steady"``: the
+    shooting's and the measured periods' integrator tolerances and the periodicity test."""
+    from ..dynamics.sweep import tolerance_options
+    from ..errors import SimulationError
+
+    try:
+        kw = tolerance_options(rtol)
+    except SimulationError as exc:
+        raise DesignError("rtol", rtol, "must lie in [1e-13, 1e-2]") from exc
+    if method != "steady" or not kw:
+        return kw
+    return dict(rtol=kw["rtol"], atol=kw["atol"], measure_rtol=kw["rtol"],
+                measure_atol=kw["atol"], convergence_tol=kw["convergence_tol"])
 
 
 def smooth_max(v, sharpness: float = DEFAULT_SHARPNESS, scale=1.0):
@@ -205,10 +225,17 @@ class DynamicObjective:
         ``"auto"``: :func:`gearjax.models.geared3d.default_max_frequency_hz` of the highest
         speed (3 mesh harmonics x 1.5, at least 6 kHz: 16.8 kHz up to 900 rad/s on the
         Baud-Velex rig, whose mesh modes lie at 3.4-3.5 kHz).
-    method : ``"transient"`` (:func:`gearjax.dynamics.simulate.simulate`, transient then measured
-        periods; default for the sdof model) or ``"steady"`` (periodic steady state by
-        shooting, :func:`gearjax.dynamics.steady.steady_state`; default for the 3D model, whose
-        slow shaft-line modes would need long transients).
+    method : ``"auto"`` (default) or ``"transient"``: :func:`gearjax.dynamics.simulate.simulate`
+        (transient then measured periods; on the 3D model the transient is cut short by
+        the periodic estimate after every period, so its slow shaft-line modes cost no
+        long transient); ``"steady"``: the periodic steady state by shooting
+        (:func:`gearjax.dynamics.steady.steady_state`; forward mode only). Measured (3D
+        spur te, 2 speeds 330/480 rad/s, modes < 8.9 kHz, default tolerances): value and
+        jacfwd 1.0 s by the transient after a 29 s first call, against 48 s + 164 s by
+        shooting; values equal to 8e-8 relative (the default was ``"steady"`` for the 3D
+        model until 2026-11-24).
+    rtol : requested relative accuracy of the metrics (None: the solvers' defaults, rtol
+        1e-7 and periodicity 1e-3): :func:`method_tolerances`, merged under ``sim_kwargs``.
     sharpness : beta of the smooth maximum over speeds (module docstring).
     n_table : table knots per mesh period of the model.
     sim_kwargs : options of :func:`gearjax.dynamics.simulate.simulate` (or of
@@ -223,7 +250,7 @@ class DynamicObjective:
                  formulation: str = "te", pinion_torque_Nm: float = 254.8,
                  inertias_kg_m2=DESIGN_INERTIAS, damping_ratio: float = 0.03,
                  nlte_reaction: str = "drive", max_frequency_hz: float | str | None = "auto",
-                 method: str | None = None,
+                 method: str | None = "auto", rtol: float | None = None,
                  sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
                  sim_kwargs: dict | None = None, adjoint=None):
         if kind not in DYNAMIC_OBJECTIVES:
@@ -236,9 +263,9 @@ class DynamicObjective:
             from ..rigs.factory import NLTE_REACTION_3D
 
             raise DesignError("nlte_reaction", nlte_reaction, NLTE_REACTION_3D)
-        method = ("steady" if model == "3d" else "transient") if method is None else method
-        if method not in ("transient", "steady"):
-            raise DesignError("method", method, "must be 'transient' or 'steady'")
+        if method not in DESIGN_METHODS + (None,):
+            raise DesignError("method", method, f"must be one of {DESIGN_METHODS}")
+        method = "transient" if method in ("auto", None) else method
         if method == "steady" and isinstance(adjoint, diffrax.RecursiveCheckpointAdjoint):
             raise DesignError("adjoint", type(adjoint).__name__,
                               "the steady (shooting) method differentiates in forward mode only")
@@ -264,7 +291,8 @@ class DynamicObjective:
                                      damping_ratio=float(damping_ratio), formulation=formulation,
                                      max_frequency_hz=max_frequency_hz, n_table=int(n_table))
         self.sharpness = float(sharpness)
-        self.sim_kwargs = dict(sim_kwargs or {})
+        self.rtol = rtol
+        self.sim_kwargs = {**method_tolerances(method, rtol), **(sim_kwargs or {})}
         self.adjoint = diffrax.ForwardMode() if adjoint is None else adjoint
         self.static_force_N = static_mesh_force(mesh.pair, pinion_torque_Nm)
         cos_bb = math.cos(mesh.pair.base_helix_angle_rad)

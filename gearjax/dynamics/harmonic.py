@@ -77,6 +77,7 @@ from ..models.base import LINEAR_FORMULATIONS, AbstractGearModel
 from .krylov import gmres
 from .metrics import output_grid, refined_extrema
 from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
+from .small_gain import SMALL_GAIN_MARGIN, small_gain_bound
 from .results import SweepResult
 from . import watchdog
 from .stability import monodromy
@@ -84,13 +85,12 @@ from .steady import spectral_radius_of
 
 __all__ = ["HarmonicOrbit", "HarmonicResult", "harmonic_steady_state",
            "harmonic_steady_states", "harmonic_sweep", "HarmonicSweepResult",
-           "LINEAR_FORMULATIONS"]
+           "small_gain_bounds", "LINEAR_FORMULATIONS"]
 
 _JUMP_SIDE = 1e-9  # one-sided evaluation at theta_j -/+ _JUMP_SIDE * period
 _N_REFINE = 64  # points per grid interval in the refinement windows (parabolic vertex)
 _FORCING_RANK = 48  # columns kept for the forcing b (its rank: a few; checked)
-_SMALL_GAIN_GRID = 25  # frequencies per mode over +-3 half-power bandwidths (H-inf norm)
-_SMALL_GAIN_MARGIN = 0.95  # bound below which stability is proven (covers the sampling)
+_SPLIT_TOL = 1e-6  # largest split residual for which small_gain_bounds uses the bound
 _PHI_TERMS = 18  # Taylor terms of phi_k(z) for |z| < 1 (error 1/19! ~ 8e-18)
 
 
@@ -136,8 +136,7 @@ class _Split(eqx.Module):
     basis (n, k) of the forcing ``b`` (:func:`_forcing_basis`), the largest relative
     residual of the split and of that basis over the samples (round-off if valid), and
     the radius of ``c``: ``A0`` holds the midpoint of the range of the parametric
-    coefficient, so ``|c(theta)| <= c_radius`` (the small-gain bound of
-    :func:`_small_gain`)."""
+    coefficient, so ``|c(theta)| <= c_radius`` (:mod:`gearjax.dynamics.small_gain`)."""
 
     a0: jax.Array
     p: jax.Array
@@ -326,30 +325,6 @@ def _jump_part(lam, thj, dg0, dg1, period):
     return zeta0, fpoly
 
 
-def _small_gain(lam, pw, c_radius):
-    """Small-gain bound ``||g||_inf * max|c|`` of the parametric loop of Eq. (1), and
-    whether ``A0`` is Hurwitz.
-
-    Eq. (1) is the LTI system ``A0`` closed by the time-varying scalar gain
-    ``c(theta)`` through ``sigma = w^T y``: ``sigma = g * (c sigma)`` with the transfer
-    function ``g(s) = w^T (s - A0)^-1 p = sum_k pw_k / (s - lambda_k)``. By the small-gain
-    theorem, if ``A0`` is Hurwitz and ``sup_chi |g(i chi)| * max|c| < 1`` the loop is
-    exponentially stable for *every* gain history with that bound, periodic ones
-    included: every Floquet multiplier is inside the unit circle, with no monodromy
-    integration. Sufficient, not necessary (it ignores the frequency content of ``c``):
-    measured on the Baud-Velex spur rig, Eq. (42), the bound is 0.78 at damping 0.1 (3D,
-    every speed: the frequency scaling leaves it speed independent) and 2.2 at 0.03; sdof
-    Eq. (20) 1.44 and 4.8. The perturbation formulation has ``c = 0``: bound 0. The sup is
-    sampled at ``_SMALL_GAIN_GRID`` frequencies across each mode's half-power band (and
-    zero); the proof uses ``bound < _SMALL_GAIN_MARGIN``."""
-    t = jnp.linspace(-3.0, 3.0, _SMALL_GAIN_GRID)
-    chi = jnp.abs(jnp.imag(lam))[:, None] + jnp.abs(jnp.real(lam))[:, None] * t[None, :]
-    chi = jnp.concatenate([jnp.zeros(1), chi.reshape(-1)])
-    g = jnp.sum(pw[None, :] / (1j * chi[:, None] - lam[None, :]), axis=1)
-    hurwitz = jnp.max(jnp.real(lam)) < 0.0
-    return jnp.where(hurwitz, jnp.max(jnp.abs(g)) * c_radius, jnp.inf)
-
-
 def _conv(c_full, s, n_h):
     """(c * s)_h for |h| <= n_h: ``c_full`` (4 n_h + 1,) at -2n_h..2n_h, ``s`` (2 n_h + 1,)."""
     m = 5 * n_h  # > 4H: no wrap-around into |h| <= H (sums span -3H..3H); 5 * 2^k: fast FFT
@@ -420,8 +395,8 @@ class HarmonicResult(eqx.Module):
         ``H/2`` harmonics over its largest component (an upper estimate for ``H/2``).
     rank_one_error : relative residual of the split of Eq. (1) and of the forcing basis
         over the samples (round-off when valid).
-    small_gain : the small-gain stability bound of :func:`_small_gain` (``inf`` if
-        ``A0`` is not Hurwitz); below ``_SMALL_GAIN_MARGIN`` the orbit is proven stable.
+    small_gain : the small-gain stability bound (:mod:`gearjax.dynamics.small_gain`; ``inf``
+        if ``A0`` is not Hurwitz); below ``SMALL_GAIN_MARGIN`` the orbit is proven stable.
     spectral_radius : Floquet spectral radius (NaN when not computed).
     ok : finite results.
     mesh_orders : (3, 5) amplitudes of mesh orders 1..5 of F_D (N), DTE (m), acceleration
@@ -525,7 +500,7 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
         dte_ptp_m=bad(v_max[1] - v_min[1]), accel_ptp_m_s2=bad(acc),
         contact_holds=ok & (v_min[0] > 0.0), error_estimate=jnp.where(ok, err, jnp.inf),
         rank_one_error=split.rank_one_error,
-        small_gain=_small_gain(lam, (q.T @ split.w) * (modal[2] @ split.p), split.c_radius),
+        small_gain=small_gain_bound(lam, (q.T @ split.w) * (modal[2] @ split.p), split.c_radius),
         spectral_radius=rho, ok=ok, mesh_orders=bad(orders))
 
 
@@ -540,8 +515,8 @@ class HarmonicSweepResult(SweepResult):
     error_estimate : see :class:`HarmonicResult`.
     contact_holds : the linear mesh force stays compressive over the period (else the
         orbit is not the model's: fall back to shooting / transient).
-    small_gain : the small-gain bound (:func:`_small_gain`); below 0.95 the orbit is
-        proven stable without a monodromy.
+    small_gain : the small-gain bound (:mod:`gearjax.dynamics.small_gain`); below 0.95 the
+        orbit is proven stable without a monodromy.
     spectral_radius : Floquet radius (NaN where not computed: proven by the bound, or
         ``floquet=False``).
     stable, stability_known : proven stable (bound) or ``spectral_radius < 1``; whether
@@ -591,6 +566,32 @@ def _rho_batch(model, speeds):
     return jax.vmap(lambda w: spectral_radius_of(monodromy(model, w)))(speeds)
 
 
+@eqx.filter_jit
+def _bound_batch(model, speeds):
+    def one(w):
+        split, _ = _prepare(model, w, 8)  # the split only: its Fourier data is not used
+        lam, q = jnp.linalg.eig(split.a0)
+        qinv = jnp.linalg.solve(q, jnp.eye(q.shape[0], dtype=q.dtype))
+        b = small_gain_bound(lam, (q.T @ split.w) * (qinv @ split.p), split.c_radius)
+        return jnp.where(split.rank_one_error <= _SPLIT_TOL, b, jnp.inf)
+
+    cpu = jax.default_backend() == "cpu"  # no batched LAPACK: harmonic_steady_states
+    return jax.lax.map(one, speeds) if cpu else jax.vmap(one)(speeds)
+
+
+def small_gain_bounds(model, speeds_rad_s) -> np.ndarray:
+    """The small-gain stability bound (:mod:`gearjax.dynamics.small_gain`) of a linear
+    formulation at each speed (rad/s), without an orbit or a monodromy: below
+    ``SMALL_GAIN_MARGIN`` every Floquet multiplier is proven inside the unit circle;
+    ``inf`` where ``A0`` is not Hurwitz (undamped) or the split's residual exceeds 1e-6."""
+    _check_model(model)
+    speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
+    if speeds.size == 0 or not np.all(np.isfinite(speeds) & (speeds > 0)):
+        raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
+                              "need at least one finite pinion speed > 0 (rad/s)")
+    return np.asarray(_bound_batch(model, jnp.asarray(speeds)), dtype=float)
+
+
 def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: int = 256,
                    max_harmonics: int = 4096, floquet: bool = True,
                    samples_per_mesh_period: int = 128, progress: bool = False,
@@ -603,8 +604,8 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     for the worst of them (at least twice as many; one compilation per number of
     harmonics used), until ``max_harmonics``;
     ``converged`` = that estimate met, the orbit finite and not known to be unstable.
-    Stability: the small-gain bound (:func:`_small_gain`, free) proves it where it can;
-    with ``floquet`` the Floquet ``spectral_radius`` decides at the other speeds (one
+    Stability: the small-gain bound (:mod:`gearjax.dynamics.small_gain`, free) proves it
+    where it can; with ``floquet`` the Floquet ``spectral_radius`` decides at the other speeds (one
     monodromy period of ``n`` columns each: cheap for the sdof model, about 20 s per
     speed for the 3D rig on 2 cores). Inside a parametric instability zone the periodic
     orbit exists but a transient never reaches it. Where ``contact_holds`` is False the
@@ -672,7 +673,7 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
         worst = float(np.max(est[np.isfinite(est)], initial=rtol))
         need = n_h * 1.2 * (worst / rtol) ** (1.0 / 3.0)
         n_h = int(min(hi, max(2 * n_h, 2 ** math.ceil(math.log2(need)))))
-    proven = out["small_gain"] < _SMALL_GAIN_MARGIN
+    proven = out["small_gain"] < SMALL_GAIN_MARGIN
     rho = np.full(speeds.size, np.nan)
     need = np.flatnonzero(~proven)
     if floquet and need.size:

@@ -34,7 +34,12 @@ import numpy as np
 from ..errors import SimulationError
 from ..models.base import AbstractGearModel
 
-__all__ = ["monodromy", "floquet_multipliers", "spectral_radius"]
+__all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "STABILITY_METHODS"]
+
+# gearjax stability --method: the monodromy everywhere (steady), or the small-gain bound
+# first and the monodromy where it does not prove stability (harmonic:
+# gearjax.dynamics.harmonic.small_gain_bounds)
+STABILITY_METHODS = ("auto", "steady", "harmonic")
 
 
 def monodromy(model, omega, *, solver=None, rtol: float = 1e-10, atol: float = 1e-12,

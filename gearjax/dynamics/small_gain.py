@@ -1,0 +1,45 @@
+"""Small-gain stability bound of the linear time-periodic gear equations, without a
+monodromy.
+
+The te (Eq. (42), sdof Eq. (20)) and perturbation (Eq. (48a), sdof Eq. (47a))
+formulations are, while contact holds, ``y' = (A0 + c(theta) p w^T) y + b(theta)``
+(:mod:`gearjax.dynamics.harmonic`, Eq. (1)): the LTI system ``A0`` closed by the
+time-varying scalar gain ``c(theta)`` through ``sigma = w^T y``, so that ``sigma = g *
+(c sigma)`` with the transfer function ``g(s) = w^T (s - A0)^-1 p = sum_k pw_k / (s -
+lambda_k)`` (``lambda_k`` the eigenvalues of ``A0``, ``pw_k`` the products of the modal
+components of ``w`` and ``p``). By the small-gain theorem, if ``A0`` is Hurwitz and
+``sup_chi |g(i chi)| * max|c| < 1``, the loop is exponentially stable for *every* gain
+history within that bound, periodic ones included: every Floquet multiplier lies inside
+the unit circle, with no monodromy integration. Sufficient, not necessary (it ignores
+the frequency content of ``c``): measured on the Baud-Velex spur rig, Eq. (42), the bound
+is 0.78 at damping 0.1 (3D, every speed: the frequency scaling leaves it speed
+independent) and 2.2 at 0.03; sdof Eq. (20) 1.44 and 4.8. The perturbation formulation
+has ``c = 0``: bound 0.
+
+The sup is sampled at :data:`SMALL_GAIN_GRID` frequencies across each mode's half-power
+band (and zero); a bound below :data:`SMALL_GAIN_MARGIN` proves stability (the margin
+covers the sampling). Used by :func:`gearjax.dynamics.harmonic.harmonic_sweep` (speeds it
+proves need no Floquet radius) and ``gearjax stability --method harmonic``
+(:func:`gearjax.dynamics.harmonic.small_gain_bounds`).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+__all__ = ["SMALL_GAIN_GRID", "SMALL_GAIN_MARGIN", "small_gain_bound"]
+
+SMALL_GAIN_GRID = 25  # frequencies per mode over +-3 half-power bandwidths (H-inf norm)
+SMALL_GAIN_MARGIN = 0.95  # bound below which stability is proven (covers the sampling)
+
+
+def small_gain_bound(lam, pw, c_radius):
+    """``sup |g(i chi)| * c_radius`` (module docstring) for the eigenvalues ``lam`` (n,)
+    of ``A0``, the modal products ``pw`` (n,) and the radius of ``c``; ``inf`` if ``A0``
+    is not Hurwitz. Jittable."""
+    t = jnp.linspace(-3.0, 3.0, SMALL_GAIN_GRID)
+    chi = jnp.abs(jnp.imag(lam))[:, None] + jnp.abs(jnp.real(lam))[:, None] * t[None, :]
+    chi = jnp.concatenate([jnp.zeros(1), chi.reshape(-1)])
+    g = jnp.sum(pw[None, :] / (1j * chi[:, None] - lam[None, :]), axis=1)
+    hurwitz = jnp.max(jnp.real(lam)) < 0.0
+    return jnp.where(hurwitz, jnp.max(jnp.abs(g)) * c_radius, jnp.inf)
