@@ -231,9 +231,9 @@ class DynamicObjective:
         long transient); ``"steady"``: the periodic steady state by shooting
         (:func:`gearjax.dynamics.steady.steady_state`; forward mode only). Measured (3D
         spur te, 2 speeds 330/480 rad/s, modes < 8.9 kHz, default tolerances): value and
-        jacfwd 1.0 s by the transient after a 29 s first call, against 48 s + 164 s by
-        shooting; values equal to 8e-8 relative (the default was ``"steady"`` for the 3D
-        model until 2026-11-24).
+        jacfwd 1.3 s by the transient (compile ~65 s), against 48 s + 164 s by shooting;
+        values equal to 8e-8 relative (the default was ``"steady"`` for the 3D model until
+        2026-11-24).
     rtol : requested relative accuracy of the metrics (None: the solvers' defaults, rtol
         1e-7 and periodicity 1e-3): :func:`method_tolerances`, merged under ``sim_kwargs``.
     sharpness : beta of the smooth maximum over speeds (module docstring).
@@ -364,11 +364,12 @@ class DynamicObjective:
     def rebuilt(self, x) -> Evaluation:
         """The objective at ``x`` on a model built at ``x``, as a forward sweep builds it
         (the current model, built at an earlier design and mapped to ``x``, is kept). The
-        two differ where the build fixes something at its own design: the 3D modal basis
-        (with ``k_m``) and its truncation, the perturbation formulation's ``k_m``;
-        measured on the 3D te objective (spur, 2 speeds, modes < 8.9 kHz) after 5
-        optimiser steps from (20 um, 0.40) to (17 um, 0.39): 3.1e-4 relative, the rebuilt
-        value equal to ``gearjax sweep``'s to 1e-9."""
+        two differ by what the build fixes at its own design: the table knots (sdof te:
+        1.5e-7), the perturbation formulation's ``k_m`` and, on the 3D model, probably
+        the modal basis computed with the build design's mesh stiffness (not isolated):
+        3D te objective (spur, 2 speeds, modes < 8.9 kHz) after 5 optimiser steps from
+        (20 um, 0.40) to (17 um, 0.39): 3.1e-4 relative, the rebuilt value equal to
+        ``gearjax sweep``'s to 1e-9."""
         kept = self.model
         try:
             self.model = self.build(self.space.check(x))
