@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from ..dynamics import watchdog
-from ..design.objectives import DESIGN_METHODS, method_tolerances
+from ..design.objectives import DESIGN_METHODS, DynamicObjective, method_tolerances
 from ..errors import DesignError
 from .scenario import add_nlte_reaction, nlte_reaction_of
 
@@ -208,7 +208,7 @@ def _cmd_optimise(args) -> int:
                              learning_rate=args.learning_rate, callback=_step)
     # the value a forward sweep of the optimum gives: the objective's model was built at
     # a start and mapped to each design (gearjax.design.DynamicObjective.rebuilt)
-    rebuilt = obj.rebuilt(best.x).exact if hasattr(obj, "rebuilt") else None
+    rebuilt = obj.rebuilt(best.x).exact if isinstance(obj, DynamicObjective) else None
     # the map is one vmapped call over the grid: allow it 3x the forward cost estimated
     # from the slowest optimiser step (value and gradient)
     slowest = max(np.diff(steps[1:]), default=steps[-1] - steps[0])
@@ -234,7 +234,7 @@ def _cmd_optimise(args) -> int:
         print(json.dumps(out, indent=2))
         return 0
     names = obj.space.names
-    how = f", {obj.method}" if hasattr(obj, "method") else ""
+    how = f", {obj.method}" if isinstance(obj, DynamicObjective) else ""
     print(f"  {rig.name}: {args.objective} ({args.model}{how}, {args.shape} relief, NLTE'' "
           f"reaction at the {args.nlte_reaction}), {len(runs)} starts")
     for n in names:
@@ -250,7 +250,7 @@ def _cmd_optimise(args) -> int:
 
 def _solver(obj) -> dict:
     """The solver of a dynamic objective for the JSON outputs (method, requested rtol)."""
-    if not hasattr(obj, "method"):
+    if not isinstance(obj, DynamicObjective):
         return {}
     return {"method": obj.method, "rtol": obj.rtol}
 

@@ -80,7 +80,7 @@ from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
 from .small_gain import SMALL_GAIN_MARGIN, small_gain_bound
 from .results import SweepResult
 from . import watchdog
-from .stability import monodromy
+from .stability import check_speeds, monodromy
 from .steady import spectral_radius_of
 
 __all__ = ["HarmonicOrbit", "HarmonicResult", "harmonic_steady_state",
@@ -246,6 +246,12 @@ def _prepare(model, omega, n_h: int):
     ph = jnp.exp(-1j * nu * jnp.outer(k, thj))  # (4H+1, J)
     coeffs = dft + (ph * c0[:, None]) @ j0 + (ph * c1[:, None]) @ j1s
     return split, (thj, (lo, hi, dl, dr), coeffs)
+
+
+def _modal_form(a0):
+    """``(lambda, Q, Q^-1)`` of ``A0 = Q diag(lambda) Q^-1`` (complex)."""
+    lam, q = jnp.linalg.eig(a0)
+    return lam, q, jnp.linalg.solve(q, jnp.eye(q.shape[0], dtype=q.dtype))
 
 
 # ---------------------------------------------------------------------- the orbit
@@ -456,8 +462,7 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
     omega = jnp.asarray(omega, dtype=float)
     period = float(model.period_rad)
     split, data = _prepare(model, omega, n_h)
-    lam, q = jnp.linalg.eig(split.a0)
-    modal = (lam, q, jnp.linalg.solve(q, jnp.eye(q.shape[0], dtype=q.dtype)))
+    lam, q, qinv = modal = _modal_form(split.a0)
     # H and H/2 in one batch (no LAPACK call inside): the error estimate costs no second
     # compilation
     both, gm_res = jax.vmap(
@@ -500,7 +505,7 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
         dte_ptp_m=bad(v_max[1] - v_min[1]), accel_ptp_m_s2=bad(acc),
         contact_holds=ok & (v_min[0] > 0.0), error_estimate=jnp.where(ok, err, jnp.inf),
         rank_one_error=split.rank_one_error,
-        small_gain=small_gain_bound(lam, (q.T @ split.w) * (modal[2] @ split.p), split.c_radius),
+        small_gain=small_gain_bound(lam, (q.T @ split.w) * (qinv @ split.p), split.c_radius),
         spectral_radius=rho, ok=ok, mesh_orders=bad(orders))
 
 
@@ -570,8 +575,7 @@ def _rho_batch(model, speeds):
 def _bound_batch(model, speeds):
     def one(w):
         split, _ = _prepare(model, w, 8)  # the split only: its Fourier data is not used
-        lam, q = jnp.linalg.eig(split.a0)
-        qinv = jnp.linalg.solve(q, jnp.eye(q.shape[0], dtype=q.dtype))
+        lam, q, qinv = _modal_form(split.a0)
         b = small_gain_bound(lam, (q.T @ split.w) * (qinv @ split.p), split.c_radius)
         return jnp.where(split.rank_one_error <= _SPLIT_TOL, b, jnp.inf)
 
@@ -586,9 +590,7 @@ def small_gain_bounds(model, speeds_rad_s) -> np.ndarray:
     ``inf`` where ``A0`` is not Hurwitz (undamped) or the split's residual exceeds 1e-6."""
     _check_model(model)
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
-    if speeds.size == 0 or not np.all(np.isfinite(speeds) & (speeds > 0)):
-        raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
-                              "need at least one finite pinion speed > 0 (rad/s)")
+    check_speeds(speeds)
     return np.asarray(_bound_batch(model, jnp.asarray(speeds)), dtype=float)
 
 
@@ -624,9 +626,7 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     """
     _check_model(model)
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
-    if speeds.size == 0 or not np.all(np.isfinite(speeds) & (speeds > 0)):
-        raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
-                              "need at least one finite pinion speed > 0 (rad/s)")
+    check_speeds(speeds)
     if not (0.0 < rtol < 1.0):
         raise SimulationError("rtol", rtol, "must lie in (0, 1)")
     if rank_one_tol is None:  # the split's residual moves the orbit by about as much

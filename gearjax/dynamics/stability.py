@@ -34,7 +34,8 @@ import numpy as np
 from ..errors import SimulationError
 from ..models.base import AbstractGearModel
 
-__all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "STABILITY_METHODS"]
+__all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "check_speeds",
+           "STABILITY_METHODS"]
 
 # gearjax stability --method: the monodromy everywhere (steady), or the small-gain bound
 # first and the monodromy where it does not prove stability (harmonic:
@@ -88,7 +89,7 @@ def monodromy(model, omega, *, solver=None, rtol: float = 1e-10, atol: float = 1
 def floquet_multipliers(model, omega, **kwargs):
     """Floquet multipliers (complex eigenvalues of :func:`monodromy`) at one speed,
     sorted by decreasing modulus (NumPy, concrete ``omega``)."""
-    _check_speeds(np.atleast_1d(np.asarray(omega, dtype=float)))
+    check_speeds(np.atleast_1d(np.asarray(omega, dtype=float)))
     phi = np.asarray(eqx.filter_jit(monodromy)(model, jnp.asarray(float(omega)), **kwargs))
     if not np.all(np.isfinite(phi)):
         raise SimulationError("omega", float(omega), "monodromy integration failed (step limit)")
@@ -114,11 +115,13 @@ def spectral_radius(model, speeds_rad_s, **kwargs) -> np.ndarray:
     failed. ``kwargs`` go to :func:`monodromy`.
     """
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
-    _check_speeds(speeds)
+    check_speeds(speeds)
     return np.asarray(_rho(model, jnp.asarray(speeds), tuple(sorted(kwargs.items()))))
 
 
-def _check_speeds(speeds):
+def check_speeds(speeds):
+    """Raise a SimulationError naming ``speeds_rad_s`` unless ``speeds`` (1-D array) holds
+    at least one speed and all are finite and > 0 (rad/s)."""
     bad = ~(np.isfinite(speeds) & (speeds > 0))
     if speeds.size == 0 or np.any(bad):
         raise SimulationError(
