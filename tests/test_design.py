@@ -569,10 +569,27 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
     for model in DESIGN_MODELS:
         obj = DynamicObjective(mesh, ReliefSpace(), [300.0], model=model, rig=RIG)
         assert obj.method == "transient" and obj.sim_kwargs == {}
-    shoot = DynamicObjective(mesh, ReliefSpace(), [300.0], model="3d", rig=RIG,
-                             method="steady", rtol=1e-9)
-    assert shoot.sim_kwargs == dict(rtol=1e-9, atol=1e-9 / 100, measure_rtol=1e-9,
-                                    measure_atol=1e-9 / 100, convergence_tol=1e-4)
+    # one reading of --rtol with the shooting: what `sweep --method steady --rtol R` passes
+    # to the shooting sweep (its transient-only options aside); the shooting's own 1e-9
+    # is tightened by a tighter request, never loosened
+    import gearjax.dynamics.steady as steady
+    from gearjax.dynamics.sweep import tolerance_options
+
+    def capture(model, speeds, **kw):
+        seen.clear()
+        seen.update(kw)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(steady, "steady_sweep", capture)
+    for r, shoot_rtol in ((1e-4, None), (1e-11, 1e-11)):
+        shoot = DynamicObjective(mesh, ReliefSpace(), [300.0], model="3d", rig=RIG,
+                                 method="steady", rtol=r)
+        with pytest.raises(KeyboardInterrupt):
+            sweep(None, [300.0], method="steady", progress=False, **tolerance_options(r))
+        assert {k: v for k, v in seen.items() if k not in ("chunk_size", "progress",
+                "continuation_kwargs")} == shoot.sim_kwargs
+        assert shoot.sim_kwargs.get("rtol") == shoot_rtol
+        assert shoot.sim_kwargs["measure_rtol"] == r
     with pytest.raises(DesignError, match="method"):
         DynamicObjective(mesh, ReliefSpace(), [300.0], method="harmonic")
 

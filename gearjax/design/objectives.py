@@ -51,7 +51,9 @@ def method_tolerances(method: str, rtol: float | None) -> dict:
     of its metrics (None: the solvers' own defaults). ``"transient"``:
     :func:`gearjax.dynamics.sweep.tolerance_options` (integrator rtol, atol rtol/100,
     transient decay and periodicity test, as ``sweep --rtol``); ``"steady"``: the
-    shooting's and the measured periods' integrator tolerances and the periodicity test."""
+    measured periods' tolerances and the periodicity test, the shooting's tightened only
+    below its own (:func:`gearjax.dynamics.steady.shooting_options`, as ``sweep --method
+    steady --rtol``)."""
     from ..dynamics.sweep import tolerance_options
     from ..errors import SimulationError
 
@@ -61,8 +63,9 @@ def method_tolerances(method: str, rtol: float | None) -> dict:
         raise DesignError("rtol", rtol, "must lie in [1e-13, 1e-2]") from exc
     if method != "steady" or not kw:
         return kw
-    return dict(rtol=kw["rtol"], atol=kw["atol"], measure_rtol=kw["rtol"],
-                measure_atol=kw["atol"], convergence_tol=kw["convergence_tol"])
+    from ..dynamics.steady import shooting_options
+
+    return shooting_options({k: kw[k] for k in ("rtol", "atol", "convergence_tol")})
 
 
 def smooth_max(v, sharpness: float = DEFAULT_SHARPNESS, scale=1.0):

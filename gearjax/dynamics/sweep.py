@@ -427,15 +427,13 @@ _TRANSIENT_ONLY = ("n_transient_periods", "transient_decay", "min_transient_mesh
 
 
 def _steady(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs):
-    from .steady import steady_sweep
+    from .steady import shooting_options, steady_sweep
 
     if devices is not None or jax.process_count() > 1:
         raise SimulationError("devices", devices, 'method="steady" runs on one device of one '
                               'process; use method="transient" to shard over devices or hosts')
-    steady_kw = {k: v for k, v in simulate_kwargs.items() if k not in _TRANSIENT_ONLY}
-    for k in ("solver", "rtol", "atol"):  # the shooting has its own defaults; these measure
-        if k in steady_kw:
-            steady_kw["measure_" + k] = steady_kw.pop(k)
+    steady_kw = shooting_options({k: v for k, v in simulate_kwargs.items()
+                                  if k not in _TRANSIENT_ONLY})
     res = steady_sweep(model, speeds, chunk_size=chunk_size, progress=progress,
                        continuation_kwargs=dict(simulate_kwargs), **steady_kw)
     _write_csv(out_csv, res, speeds)
