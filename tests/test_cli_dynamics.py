@@ -105,19 +105,6 @@ def test_torsional_sweep_writes_mesh_orders(torsional_cli_sweep):
     assert (out_dir / "order_tracks.png").stat().st_size > 10_000
 
 
-def test_default_chunk_rule():
-    """--chunk default: a tenth of the speeds for progress, never fewer than
-    MIN_DEFAULT_CHUNK speeds per compiled call (lockstep overhead), never more than asked."""
-    from gearjax.cli.dynamics import MIN_DEFAULT_CHUNK, default_chunk
-
-    assert default_chunk(45) == 45 and default_chunk(3) == 3 and default_chunk(1) == 1
-    assert default_chunk(10 * MIN_DEFAULT_CHUNK - 1) == MIN_DEFAULT_CHUNK
-    assert default_chunk(4500) == 450
-    n = np.arange(1, 3000)
-    c = np.array([default_chunk(int(k)) for k in n])
-    assert np.all((c >= np.minimum(n, MIN_DEFAULT_CHUNK)) & (c <= n) & (np.ceil(n / c) <= 10))
-
-
 def test_default_case_name_and_out_dir(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     # the te sweep of the shared torsional CLI run (tests/conftest.py: same speeds, so the

@@ -68,6 +68,28 @@ def test_default_chunk_fits_memory(model, monkeypatch, capsys):
     assert "chunk 3/3" in capsys.readouterr().err
 
 
+def test_default_chunk_rule(monkeypatch):
+    """chunk_size=None (:func:`gearjax.dynamics.sweep.default_chunk_size`): on a CPU 16-64
+    speeds per device by the model's size (3D rig, 266 states: 16; sdof: 64), on an
+    accelerator all that memory holds; never more than memory holds; the speeds split
+    into equal chunks (less than one padding copy per chunk)."""
+    from types import SimpleNamespace
+
+    rule = sweep_mod.default_chunk_size
+    rig3d, sdof = SimpleNamespace(state_size=266), SimpleNamespace(state_size=2)
+    monkeypatch.setattr(sweep_mod, "memory_chunk", lambda *a, **k: 10_000)
+    assert rule(rig3d, 45, 2) == 23 and rule(rig3d, 32, 2) == 32 and rule(rig3d, 33, 2) == 17
+    assert rule(sdof, 2000, 2) == 2000 // 16 and rule(sdof, 3, 1) == 3
+    assert rule(rig3d, 4500, 1, platform="gpu") == 4500
+    for m, n_dev in ((rig3d, 1), (rig3d, 2), (sdof, 2), (SimpleNamespace(state_size=10**6), 4)):
+        for n in range(1, 700, 7):
+            c = rule(m, n, n_dev)
+            k = -(-n // c)
+            assert c <= max(16, min(64, 4096 // m.state_size)) * n_dev and k * c - n < k
+    monkeypatch.setattr(sweep_mod, "memory_chunk", lambda *a, **k: 3)
+    assert rule(sdof, 2000, 2) == 6 and rule(rig3d, 4500, 1, platform="gpu") == 3
+
+
 def test_csv_rows_and_progress(model, tmp_path, capsys):
     out = tmp_path / "sweep.csv"
     speeds = [120.0, 640.0, 330.0, 880.0, 450.0]
@@ -75,6 +97,9 @@ def test_csv_rows_and_progress(model, tmp_path, capsys):
     res = sweep(model, speeds, chunk_size=4, out_csv=out, **OPTS)
     err = capsys.readouterr().err
     assert "chunk 1/2" in err and "chunk 2/2" in err and "5/5 done" in err
+    # the progress line counts the unconverged speeds so far, as it counts those done
+    last = [ln for ln in err.splitlines() if "5/5 done" in ln][-1]
+    assert f"{int(np.sum(~res.converged))} not converged" in last
     with open(out, newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert tuple(rows[0].keys()) == CSV_COLUMNS

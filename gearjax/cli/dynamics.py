@@ -132,10 +132,10 @@ def register(sub, add_rig, add_scenario):
                          "loss (results.csv gains direction, orbit, spectral_radius, restarted)")
     sw.add_argument("--chunk", type=int, default=None,
                     help="speeds per compiled call (progress and CSV rows per chunk; default "
-                         f"a tenth of the speeds, at least {MIN_DEFAULT_CHUNK} or all: the "
-                         "speeds of a chunk run in lockstep, and small chunks pay the "
-                         "per-step overhead once per chunk; at most what memory holds of "
-                         "their saved states)")
+                         "gearjax.dynamics.sweep.default_chunk_size: on a CPU 16-64 speeds per "
+                         "core by the model's size (the speeds of a chunk run in lockstep and "
+                         "their solver stages must stay in cache), on a GPU every speed that "
+                         "memory holds)")
     dist = sw.add_argument_group("several hosts (jax.distributed)")
     dist.add_argument("--distributed", action="store_true",
                       help="join a multi-process run (jax.distributed.initialize with cluster "
@@ -262,19 +262,6 @@ def periodic_start_options(model) -> dict:
     return {"n_transient_periods": 0, "start": "initial"}
 
 
-# Default chunk: at least this many speeds per compiled call. Measured on 2 cores, the main
-# job's reference formulation (45 speeds): chunks of 5 took 144 s, one chunk of 45 84 s
-# (vmapped speeds advance in lockstep; each step's dispatch overhead is paid per chunk).
-MIN_DEFAULT_CHUNK = 48
-
-
-def default_chunk(n_speeds: int) -> int:
-    """Speeds per compiled call of ``sweep`` when ``--chunk`` is not given: a tenth of
-    the speeds (progress lines and CSV rows as chunks finish), but at least
-    :data:`MIN_DEFAULT_CHUNK` (or all of them)."""
-    return max(1, min(n_speeds, max(MIN_DEFAULT_CHUNK, math.ceil(n_speeds / 10))))
-
-
 def _check_cutoff(args, rig, cutoff_hz) -> None:
     """Refuse a 3D ``--max-frequency`` below the lowest natural frequency (it would keep no
     vibration mode), from the rig's modal analysis alone, before the model is built."""
@@ -309,7 +296,7 @@ def _check_te_file(args, forms) -> None:
 
 def cmd_sweep(args) -> int:
     from ..rigs.registry import get_rig
-    from ..dynamics.sweep import memory_chunk, sweep
+    from ..dynamics.sweep import sweep
     from .outputs import prepare_output_dir
     from .results import (RESULT_FILES, check_resume, done_speeds, max_force_by_speed,
                           method_counts, read_rows, summarise_rows, write_case)
@@ -374,7 +361,6 @@ def cmd_sweep(args) -> int:
             done = done_speeds(read_rows(csv_path, repair=True))
             read_rows(orders_path, repair=True)
         write_case(out, record)
-    chunk = args.chunk or default_chunk(speeds.size)
     devices = sweep_devices(args.method)
     nlte = nlte_options_of(args)
     summary = {
@@ -430,9 +416,8 @@ def cmd_sweep(args) -> int:
                 branches[form] = run_branches(model, todo, args.direction, csv_path,
                                               progress=not args.json)
             elif todo.size:
-                size = min(chunk, todo.size)
-                if args.chunk is None:  # and what the saved states of a chunk fit in
-                    size = min(size, memory_chunk(model, tolerances))
+                # default: sweep's (CPU: 16-64 speeds per device; accelerators: memory)
+                size = None if args.chunk is None else min(args.chunk, todo.size)
                 res = sweep(model, todo, chunk_size=size, devices=devices,
                             progress=not args.json, out_csv=csv_path, method=args.method,
                             orders_csv=orders_path,

@@ -111,9 +111,9 @@ def sweep(
     ----------
     model : a model with the simulation interface (see :mod:`gearjax.dynamics.simulate`).
     speeds_rad_s : (n,) pinion speeds Omega1 (rad/s), finite and > 0.
-    chunk_size : speeds per compiled call (default: all, or as many as
-        :func:`memory_chunk` allows per device; rounded up to a multiple of the device
-        count). Smaller chunks give earlier progress/CSV output; chunks are padded
+    chunk_size : speeds per compiled call (default :func:`default_chunk_size`: on a CPU
+        16-64 speeds per device by the model's size, on accelerators as many as
+        :func:`memory_chunk` allows; rounded up to a multiple of the device count). Smaller chunks give earlier progress/CSV output; chunks are padded
         so that every call has the same shape (one compilation).
     progress : print one line per chunk to stderr.
     out_csv : append one row per speed (columns :data:`CSV_COLUMNS`) as chunks complete.
@@ -191,7 +191,8 @@ def sweep(
     if n_dev < 1:
         raise SimulationError("devices", devices, "need at least one device")
     if chunk_size is None:
-        chunk_size = min(speeds.size, memory_chunk(model, simulate_kwargs) * n_dev)
+        platform = (devices[0] if devices else jax.devices()[0]).platform
+        chunk_size = default_chunk_size(model, speeds.size, n_dev, simulate_kwargs, platform)
     if int(chunk_size) != chunk_size or chunk_size < 1:
         raise SimulationError("chunk_size", chunk_size, "must be a positive integer")
     chunk = int(math.ceil(int(chunk_size) / n_dev) * n_dev)
@@ -225,7 +226,7 @@ def sweep(
     if not lead:
         out_csv, orders_csv, progress = None, None, False
     t_start = time.perf_counter()
-    n_done = 0
+    n_done = n_unconverged = 0  # so far, as the progress line says
     for c in range(n_chunks):
         sel = padded_idx[c * chunk:(c + 1) * chunk]
         w = jnp.asarray(speeds[sel])
@@ -262,12 +263,13 @@ def sweep(
             n_done += len(first)
             conv = np.asarray(out[METRIC_FIELDS.index("converged")], dtype=bool)
             real = np.asarray(list(first.values())) - c * chunk
+            n_unconverged += int(np.sum(~conv[real]))
             bar = "#" * round(20 * n_done / speeds.size)
             print(
                 f"[gearjax.dynamics.sweep] {formulation:12s} [{bar:<20s}] chunk {c + 1}/{n_chunks}: {len(first)} speeds "
                 f"{speeds[sel].min():.4g}-{speeds[sel].max():.4g} rad/s in {dt:.2f} s "
                 f"({'incl. compile, ' if c == 0 else ''}{n_done}/{speeds.size} done, "
-                f"{int(np.sum(~conv[real]))} not converged, "
+                f"{n_unconverged} not converged, "
                 f"elapsed {time.perf_counter() - t_start:.1f} s)",
                 file=sys.stderr, flush=True,
             )
@@ -329,6 +331,39 @@ def memory_chunk(model, simulate_kwargs: dict | None = None,
             total = 16 * 2**30
         budget_bytes = CHUNK_MEMORY_FRACTION * total
     return max(1, int(budget_bytes // per_speed))
+
+
+# Speeds per device and compiled call on a CPU: at most CPU_CHUNK_STATE_ENTRIES / state size,
+# clipped to CPU_CHUNK_SPEEDS. Measured 2026-11-24 on 2 cores (one device each), speeds
+# sorted by cost, the time after the first (compiling) chunk: the 3D main job scenario
+# (266 states), te, 2000 speeds: 16 speeds per device 22.5 ms/speed (53.6 s in all), 32:
+# 25 ms (60 s), 64: 27 ms, 100: 31 ms, 500: 109 ms (343 s); reference, 1000 speeds: 16 per
+# device 35.9 s in all against 42.6 s at 64; the main job (45 speeds) 31 s in two chunks of
+# 24 against 34 s in one. The sdof te (2 states), 2000 speeds: 64 per device 7.4 s in all,
+# 128: 7.8 s, 16: 7.9 s, 1000: 10.7 s. Vmapped speeds advance in lockstep (a wide chunk
+# waits for its slowest speed) and a chunk's solver stages must stay in the core's cache
+# (16 speeds x 266 states x 8 bytes x the 13 stages of Dopri8: ~0.5 MB, the L2 of these
+# cores); a chunk also pays a fixed dispatch cost, hence the lower bound.
+CPU_CHUNK_STATE_ENTRIES = 4096
+CPU_CHUNK_SPEEDS = (16, 64)
+
+
+def default_chunk_size(model, n_speeds: int, n_devices: int = 1,
+                       simulate_kwargs: dict | None = None, platform: str = "cpu") -> int:
+    """Speeds per compiled call of :func:`sweep` when ``chunk_size`` is None: as many as
+    the saved states fit in memory (:func:`memory_chunk`, per device) and, on a CPU, at
+    most :data:`CPU_CHUNK_STATE_ENTRIES` / ``model.state_size`` per device (clipped to
+    :data:`CPU_CHUNK_SPEEDS`; see there for the measurements); accelerators take every
+    speed that memory holds in one batch. The speeds are split into equal chunks (no
+    chunk of padding copies)."""
+    per_device = memory_chunk(model, simulate_kwargs)
+    if platform == "cpu":
+        lo, hi = CPU_CHUNK_SPEEDS
+        per_device = min(per_device, max(lo, min(hi, CPU_CHUNK_STATE_ENTRIES
+                                                 // int(model.state_size))))
+    cap = max(1, per_device * int(n_devices))
+    n_chunks = math.ceil(int(n_speeds) / cap)
+    return max(1, math.ceil(int(n_speeds) / n_chunks))
 
 
 def tolerance_options(rtol: float | None) -> dict:
