@@ -71,7 +71,7 @@ def test_default_chunk_fits_memory(model, monkeypatch, capsys):
 def test_default_chunk_rule(monkeypatch):
     """chunk_size=None (:func:`gearjax.dynamics.sweep.default_chunk_size`): on a CPU 16-64
     speeds per device by the model's size (3D rig, 266 states: 16; sdof: 64), on an
-    accelerator all that memory holds; never more than memory holds; the speeds split
+    accelerator all that memory holds; never more than the memory holds; the speeds split
     into equal chunks (less than one padding copy per chunk)."""
     from types import SimpleNamespace
 
@@ -86,8 +86,11 @@ def test_default_chunk_rule(monkeypatch):
             c = rule(m, n, n_dev)
             k = -(-n // c)
             assert c <= max(16, min(64, 4096 // m.state_size)) * n_dev and k * c - n < k
+    # memory: CPU devices share the host's (3 speeds fit: 1 per device of 2), an
+    # accelerator has its own
     monkeypatch.setattr(sweep_mod, "memory_chunk", lambda *a, **k: 3)
-    assert rule(sdof, 2000, 2) == 6 and rule(rig3d, 4500, 1, platform="gpu") == 3
+    assert rule(sdof, 2000, 2) == 2 and rule(sdof, 2000, 1) == 3
+    assert rule(rig3d, 4500, 2, platform="gpu") == 6
 
 
 def test_csv_rows_and_progress(model, tmp_path, capsys):

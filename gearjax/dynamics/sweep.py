@@ -351,13 +351,15 @@ CPU_CHUNK_SPEEDS = (16, 64)
 def default_chunk_size(model, n_speeds: int, n_devices: int = 1,
                        simulate_kwargs: dict | None = None, platform: str = "cpu") -> int:
     """Speeds per compiled call of :func:`sweep` when ``chunk_size`` is None: as many as
-    the saved states fit in memory (:func:`memory_chunk`, per device) and, on a CPU, at
+    the saved states fit in memory (:func:`memory_chunk`: per device on accelerators, for
+    all devices together on a CPU, whose devices share the host's memory) and, on a CPU, at
     most :data:`CPU_CHUNK_STATE_ENTRIES` / ``model.state_size`` per device (clipped to
     :data:`CPU_CHUNK_SPEEDS`; see there for the measurements); accelerators take every
     speed that memory holds in one batch. The speeds are split into equal chunks (no
     chunk of padding copies)."""
     per_device = memory_chunk(model, simulate_kwargs)
-    if platform == "cpu":
+    if platform == "cpu":  # CPU devices share the host's memory
+        per_device = max(1, per_device // int(n_devices))
         lo, hi = CPU_CHUNK_SPEEDS
         per_device = min(per_device, max(lo, min(hi, CPU_CHUNK_STATE_ENTRIES
                                                  // int(model.state_size))))
