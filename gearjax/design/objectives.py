@@ -65,7 +65,7 @@ def method_tolerances(method: str, rtol: float | None) -> dict:
         return kw
     from ..dynamics.steady import shooting_options
 
-    return shooting_options({k: kw[k] for k in ("rtol", "atol", "convergence_tol")})
+    return shooting_options(kw)
 
 
 def smooth_max(v, sharpness: float = DEFAULT_SHARPNESS, scale=1.0):

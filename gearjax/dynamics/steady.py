@@ -176,6 +176,12 @@ def _solver_options(solver, rtol, atol):
     return solver, (d_rtol if rtol is None else rtol), (d_atol if atol is None else atol)
 
 
+# simulate() options of its transient only: a shooting sweep passes them to its
+# continuation (steady_sweep's continuation_kwargs), not to the shooting
+_TRANSIENT_ONLY = ("n_transient_periods", "transient_decay", "min_transient_mesh_periods",
+                   "max_transient_mesh_periods", "start")
+
+
 def shooting_options(simulate_kwargs: dict) -> dict:
     """:func:`steady_sweep` / :func:`steady_state` options for the transient solver options
     ``simulate_kwargs`` of a sweep or an objective (e.g.
@@ -186,8 +192,10 @@ def shooting_options(simulate_kwargs: dict) -> dict:
     1e-11: its error reaches the periodic start amplified by 1 / (1 - rho) (an oscillator
     at resonance, zeta 0.005, rho 0.969: 1.1e-3 error in the peak-to-peak with the
     shooting at rtol 1e-4, 2.1e-5 with it at 1e-9 and the measured periods at 1e-4;
-    ``tests/test_steady.py``). The other options pass unchanged."""
-    out = dict(simulate_kwargs)
+    ``tests/test_steady.py``). The transient's own options (``n_transient_periods``,
+    ``transient_decay``, ``min/max_transient_mesh_periods``, ``start``) are left out; the
+    others pass unchanged."""
+    out = {k: v for k, v in simulate_kwargs.items() if k not in _TRANSIENT_ONLY}
     for k in ("solver", "rtol", "atol"):
         if k in out:
             out["measure_" + k] = out.pop(k)

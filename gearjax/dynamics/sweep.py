@@ -113,8 +113,9 @@ def sweep(
     speeds_rad_s : (n,) pinion speeds Omega1 (rad/s), finite and > 0.
     chunk_size : speeds per compiled call (default :func:`default_chunk_size`: on a CPU
         16-64 speeds per device by the model's size, on accelerators as many as
-        :func:`memory_chunk` allows; rounded up to a multiple of the device count). Smaller chunks give earlier progress/CSV output; chunks are padded
-        so that every call has the same shape (one compilation).
+        :func:`memory_chunk` allows; rounded up to a multiple of the device count).
+        Smaller chunks give earlier progress/CSV output; chunks are padded so that every
+        call has the same shape (one compilation).
     progress : print one line per chunk to stderr.
     out_csv : append one row per speed (columns :data:`CSV_COLUMNS`) as chunks complete.
     devices : list of JAX devices to shard the speed axis over; ``None`` uses one device
@@ -459,18 +460,13 @@ def _harmonic(model, speeds, chunk_size, progress, out_csv, devices, simulate_kw
     return res
 
 
-_TRANSIENT_ONLY = ("n_transient_periods", "transient_decay", "min_transient_mesh_periods",
-                   "max_transient_mesh_periods", "start")
-
-
 def _steady(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs):
     from .steady import shooting_options, steady_sweep
 
     if devices is not None or jax.process_count() > 1:
         raise SimulationError("devices", devices, 'method="steady" runs on one device of one '
                               'process; use method="transient" to shard over devices or hosts')
-    steady_kw = shooting_options({k: v for k, v in simulate_kwargs.items()
-                                  if k not in _TRANSIENT_ONLY})
+    steady_kw = shooting_options(simulate_kwargs)
     res = steady_sweep(model, speeds, chunk_size=chunk_size, progress=progress,
                        continuation_kwargs=dict(simulate_kwargs), **steady_kw)
     _write_csv(out_csv, res, speeds)
