@@ -12,9 +12,11 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -25,6 +27,7 @@ from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import SimulationError, simulate
 from gearjax.dynamics.stability import spectral_radius
 from gearjax.dynamics.steady import (
+    periodic_state,
     spectral_radius_of,
     steady_state,
     steady_sweep,
@@ -201,6 +204,36 @@ def test_helical_sdof_agrees_with_long_transient(helical, formulation):
     (reference) on 2 shared cores."""
     _agrees_with_long_transient(_model(helical, formulation),
                                 np.array([193.3, 380.0, 660.0, 1100.0, 1500.0]), 260)
+
+
+def test_newton_into_free_flight_stops_at_once(te_model):
+    """At 381.1 and 394.1 rad/s (zeta 0.03, the contact-loss band) Newton's iterates leave
+    the orbit's basin into states whose next period is wholly out of contact: the free
+    rigid-body motion gives Phi the multiplier 1, so I - Phi is singular and the step
+    infinite. That speed stops (ok False); under vmap its loop body still runs in lockstep
+    with the others, and it used to integrate a period from the infinite iterate to
+    max_steps (a 1,000-speed sweep over 10 min; 25 s now). Watched here: no period is
+    ever started from a non-finite state. The sweep continues those speeds by a transient,
+    which settles on a periodic orbit with contact loss."""
+    starts = []
+
+    class Watched(TorsionalModel):
+        def vector_field(self, s, y, omega, contact: bool = True):
+            jax.debug.callback(lambda f: starts.append(np.asarray(f)), jnp.all(jnp.isfinite(y)))
+            return super().vector_field(s, y, omega, contact)
+
+    watched = Watched(**{f.name: getattr(te_model, f.name) for f in dataclasses.fields(te_model)})
+    speeds = np.array([300.0, 381.1, 394.1])
+    ps = eqx.filter_jit(eqx.filter_vmap(lambda w: periodic_state(watched, w, max_steps=20_000)))(
+        jnp.asarray(speeds))
+    np.testing.assert_array_equal(np.asarray(ps.ok), [True, False, False])
+    assert starts and all(np.all(f) for f in starts)
+    alone = periodic_state(te_model, 300.0)
+    np.testing.assert_allclose(ps.y0[0], alone.y0, rtol=1e-9, atol=1e-12)
+    st = steady_sweep(te_model, speeds, progress=False)
+    np.testing.assert_array_equal(st.continued, [False, True, True])
+    np.testing.assert_array_equal(st.contact_loss, [False, True, True])
+    assert np.all(st.converged) and np.all(st.min_mesh_force_N[1:] == 0.0)
 
 
 def test_clear_errors(te_model):

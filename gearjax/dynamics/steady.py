@@ -235,7 +235,13 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
     def step(y):
         y_p, phi, ok, steps = _one_period(model, omega, y, solver, rtol, atol, max_steps)
         dy = dense_solve(eye - phi, y_p - y)  # vmapped: gearjax.linalg
-        return y + dy, phi, ok, steps, jnp.sqrt(jnp.sum(dy * dy))
+        # a period wholly out of contact has a free rigid-body motion: Phi has the
+        # multiplier 1, I - Phi is singular and dy infinite. Stop there, and keep the last
+        # finite iterate: under vmap a stopped speed's body still runs in lockstep, and a
+        # period from an infinite start runs to max_steps (the 1,000-speed stall)
+        finite = jnp.all(jnp.isfinite(dy))
+        return (jnp.where(finite, y + dy, y), phi, ok & finite, steps,
+                jnp.sqrt(jnp.sum(dy * dy)))
 
     y1, phi, ok, steps, res = step(y_s)
     it = jnp.ones((), dtype=jnp.int32)
