@@ -417,3 +417,29 @@ def test_failed_integration_is_flagged_not_silent(spur):
     assert not bool(res.solver_ok[0]) and not bool(res.converged[0])
     assert np.isnan(float(res.dynamic_factor[0])) and np.isnan(float(res.dte_ptp_m[0]))
     assert not bool(res.contact_loss[0])
+
+
+def test_contact_loss_transient_slides_until_periodic(spur):
+    """The automatic transient counts the linear model's decay (zeta 0.1: ~20 periods);
+    at 669.7 and 674.9 rad/s (te, short relief) the teeth separate and the orbit decays
+    by only ~0.9 per period, so the measurement slides on period by period until the
+    change's own decay ratio says what is left is below convergence_tol. Against a
+    400-period transient at rtol 1e-10 (its change over a period ~1e-9): the max force is
+    within 2 convergence_tol F_S. Before: flagged unconverged after 20 periods; with the
+    linear model's reading alone it passed with the force 1e-2 F_S off. An explicit
+    transient count does not slide."""
+    model = TorsionalModel.build(spur, table1_relief("short"), formulation="te",
+                                 damping_ratio=0.1)
+    speeds = jnp.asarray([669.6848, 674.8874])
+    tol = 1e-4
+    auto = _vsim(convergence_tol=tol)(model, speeds)
+    long = _vsim(n_transient_periods=400, rtol=1e-10, atol=1e-12)(model, speeds)
+    f_s = model.static_force_N
+    assert np.all(np.asarray(long.contact_loss)) and np.all(np.asarray(long.convergence) < 1e-7)
+    assert np.all(np.asarray(auto.converged)) and np.all(np.asarray(auto.contact_loss))
+    err = np.abs(np.asarray(auto.max_mesh_force_N - long.max_mesh_force_N)) / f_s
+    assert np.all(err < 2 * tol), err
+    n_linear = np.ceil(math.log(1e6) / (np.asarray(jax.vmap(model.decay_rate_per_rad)(speeds))
+                                        * float(model.period_rad)))
+    assert np.all(np.asarray(auto.transient_periods) > 2 * n_linear)
+    np.testing.assert_array_equal(np.asarray(long.transient_periods), 400)

@@ -29,6 +29,7 @@ around an impact, by more (``tests/test_design.py``).
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import diffrax
@@ -44,7 +45,8 @@ SLOW_STAGE_GROWTH = 4.0
 
 def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: int,
                windows_of: Callable, t_transient, accelerated: bool, n_transient,
-               n_max_transient: int, tol: float, max_steps: int, adjoint):
+               n_max_transient: int, tol: float, max_steps: int, adjoint,
+               convergence_tol: float = math.inf, n_extend=0, n_max_extend: int = 0):
     """Integrate the legs of one simulation (module docstring).
 
     Parameters
@@ -54,13 +56,23 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
     y0 : state at theta = 0, the start of the transient.
     ts : (n_meas, n) output angles (rad) of each measured period, in
         ``[t_transient + p P, t_transient + (p + 1) P)``, ``n < n_out``.
-    n_win : refinement windows; ``windows_of(ys)`` maps the measured states on ``ts``
-        (flattened, (n_meas n, m)) to the windows' start angles (n_win,), start states
-        (n_win, m) and output angles (n_win, k), ``k <= n_out``.
+    n_win : refinement windows; ``windows_of(ys, change)`` maps the measured states on
+        ``ts`` (flattened, (n_meas n, m)) and the change over a period of the measurement
+        before (inf if none) to ``(windows, (convergence, change))``: the windows' start
+        angles (n_win,), start states (n_win, m) and output angles (n_win, k),
+        ``k <= n_out``, the convergence measure of those periods and their change.
     t_transient : angle (rad) at which the measured periods start: the plain transient is
         one leg from 0 to it (none if 0). ``accelerated``: it is 0 and the transient is
         period legs, at most ``n_transient`` (traced; static bound ``n_max_transient``),
         stopping when the largest change of the state over a period is below ``tol``.
+    convergence_tol, n_extend, n_max_extend : where the measured periods' convergence
+        exceeds ``convergence_tol`` (and ``n_meas >= 2``), the measurement slides by one
+        period (the first measured period becomes transient, one more is integrated, by
+        the excitation's periodicity at the same angles), at most ``n_extend`` times
+        (traced, less the accelerated transient's periods; static bound
+        ``n_max_extend``, 0: never). A transient too short for the
+        response (a contact-loss orbit decays more slowly than the linear model's estimate
+        of the automatic count) then ends on a periodic response rather than a flag.
 
     Returns
     -------
@@ -68,7 +80,8 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
     windows : (n_win, k, m) the windows' states on their output angles.
     success, n_steps : (n_meas + n_win,) each leg ended successfully; its steps.
     transient : (periods of the accelerated transient (None if not accelerated), steps,
-        all successful) of the transient legs.
+        all successful, measured periods slid past) of the transient legs; the
+        measured periods' convergence (``windows_of``).
     """
     period = float(model.period_rad)
     n_meas = ts.shape[0]
@@ -139,16 +152,31 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
         out["wins"] = keep(c["wins"], i, ~tr & ~meas, sol.ys[: n_fine])
         out["success"] = keep(c["success"], j, ~tr, good)
         out["n_steps"] = keep(c["n_steps"], j, ~tr, steps)
-        # after the last measured period: the windows (a cond on a per-speed flag: under
-        # vmap both sides are evaluated, a few hundred output evaluations per leg)
+        # after the last measured period: the windows and the convergence (a cond on a
+        # per-speed flag: under vmap both sides are evaluated, a few hundred output
+        # evaluations per leg)
         grid = out["grid"].reshape((-1,) + y0.shape)
-        out["windows"] = jax.lax.cond(leg == n_meas - 1, lambda: windows_of(grid),
-                                      lambda: c["windows"])
+        last = leg == n_meas - 1
+        out["windows"], (out["conv"], change) = jax.lax.cond(
+            last, lambda: windows_of(grid, c["change"]),
+            lambda: (c["windows"], (c["conv"], c["change"])))
+        if n_max_extend > 0 and n_meas >= 2:  # slide the measured periods by one
+            used = c["extra"] + (c["k"] if accelerated else 0)
+            slide = last & good & (out["conv"] > convergence_tol) & (used < n_extend)
+            roll = lambda a: a.at[:n_meas].set(jnp.roll(a[:n_meas], -1, axis=0))  # noqa: E731
+            out["steps_tr"] = out["steps_tr"] + jnp.where(slide, out["n_steps"][0], 0)
+            out["ok_tr"] = out["ok_tr"] & (~slide | out["success"][0])
+            for name in ("grid", "success", "n_steps"):
+                out[name] = jnp.where(slide, roll(out[name]), out[name])
+            out["extra"] = c["extra"] + slide
+            out["change"] = jnp.where(slide, change, c["change"])
+            out["leg"] = jnp.where(slide, leg, out["leg"])
         return out
 
     grid0 = jax.ShapeDtypeStruct((ts.size,) + y0.shape, y0.dtype)
-    zero_windows = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype),
-                                jax.eval_shape(windows_of, grid0))
+    inf = jnp.asarray(jnp.inf, y0.dtype)
+    zero_windows, _ = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype),
+                                   jax.eval_shape(windows_of, grid0, inf))
     n_fine = zero_windows[2].shape[1]
     has_transient = (n_transient > 0) if accelerated else (t_transient > 0)
     init = dict(
@@ -156,12 +184,14 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
         grid=jnp.zeros(ts.shape + y0.shape, y0.dtype),
         wins=jnp.zeros((n_win, n_fine) + y0.shape, y0.dtype),
         success=jnp.zeros(n_legs, bool), n_steps=jnp.zeros(n_legs, jnp.asarray(0).dtype),
-        steps_tr=jnp.asarray(0), ok_tr=jnp.asarray(True),
+        steps_tr=jnp.asarray(0), ok_tr=jnp.asarray(True), conv=inf, change=inf,
+        extra=jnp.asarray(0),
     )
     if accelerated:
         init.update(k=jnp.asarray(0.0), best=jnp.asarray(jnp.inf), stage=jnp.asarray(2))
     kind = "lax" if isinstance(adjoint, diffrax.ForwardMode) else "checkpointed"
-    bound = (n_max_transient if accelerated else 1) + n_legs
+    bound = (n_max_transient if accelerated else 1) + n_legs + n_max_extend
     c = eqxi.while_loop(cond, body, init, max_steps=bound, kind=kind)
     k = c["k"] if accelerated else None
-    return c["grid"], c["wins"], c["success"], c["n_steps"], (k, c["steps_tr"], c["ok_tr"])
+    return c["grid"], c["wins"], c["success"], c["n_steps"], (k, c["steps_tr"], c["ok_tr"],
+                                                              c["extra"]), c["conv"]
