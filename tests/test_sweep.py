@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import subprocess
 import sys
 import textwrap
 
 import equinox as eqx
+import jax
 import numpy as np
 import pytest
 
@@ -68,7 +70,7 @@ def test_default_chunk_fits_memory(model, monkeypatch, capsys):
     assert "chunk 3/3" in capsys.readouterr().err
 
 
-def test_default_chunk_rule(monkeypatch):
+def test_default_chunk_rule(model, monkeypatch):
     """chunk_size=None (:func:`gearjax.dynamics.sweep.default_chunk_size`): on a CPU 16-64
     speeds per device by the model's size (3D rig, 266 states: 16; sdof: 64), on an
     accelerator all that memory holds; never more than the memory holds; the speeds split
@@ -91,6 +93,17 @@ def test_default_chunk_rule(monkeypatch):
     monkeypatch.setattr(sweep_mod, "memory_chunk", lambda *a, **k: 3)
     assert rule(sdof, 2000, 2) == 2 and rule(sdof, 2000, 1) == 3
     assert rule(rig3d, 4500, 2, platform="gpu") == 6
+    monkeypatch.undo()
+    # an accelerator's own memory sets its batch (a model whose 4,500 speeds fit in 40 %
+    # of 80 GB but not of 10 MB); a CPU's devices ignore it (the host's memory); a device
+    # without memory statistics reports None
+    per_mb = sweep_mod.memory_chunk(model, budget_bytes=0.4e7)  # speeds in 10 MB
+    assert 1 <= per_mb < 4500
+    assert rule(model, 4500, 1, platform="gpu", device_bytes=80e9) == 4500
+    assert rule(model, 4500, 1, platform="gpu", device_bytes=1e7) == \
+        math.ceil(4500 / math.ceil(4500 / per_mb))
+    assert rule(model, 2000, 2, device_bytes=1e7) == 2000 // 16
+    assert sweep_mod.device_memory_bytes(jax.devices("cpu")[0]) is None
 
 
 def test_csv_rows_and_progress(model, tmp_path, capsys):

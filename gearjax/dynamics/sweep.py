@@ -113,7 +113,8 @@ def sweep(
     speeds_rad_s : (n,) pinion speeds Omega1 (rad/s), finite and > 0.
     chunk_size : speeds per compiled call (default :func:`default_chunk_size`: on a CPU
         16-64 speeds per device by the model's size, on accelerators as many as
-        :func:`memory_chunk` allows; rounded up to a multiple of the device count).
+        :func:`memory_chunk` allows in the device's own memory; rounded up to a multiple
+        of the device count).
         Smaller chunks give earlier progress/CSV output; chunks are padded so that every
         call has the same shape (one compilation).
     progress : print one line per chunk to stderr.
@@ -192,8 +193,9 @@ def sweep(
     if n_dev < 1:
         raise SimulationError("devices", devices, "need at least one device")
     if chunk_size is None:
-        platform = (devices[0] if devices else jax.devices()[0]).platform
-        chunk_size = default_chunk_size(model, speeds.size, n_dev, simulate_kwargs, platform)
+        first = devices[0] if devices else jax.devices()[0]
+        chunk_size = default_chunk_size(model, speeds.size, n_dev, simulate_kwargs,
+                                        first.platform, device_memory_bytes(first))
     if int(chunk_size) != chunk_size or chunk_size < 1:
         raise SimulationError("chunk_size", chunk_size, "must be a positive integer")
     chunk = int(math.ceil(int(chunk_size) / n_dev) * n_dev)
@@ -349,16 +351,32 @@ CPU_CHUNK_STATE_ENTRIES = 4096
 CPU_CHUNK_SPEEDS = (16, 64)
 
 
+def device_memory_bytes(device) -> int | None:
+    """Memory of an accelerator ``device`` in bytes (its allocator's ``bytes_limit``), or
+    None where the backend does not say (CPU devices share the host's memory)."""
+    try:
+        stats = device.memory_stats()
+    except (AttributeError, NotImplementedError, RuntimeError):  # backends without them
+        return None
+    limit = (stats or {}).get("bytes_limit")
+    return int(limit) if limit else None
+
+
 def default_chunk_size(model, n_speeds: int, n_devices: int = 1,
-                       simulate_kwargs: dict | None = None, platform: str = "cpu") -> int:
+                       simulate_kwargs: dict | None = None, platform: str = "cpu",
+                       device_bytes: int | None = None) -> int:
     """Speeds per compiled call of :func:`sweep` when ``chunk_size`` is None: as many as
-    the saved states fit in memory (:func:`memory_chunk`: per device on accelerators, for
-    all devices together on a CPU, whose devices share the host's memory) and, on a CPU, at
+    the saved states fit in memory (:func:`memory_chunk`: per device on accelerators, of
+    ``device_bytes`` each where given (:func:`device_memory_bytes`), else of the host's
+    memory; for all devices together on a CPU, whose devices share the host's memory)
+    and, on a CPU, at
     most :data:`CPU_CHUNK_STATE_ENTRIES` / ``model.state_size`` per device (clipped to
     :data:`CPU_CHUNK_SPEEDS`; see there for the measurements); accelerators take every
     speed that memory holds in one batch. The speeds are split into equal chunks (no
     chunk of padding copies)."""
-    per_device = memory_chunk(model, simulate_kwargs)
+    on_device = platform != "cpu" and device_bytes
+    per_device = memory_chunk(model, simulate_kwargs, CHUNK_MEMORY_FRACTION * device_bytes
+                              if on_device else None)
     if platform == "cpu":  # CPU devices share the host's memory
         per_device = max(1, per_device // int(n_devices))
         lo, hi = CPU_CHUNK_SPEEDS
