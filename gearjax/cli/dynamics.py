@@ -294,6 +294,15 @@ def _check_te_file(args, forms) -> None:
                          "te,perturbation (the default with --te-file)")
 
 
+def _tolerances(args) -> dict:
+    """``--rtol`` as :func:`gearjax.dynamics.sweep.tolerance_options` reads it, its range
+    error as a command-line error."""
+    try:
+        return tolerance_options(args.rtol)
+    except SimulationError as exc:
+        raise ValueError(f"--rtol={args.rtol!r}: must lie in [1e-13, 1e-2]") from exc
+
+
 def cmd_sweep(args) -> int:
     from ..rigs.registry import get_rig
     from ..dynamics.sweep import sweep
@@ -321,10 +330,7 @@ def cmd_sweep(args) -> int:
         raise ValueError("--resume --overwrite: choose one (continue the run, or replace it)")
     if args.chunk is not None and args.chunk < 1:
         raise ValueError(f"--chunk={args.chunk}: must be >= 1")
-    try:
-        tolerances = tolerance_options(args.rtol)
-    except SimulationError as exc:
-        raise ValueError(f"--rtol={args.rtol!r}: must lie in [1e-13, 1e-2]") from exc
+    tolerances = _tolerances(args)
     if tolerances and args.direction != "independent":
         raise ValueError(f"--rtol={args.rtol!r}: for independent sweeps (the continuation of "
                          "--direction keeps its shooting tolerances)")
@@ -593,8 +599,8 @@ def cmd_stability(args) -> int:
     speeds = _parse_speeds(args.speeds)
     _check_damping(args.damping)
     _check_te_file(args, [args.formulation])
-    if args.rtol is not None and not (math.isfinite(args.rtol) and 1e-13 <= args.rtol <= 1e-2):
-        raise ValueError(f"--rtol={args.rtol!r}: must lie in [1e-13, 1e-2]")
+    # the monodromy's integrator takes --rtol (atol R/100): the accuracy of rho
+    tols = {k: v for k, v in _tolerances(args).items() if k in ("rtol", "atol")}
     reaction = nlte_reaction_of(args)
     rig = get_rig(args.rig)
     scen = scenario_modifications(rig, args)
@@ -612,7 +618,6 @@ def cmd_stability(args) -> int:
     method = args.method
     if method == "auto":  # the monodromy costs n columns: cheap for the sdof model only
         method = "steady" if model.state_size <= HARMONIC_FLOQUET_MAX_STATES else "harmonic"
-    tols = {} if args.rtol is None else dict(rtol=args.rtol, atol=args.rtol / 100)
     t0 = time.perf_counter()
     bound = np.full(speeds.size, np.nan)
     rho = np.full(speeds.size, np.nan)
