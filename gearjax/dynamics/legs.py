@@ -70,7 +70,7 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
         period (the first measured period becomes transient, one more is integrated, by
         the excitation's periodicity at the same angles), at most ``n_extend`` times
         (traced, less the accelerated transient's periods; static bound
-        ``n_max_extend``, 0: never). A transient too short for the
+        ``n_max_extend``, 0: never; within it at least once). A transient too short for the
         response (a contact-loss orbit decays more slowly than the linear model's estimate
         of the automatic count) then ends on a periodic response rather than a flag.
 
@@ -161,8 +161,12 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
             last, lambda: windows_of(grid, c["change"]),
             lambda: (c["windows"], (c["conv"], c["change"])))
         if n_max_extend > 0 and n_meas >= 2:  # slide the measured periods by one
+            # within the budget, and once in any case (a contact-loss measure needs a
+            # change before it to read the decay: an accelerated transient may have used
+            # the whole count)
             used = c["extra"] + (c["k"] if accelerated else 0)
-            slide = last & good & (out["conv"] > convergence_tol) & (used < n_extend)
+            slide = last & good & (out["conv"] > convergence_tol) & (
+                (used < n_extend) | (c["extra"] < 1))
             roll = lambda a: a.at[:n_meas].set(jnp.roll(a[:n_meas], -1, axis=0))  # noqa: E731
             out["steps_tr"] = out["steps_tr"] + jnp.where(slide, out["n_steps"][0], 0)
             out["ok_tr"] = out["ok_tr"] & (~slide | out["success"][0])
