@@ -15,7 +15,8 @@ from gearjax.models.torsional import TorsionalModel
 from gearjax.rigs.registry import get_rig
 
 CSV_COLUMNS = ("speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor", "dte_ptp_m",
-               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged", "convergence")
+               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged", "convergence",
+               "period_multiple")
 
 
 def _json(capsys, argv):
@@ -372,3 +373,21 @@ def test_pinion_reaction_kappa_and_resume_check(monkeypatch, tmp_path, capsys):
         "--nlte-reaction", "pinion"])
     assert (tmp_path / "gearjax-out" / "baud-velex-spur-torsional-short-zeta0.1-nlte-pinion"
             / "case.json").exists()
+
+
+def test_sweep_names_sub_harmonic_speeds(capsys, tmp_path):
+    """te, short relief, zeta 0.03 at 1490 and 1510 rad/s settles on a period-2 orbit
+    (tests/test_dynamics_sdof.py checks it against a long transient): the CLI lists those
+    speeds as sub-harmonic, with their period, not as "not converged", and results.csv and
+    summary.json say so."""
+    out = tmp_path / "sub"
+    assert main(["sweep", "--model", "torsional", "--formulations", "te", "--damping", "0.03",
+                 "--speeds", "1490:1510:2", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "sub-harmonic" in text and "1490 (2P), 1510 (2P)" in text
+    assert "not converged to steady state" not in text
+    data = _csv(out / "results.csv")
+    np.testing.assert_array_equal(data["period_multiple"], [2, 2])
+    assert not any(data["converged"])
+    summary = json.load(open(out / "summary.json"))
+    assert summary["formulations"]["te"]["subharmonic_speeds"] == {"1490.0": 2, "1510.0": 2}

@@ -443,3 +443,30 @@ def test_contact_loss_transient_slides_until_periodic(spur):
                                         * float(model.period_rad)))
     assert np.all(np.asarray(auto.transient_periods) > 2 * n_linear)
     np.testing.assert_array_equal(np.asarray(long.transient_periods), 400)
+
+
+def test_period_two_orbit_is_recognised_and_measured_whole(spur):
+    """At 1500 rad/s (te, short relief, zeta 0.03) the teeth separate and the response
+    settles on a period-2 orbit: a 400-period transient at rtol 1e-10 shows per-period
+    force peaks alternating by ~2 F_S and repeating two periods back to 1e-6 F_S. The
+    automatic transient's sliding measurement must stop there with period_multiple 2 (not
+    slide to its budget and report an unconverged period-1 reading), keep
+    ``converged`` False (it means period 1), and give the peak over both periods of the
+    orbit. At 300 rad/s the orbit has period 1."""
+    model = TorsionalModel.build(spur, table1_relief("short"), formulation="te",
+                                 damping_ratio=0.03)
+    speeds = jnp.asarray([1500.0, 300.0])
+    tol = 1e-4
+    auto = _vsim(convergence_tol=tol)(model, speeds)
+    long = _vsim(n_transient_periods=400, n_measured_periods=4, rtol=1e-10, atol=1e-12,
+                 save_signals=True)(model, speeds)
+    f_s = model.static_force_N
+    peaks = np.asarray(long.signals.mesh_force_N[0]).reshape(4, -1).max(1) / f_s
+    assert abs(peaks[0] - peaks[1]) > 1.0 and abs(peaks[0] - peaks[2]) < 1e-6, peaks
+    np.testing.assert_array_equal(np.asarray(auto.period_multiple), [2, 1])
+    np.testing.assert_array_equal(np.asarray(auto.converged), [False, True])
+    assert int(auto.transient_periods[0]) < 400  # stopped once recognised
+    err = np.abs(np.asarray(auto.max_mesh_force_N - long.max_mesh_force_N)) / f_s
+    assert np.all(err < 2 * tol), err
+    err = np.abs(np.asarray(auto.min_mesh_force_N - long.min_mesh_force_N)) / f_s
+    assert np.all(err < 2 * tol), err

@@ -16,7 +16,8 @@ from gearjax.rigs.registry import get_rig
 from gearjax.dynamics.sweep import auto_method, sweep
 
 CSV_COLUMNS = ["speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor", "dte_ptp_m",
-               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged", "convergence"]
+               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged", "convergence",
+               "period_multiple"]
 
 
 def test_main_job_3d_outputs_low_speed_limit_and_claim_1(capsys, tmp_path):

@@ -22,6 +22,8 @@ from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import SimulationError, simulate
 from gearjax.dynamics.sweep import CSV_COLUMNS, sweep
+from gearjax.dynamics.results import append_rows
+from gearjax.errors import GearjaxError
 
 OPTS = dict(n_transient_periods=12, n_measured_periods=2)
 
@@ -133,6 +135,15 @@ def test_csv_rows_and_progress(model, tmp_path, capsys):
     with open(out) as fh:
         lines = fh.read().splitlines()
     assert len(lines) == 1 + 5 + 1 and lines.count(",".join(CSV_COLUMNS)) == 1
+    assert all(r["period_multiple"] == ("1" if r["converged"] == "True" else r["period_multiple"])
+               for r in rows)
+    # a file of another column set (an earlier gearjax's run) is refused, not appended to
+    # with its rows read into the wrong columns
+    old = tmp_path / "old.csv"
+    old.write_text(",".join(CSV_COLUMNS[:-1]) + "\n")
+    with pytest.raises(GearjaxError, match="period_multiple.*--overwrite"):
+        append_rows(old, CSV_COLUMNS, [{c: "" for c in CSV_COLUMNS}])
+    assert old.read_text() == ",".join(CSV_COLUMNS[:-1]) + "\n"
 
 
 def test_bad_input(model):

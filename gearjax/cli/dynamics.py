@@ -551,6 +551,13 @@ def _write_signals(signals, out, title) -> dict:
     return {"signals_csv": path, "mesh_force_signals_png": fig}
 
 
+def _listed(speeds, tags=None) -> str:
+    """The first 8 speeds (rad/s, with their tags) and how many more."""
+    tags = tags or [""] * len(speeds)
+    text = ", ".join(f"{w:.0f}{t}" for w, t in list(zip(speeds, tags))[:8])
+    return text + (f" (+{len(speeds) - 8} more)" if len(speeds) > 8 else "")
+
+
 def _print_summary(rig, summary, out):
     pred = summary["predicted"]
     print(f"\n  {rig.description}")
@@ -575,12 +582,17 @@ def _print_summary(rig, summary, out):
               f"{len(r['contact_loss_speeds']):13d} {len(r['unconverged_speeds']):12d} {vs:>13s} "
               f"{r['build_time_s'] + r['wall_time_s']:9.1f}")
     for form, r in summary["formulations"].items():
-        if r["unconverged_speeds"]:
-            more = len(r["unconverged_speeds"]) - 8
-            print(f"  note: {form} not converged to steady state at "
-                  f"{', '.join(f'{w:.0f}' for w in r['unconverged_speeds'][:8])}"
-                  f"{f' (+{more} more)' if more > 0 else ''} rad/s (converged=False in "
-                  "results.csv); the peak K_v is over the converged speeds only")
+        sub = r.get("subharmonic_speeds") or {}
+        rest = [w for w in r["unconverged_speeds"] if repr(float(w)) not in sub]
+        if rest:
+            print(f"  note: {form} not converged to steady state at {_listed(rest)} rad/s "
+                  "(converged=False in results.csv); the peak K_v is over the converged "
+                  "speeds only")
+        if sub:
+            print(f"  note: {form} periodic over m excitation periods (sub-harmonic, "
+                  f"period_multiple m in results.csv; converged=False, out of the peak K_v) "
+                  f"at {_listed([float(w) for w in sub], [f' ({m}P)' for m in sub.values()])} "
+                  "rad/s")
     files = [summary["results_csv"]] + [summary[k] for k in (
         "response_curves_png", "orders_csv", "order_tracks_png") if k in summary]
     files += [os.path.join(out, "summary.json")]

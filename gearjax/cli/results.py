@@ -110,6 +110,7 @@ def summarise_rows(rows: list[dict], formulation: str, speeds: np.ndarray) -> di
     conv = np.array([r["converged"] == "True" for r in rs], dtype=bool)
     resid = np.array([_float(r.get("convergence", "nan")) for r in rs])
     loss = np.array([r["contact_loss"] == "True" for r in rs], dtype=bool)
+    period = np.array([_float(r.get("period_multiple", "")) for r in rs])
     finite = np.isfinite(df)
     ok = conv & finite
     i = int(np.argmax(np.where(ok, df, -np.inf))) if ok.any() else None
@@ -123,6 +124,9 @@ def summarise_rows(rows: list[dict], formulation: str, speeds: np.ndarray) -> di
         "missing_speeds": missing,
         "contact_loss_speeds": [float(v) for v in w[loss]],
         "unconverged_speeds": [float(v) for v in w[~conv]],
+        # of those, the sub-harmonic orbits: speed -> period in excitation periods
+        "subharmonic_speeds": {repr(float(v)): int(m) for v, m in zip(w, period)
+                               if np.isfinite(m) and m >= 2},
         "failed_speeds": [float(v) for v in w[~finite]],
         # the achieved periodicity residual (results.csv's convergence column), worst speed
         "max_convergence_measure": (float(np.nanmax(resid)) if np.any(np.isfinite(resid))

@@ -686,12 +686,13 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     known = proven | np.isfinite(rho)
     holds = out["contact_holds"] > 0
     zero = np.zeros(speeds.size)
+    conv = ok & (out["error_estimate"] <= rtol) & (stable | ~known)
     return HarmonicSweepResult(
         speed_rad_s=speeds, max_mesh_force_N=out["max_mesh_force_N"],
         min_mesh_force_N=out["min_mesh_force_N"], dynamic_factor=out["dynamic_factor"],
         dte_ptp_m=out["dte_ptp_m"], accel_ptp_m_s2=out["accel_ptp_m_s2"],
         contact_loss=ok & ~holds, convergence=out["error_estimate"],
-        converged=ok & (out["error_estimate"] <= rtol) & (stable | ~known), solver_ok=ok,
+        converged=conv, period_multiple=np.where(conv, 1, 0), solver_ok=ok,
         n_steps=zero.astype(np.int64), transient_periods=zero, formulation=model.formulation,
         n_harmonics=n_used, error_estimate=out["error_estimate"], contact_holds=holds,
         spectral_radius=rho, stable=stable, stability_known=known,

@@ -44,7 +44,7 @@ SLOW_STAGE_GROWTH = 4.0
 
 
 def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: int,
-               windows_of: Callable, t_transient, accelerated: bool, n_transient,
+               windows_of: Callable, memo, t_transient, accelerated: bool, n_transient,
                n_max_transient: int, tol: float, max_steps: int, adjoint,
                convergence_tol: float = math.inf, n_extend=0, n_max_extend: int = 0):
     """Integrate the legs of one simulation (module docstring).
@@ -56,11 +56,13 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
     y0 : state at theta = 0, the start of the transient.
     ts : (n_meas, n) output angles (rad) of each measured period, in
         ``[t_transient + p P, t_transient + (p + 1) P)``, ``n < n_out``.
-    n_win : refinement windows; ``windows_of(ys, change)`` maps the measured states on
-        ``ts`` (flattened, (n_meas n, m)) and the change over a period of the measurement
-        before (inf if none) to ``(windows, (convergence, change))``: the windows' start
-        angles (n_win,), start states (n_win, m) and output angles (n_win, k),
-        ``k <= n_out``, the convergence measure of those periods and their change.
+    n_win, windows_of, memo : refinement windows; ``windows_of(ys, memo)`` maps the
+        measured states on ``ts`` (flattened, (n_meas n, m)) and what the measurements
+        before left (``memo``, a pytree; its initial value given) to ``(windows,
+        (convergence, multiple), memo)``: the windows' start angles (n_win,), start
+        states (n_win, m) and output angles (n_win, k), ``k <= n_out``, the convergence
+        measure of those periods, the sub-harmonic period found (0: none) and what this
+        measurement leaves to the next one should the measurement slide.
     t_transient : angle (rad) at which the measured periods start: the plain transient is
         one leg from 0 to it (none if 0). ``accelerated``: it is 0 and the transient is
         period legs, at most ``n_transient`` (traced; static bound ``n_max_transient``),
@@ -68,7 +70,8 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
     convergence_tol, n_extend, n_max_extend : where the measured periods' convergence
         exceeds ``convergence_tol`` (and ``n_meas >= 2``), the measurement slides by one
         period (the first measured period becomes transient, one more is integrated, by
-        the excitation's periodicity at the same angles), at most ``n_extend`` times
+        the excitation's periodicity at the same angles) unless a sub-harmonic period is
+        found, at most ``n_extend`` times
         (traced, less the accelerated transient's periods; static bound
         ``n_max_extend``, 0: never; within it at least once). A transient too short for the
         response (a contact-loss orbit decays more slowly than the linear model's estimate
@@ -81,7 +84,8 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
     success, n_steps : (n_meas + n_win,) each leg ended successfully; its steps.
     transient : (periods of the accelerated transient (None if not accelerated), steps,
         all successful, measured periods slid past) of the transient legs; the
-        measured periods' convergence (``windows_of``).
+        measured periods' ``(convergence, multiple)`` and the ``memo`` of the last slide
+        (``windows_of``).
     """
     period = float(model.period_rad)
     n_meas = ts.shape[0]
@@ -157,15 +161,15 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
         # evaluations per leg)
         grid = out["grid"].reshape((-1,) + y0.shape)
         last = leg == n_meas - 1
-        out["windows"], (out["conv"], change) = jax.lax.cond(
-            last, lambda: windows_of(grid, c["change"]),
-            lambda: (c["windows"], (c["conv"], c["change"])))
+        out["windows"], (out["conv"], out["multiple"]), memo = jax.lax.cond(
+            last, lambda: windows_of(grid, c["memo"]),
+            lambda: (c["windows"], (c["conv"], c["multiple"]), c["memo"]))
         if n_max_extend > 0 and n_meas >= 2:  # slide the measured periods by one
             # within the budget, and once in any case (a contact-loss measure needs a
             # change before it to read the decay: an accelerated transient may have used
             # the whole count)
             used = c["extra"] + (c["k"] if accelerated else 0)
-            slide = last & good & (out["conv"] > convergence_tol) & (
+            slide = last & good & (out["conv"] > convergence_tol) & (out["multiple"] == 0) & (
                 (used < n_extend) | (c["extra"] < 1))
             roll = lambda a: a.at[:n_meas].set(jnp.roll(a[:n_meas], -1, axis=0))  # noqa: E731
             out["steps_tr"] = out["steps_tr"] + jnp.where(slide, out["n_steps"][0], 0)
@@ -173,14 +177,15 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
             for name in ("grid", "success", "n_steps"):
                 out[name] = jnp.where(slide, roll(out[name]), out[name])
             out["extra"] = c["extra"] + slide
-            out["change"] = jnp.where(slide, change, c["change"])
+            out["memo"] = jax.tree.map(lambda new, old: jnp.where(slide, new, old), memo,
+                                       c["memo"])
             out["leg"] = jnp.where(slide, leg, out["leg"])
         return out
 
     grid0 = jax.ShapeDtypeStruct((ts.size,) + y0.shape, y0.dtype)
     inf = jnp.asarray(jnp.inf, y0.dtype)
-    zero_windows, _ = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype),
-                                   jax.eval_shape(windows_of, grid0, inf))
+    zero_windows, _, _ = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype),
+                                      jax.eval_shape(windows_of, grid0, memo))
     n_fine = zero_windows[2].shape[1]
     has_transient = (n_transient > 0) if accelerated else (t_transient > 0)
     init = dict(
@@ -188,7 +193,8 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
         grid=jnp.zeros(ts.shape + y0.shape, y0.dtype),
         wins=jnp.zeros((n_win, n_fine) + y0.shape, y0.dtype),
         success=jnp.zeros(n_legs, bool), n_steps=jnp.zeros(n_legs, jnp.asarray(0).dtype),
-        steps_tr=jnp.asarray(0), ok_tr=jnp.asarray(True), conv=inf, change=inf,
+        steps_tr=jnp.asarray(0), ok_tr=jnp.asarray(True), conv=inf, multiple=jnp.asarray(0),
+        memo=memo,
         extra=jnp.asarray(0),
     )
     if accelerated:
@@ -197,5 +203,5 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
     bound = (n_max_transient if accelerated else 1) + n_legs + n_max_extend
     c = eqxi.while_loop(cond, body, init, max_steps=bound, kind=kind)
     k = c["k"] if accelerated else None
-    return c["grid"], c["wins"], c["success"], c["n_steps"], (k, c["steps_tr"], c["ok_tr"],
-                                                              c["extra"]), c["conv"]
+    return (c["grid"], c["wins"], c["success"], c["n_steps"],
+            (k, c["steps_tr"], c["ok_tr"], c["extra"]), (c["conv"], c["multiple"]), c["memo"])

@@ -13,6 +13,7 @@ import os
 import equinox as eqx
 import numpy as np
 
+from ..errors import GearjaxError
 from .orders import N_MESH_ORDERS
 
 __all__ = ["SweepResult", "CSV_COLUMNS", "METRIC_FIELDS", "ORDER_FIELDS", "ORDER_COLUMNS",
@@ -29,6 +30,7 @@ CSV_COLUMNS = (
     "contact_loss",
     "converged",
     "convergence",  # the periodicity measure behind `converged` (the achieved residual)
+    "period_multiple",  # the response's period in excitation periods (0: not periodic)
 )
 
 
@@ -39,7 +41,7 @@ class SweepResult(eqx.Module):
     ----------
     speed_rad_s, max_mesh_force_N, min_mesh_force_N, dynamic_factor, dte_ptp_m,
     accel_ptp_m_s2, contact_loss, convergence, converged, solver_ok, n_steps,
-    transient_periods : NumPy arrays of shape (n_speeds,), see
+    transient_periods, period_multiple : NumPy arrays of shape (n_speeds,), see
         :class:`gearjax.dynamics.simulate.SimulationResult`.
     mesh_force_orders_N, dte_orders_m, accel_orders_m_s2 : (n_speeds, 5) single-sided
         peak amplitudes of mesh orders 1..5 (column k-1: order k, k times the mesh
@@ -60,6 +62,7 @@ class SweepResult(eqx.Module):
     solver_ok: np.ndarray
     n_steps: np.ndarray
     transient_periods: np.ndarray
+    period_multiple: np.ndarray
     mesh_force_orders_N: np.ndarray
     dte_orders_m: np.ndarray
     accel_orders_m_s2: np.ndarray
@@ -78,7 +81,7 @@ ORDER_FIELDS = ("mesh_force_orders_N", "dte_orders_m", "accel_orders_m_s2")
 METRIC_FIELDS = (
     "speed_rad_s", "max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
     "accel_ptp_m_s2", "contact_loss", "convergence", "converged", "solver_ok", "n_steps",
-    "transient_periods",
+    "transient_periods", "period_multiple",
 ) + ORDER_FIELDS
 
 # orders.csv: order<k>_<signal>_<unit>, single-sided peak amplitudes (SI), DTE first
@@ -101,6 +104,12 @@ def fmt_value(v):
     return "" if math.isnan(v) else repr(v)
 
 
+def _fmt_int(v):
+    """An integer metric as CSV text, empty for NaN (a speed not computed)."""
+    v = float(v)
+    return "" if math.isnan(v) else str(int(v))
+
+
 def csv_rows(res, sl=slice(None)):
     """CSV rows (dicts keyed by :data:`CSV_COLUMNS`) of ``res`` restricted to the slice ``sl``."""
     out = []
@@ -117,6 +126,7 @@ def csv_rows(res, sl=slice(None)):
             "contact_loss": str(bool(g("contact_loss"))),
             "converged": str(bool(g("converged"))),
             "convergence": fmt_value(g("convergence")),
+            "period_multiple": _fmt_int(g("period_multiple")),
         })
     return out
 
@@ -145,6 +155,14 @@ def append_rows(path, columns, rows) -> None:
     first when the file is new or empty (``results.csv``, ``orders.csv``: rows are written
     as speeds finish, so an interrupted sweep keeps them)."""
     new = not os.path.exists(path) or os.path.getsize(path) == 0
+    if not new:  # rows under another header would be read into the wrong columns
+        with open(path, newline="") as fh:
+            header = next(csv.reader(fh), [])
+        if tuple(header) != tuple(columns):
+            raise GearjaxError(
+                "results file", path, f"its columns ({', '.join(header)}) are not those "
+                f"this gearjax writes ({', '.join(columns)}): an earlier version's run; "
+                "use --overwrite or another --out folder")
     with open(path, "a", newline="") as fh:
         wr = csv.DictWriter(fh, fieldnames=columns)
         if new:

@@ -296,14 +296,16 @@ def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
     good = ps.ok & res.solver_ok
     nan = jnp.asarray(jnp.nan)
     bad = lambda v: jnp.where(good, v, nan)  # noqa: E731
+    converged = res.converged & good & (ps.spectral_radius < 1.0) & newton_ok
     res = eqx.tree_at(
         lambda r: (r.max_mesh_force_N, r.min_mesh_force_N, r.dynamic_factor, r.dte_ptp_m,
-                   r.accel_ptp_m_s2, r.converged, r.solver_ok, r.contact_loss, r.n_steps,
-                   r.mesh_force_orders_N, r.dte_orders_m, r.accel_orders_m_s2),
+                   r.accel_ptp_m_s2, r.converged, r.period_multiple, r.solver_ok,
+                   r.contact_loss, r.n_steps, r.mesh_force_orders_N, r.dte_orders_m,
+                   r.accel_orders_m_s2),
         res,
         (bad(res.max_mesh_force_N), bad(res.min_mesh_force_N), bad(res.dynamic_factor),
-         bad(res.dte_ptp_m), bad(res.accel_ptp_m_s2),
-         res.converged & good & (ps.spectral_radius < 1.0) & newton_ok, good,
+         bad(res.dte_ptp_m), bad(res.accel_ptp_m_s2), converged,
+         jnp.where(converged, 1, 0).astype(res.period_multiple.dtype), good,
          res.contact_loss & good, res.n_steps + ps.n_steps, bad(res.mesh_force_orders_N),
          bad(res.dte_orders_m), bad(res.accel_orders_m_s2)),
     )
