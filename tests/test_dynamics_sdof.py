@@ -419,6 +419,15 @@ def test_failed_integration_is_flagged_not_silent(spur):
     assert not bool(res.contact_loss[0])
 
 
+# an automatic transient at convergence_tol 1e-4, and a 400-period one at rtol 1e-10
+# measured over 4 periods (a period-2 orbit twice), shared by the two tests below
+SLIDE_TOL = 1e-4
+sim_slide = _vsim(convergence_tol=SLIDE_TOL)
+sim_long = _vsim(n_transient_periods=400, n_measured_periods=4, rtol=1e-10, atol=1e-12,
+                 save_signals=True)
+
+
+@pytest.mark.xdist_group("sdof_slide")  # one worker compiles the two simulations
 def test_contact_loss_transient_slides_until_periodic(spur):
     """The automatic transient counts the linear model's decay (zeta 0.1: ~20 periods);
     at 669.7 and 674.9 rad/s (te, short relief) the teeth separate and the orbit decays
@@ -431,9 +440,9 @@ def test_contact_loss_transient_slides_until_periodic(spur):
     model = TorsionalModel.build(spur, table1_relief("short"), formulation="te",
                                  damping_ratio=0.1)
     speeds = jnp.asarray([669.6848, 674.8874])
-    tol = 1e-4
-    auto = _vsim(convergence_tol=tol)(model, speeds)
-    long = _vsim(n_transient_periods=400, rtol=1e-10, atol=1e-12)(model, speeds)
+    tol = SLIDE_TOL
+    auto = sim_slide(model, speeds)
+    long = sim_long(model, speeds)
     f_s = model.static_force_N
     assert np.all(np.asarray(long.contact_loss)) and np.all(np.asarray(long.convergence) < 1e-7)
     assert np.all(np.asarray(auto.converged)) and np.all(np.asarray(auto.contact_loss))
@@ -445,6 +454,7 @@ def test_contact_loss_transient_slides_until_periodic(spur):
     np.testing.assert_array_equal(np.asarray(long.transient_periods), 400)
 
 
+@pytest.mark.xdist_group("sdof_slide")
 def test_period_two_orbit_is_recognised_and_measured_whole(spur):
     """At 1500 rad/s (te, short relief, zeta 0.03) the teeth separate and the response
     settles on a period-2 orbit: a 400-period transient at rtol 1e-10 shows per-period
@@ -456,10 +466,9 @@ def test_period_two_orbit_is_recognised_and_measured_whole(spur):
     model = TorsionalModel.build(spur, table1_relief("short"), formulation="te",
                                  damping_ratio=0.03)
     speeds = jnp.asarray([1500.0, 300.0])
-    tol = 1e-4
-    auto = _vsim(convergence_tol=tol)(model, speeds)
-    long = _vsim(n_transient_periods=400, n_measured_periods=4, rtol=1e-10, atol=1e-12,
-                 save_signals=True)(model, speeds)
+    tol = SLIDE_TOL
+    auto = sim_slide(model, speeds)
+    long = sim_long(model, speeds)
     f_s = model.static_force_N
     peaks = np.asarray(long.signals.mesh_force_N[0]).reshape(4, -1).max(1) / f_s
     assert abs(peaks[0] - peaks[1]) > 1.0 and abs(peaks[0] - peaks[2]) < 1e-6, peaks
