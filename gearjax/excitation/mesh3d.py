@@ -161,14 +161,20 @@ def _state_codes(qsm: QuasiStaticMesh3D, ts, kinks: bool):
 
 def state_codes(qsm: QuasiStaticMesh3D, theta, kinks: bool) -> np.ndarray:
     """Codes (n, 1 + 3 cells) at the angles ``theta`` (NumPy, build time), evaluated in
-    fixed chunks of 32 angles (a single compilation)."""
+    fixed chunks of 32 angles (a single compilation: always with the relief zones, which
+    ``kinks=False`` then zeroes inside the path, as :meth:`QuasiStaticMesh3D.state_code`
+    would; a second compilation cost ~1 s of every 3D te build)."""
     t = np.asarray(theta, dtype=float)
     n = t.shape[0]
     size = -(-n // 32) * 32
     tp = np.concatenate([t, np.full(size - n, t[0] if n else 0.0)])
-    out = [np.asarray(_state_codes(qsm, jnp.asarray(tp[i:i + 32]), kinks))
+    out = [np.asarray(_state_codes(qsm, jnp.asarray(tp[i:i + 32]), True))
            for i in range(0, size, 32)]
-    return np.concatenate(out)[:n] if out else np.zeros((0, 1 + 3 * qsm.mesh.n_cells), int)
+    nc = qsm.mesh.n_cells
+    codes = np.concatenate(out)[:n] if out else np.zeros((0, 1 + 3 * nc), int)
+    if not kinks:
+        codes[:, 1 + 2 * nc:] = np.where(codes[:, 1 + nc:1 + 2 * nc] == 1, 0, -1)
+    return codes
 
 
 def scan_brackets(qsm: QuasiStaticMesh3D, theta, period: float, kinks: bool = False):
