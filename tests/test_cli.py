@@ -1,6 +1,7 @@
 """The `gearjax` command line: JSON keys, CSV columns, plots, clear errors."""
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -108,6 +109,48 @@ def test_sweep_writes_csv_json_and_figure(torsional_cli_sweep):
 def test_sweep_bad_speeds(capsys):
     assert main(["sweep", "--speeds", "900:20:5"]) == 2
     assert "--speeds='900:20:5'" in capsys.readouterr().err
+
+
+def test_compile_bound_sweeps_take_xla_legacy_emitters(monkeypatch):
+    """The README main job and other compile-bound sweeps ask XLA for its legacy CPU
+    emitters (gearjax.cli.main, measured there); a long 3D sweep, a long excitation period,
+    other commands, a caller's own choice and GEARJAX_XLA_DEFAULTS=0 keep XLA's default.
+    The flag must be one this jaxlib knows: XLA aborts the process on an unknown flag."""
+    import importlib
+    import subprocess
+    import sys
+
+    cli = importlib.import_module("gearjax.cli.main")
+    parse = cli._parser().parse_args
+    bound = {("sweep",): True, ("sweep", "--model", "torsional", "--speeds", "1:2:9000"): True,
+             ("sweep", "--speeds", "20:900:300"): True,
+             ("sweep", "--speeds", "20:900:301"): False, ("sweep", "--pitch-errors"): False,
+             ("sweep", "--eccentricity", "1e-5"): False, ("paper",): False,
+             ("optimise",): False}
+    for argv, want in bound.items():
+        assert cli.compile_bound(parse(list(argv))) is want, argv
+    monkeypatch.delenv("GEARJAX_XLA_DEFAULTS", raising=False)
+    monkeypatch.setattr(cli, "_jaxlib_minor", lambda: cli._FUSION_FLAG_JAXLIB)
+    for flags, argv, want in (
+            ("--xla_cpu_foo=1", ["sweep"], "--xla_cpu_foo=1 --xla_cpu_use_fusion_emitters=false"),
+            ("", ["sweep", "--speeds", "20:900:1000"], ""),
+            ("--xla_cpu_use_fusion_emitters=true", ["sweep"], "--xla_cpu_use_fusion_emitters=true")):
+        monkeypatch.setenv("XLA_FLAGS", flags)
+        cli._use_emitters(parse(argv))
+        assert os.environ["XLA_FLAGS"] == want
+    monkeypatch.setenv("XLA_FLAGS", "")
+    monkeypatch.setenv("GEARJAX_XLA_DEFAULTS", "0")
+    cli._use_emitters(parse(["sweep"]))
+    assert os.environ["XLA_FLAGS"] == ""
+    monkeypatch.delenv("GEARJAX_XLA_DEFAULTS")
+    monkeypatch.setattr(cli, "_jaxlib_minor", lambda: (0, 11))  # not measured there
+    cli._use_emitters(parse(["sweep"]))
+    assert os.environ["XLA_FLAGS"] == ""
+    if importlib.import_module("importlib.metadata").version("jaxlib").startswith("0.10."):
+        env = dict(os.environ, XLA_FLAGS=f"{cli._FUSION_FLAG}=false", JAX_PLATFORMS="cpu")
+        run = subprocess.run([sys.executable, "-c", "import jax.numpy as j; print(j.ones(2).sum())"],
+                             env=env, capture_output=True, text=True, timeout=120)
+        assert run.returncode == 0 and "2.0" in run.stdout, run.stderr[-500:]
 
 
 def test_one_cpu_device_per_core_unless_told(monkeypatch):
