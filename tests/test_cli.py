@@ -153,6 +153,27 @@ def test_compile_bound_sweeps_take_xla_legacy_emitters(monkeypatch):
         assert run.returncode == 0 and "2.0" in run.stdout, run.stderr[-500:]
 
 
+def test_sweep_programs_reach_the_persistent_compilation_cache(tmp_path):
+    """The command line's sweep program has no host callback (equinox's checks as NaN,
+    gearjax.cli.main._use_cacheable_checks), so JAX stores it in the persistent cache and
+    a second run loads it instead of compiling (README main job: 29 -> 18 s). With
+    ``EQX_ON_ERROR=raise`` (equinox's default) nothing of it is stored."""
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "EQX_ON_ERROR"}
+    env.update(JAX_COMPILATION_CACHE_DIR=str(tmp_path / "cache"),
+               JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0")
+    argv = [sys.executable, "-c", "import sys; from gearjax.cli import main; sys.exit(main())",
+            "sweep", "--model", "torsional", "--formulations", "te", "--speeds", "100:200:2",
+            "--json", "--out", str(tmp_path / "out")]
+    run = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-800:]
+    stored = sorted(p.name for p in (tmp_path / "cache").iterdir())
+    # the sweep's program: _batched on one CPU device (tests/conftest.py), run sharded
+    assert any(n.startswith(("jit__batched-", "jit_run-")) for n in stored), stored
+
+
 def test_one_cpu_device_per_core_unless_told(monkeypatch):
     """The sweeping commands ask XLA for one CPU device per usable core (a transient sweep
     shares its speeds over them), the others do not; GEARJAX_HOST_DEVICES is honoured and
