@@ -427,6 +427,14 @@ sim_long = _vsim(n_transient_periods=400, n_measured_periods=4, rtol=1e-10, atol
                  save_signals=True)
 
 
+def _slide_case(spur, zeta, speeds):
+    """te, short relief, damping ``zeta``: (model, speeds, automatic, long) at ``speeds``."""
+    model = TorsionalModel.build(spur, table1_relief("short"), formulation="te",
+                                 damping_ratio=zeta)
+    speeds = jnp.asarray(speeds)
+    return model, speeds, sim_slide(model, speeds), sim_long(model, speeds)
+
+
 @pytest.mark.xdist_group("sdof_slide")  # one worker compiles the two simulations
 def test_contact_loss_transient_slides_until_periodic(spur):
     """The automatic transient counts the linear model's decay (zeta 0.1: ~20 periods);
@@ -437,13 +445,8 @@ def test_contact_loss_transient_slides_until_periodic(spur):
     within 2 convergence_tol F_S. Before: flagged unconverged after 20 periods; with the
     linear model's reading alone it passed with the force 1e-2 F_S off. An explicit
     transient count does not slide."""
-    model = TorsionalModel.build(spur, table1_relief("short"), formulation="te",
-                                 damping_ratio=0.1)
-    speeds = jnp.asarray([669.6848, 674.8874])
-    tol = SLIDE_TOL
-    auto = sim_slide(model, speeds)
-    long = sim_long(model, speeds)
-    f_s = model.static_force_N
+    model, speeds, auto, long = _slide_case(spur, 0.1, [669.6848, 674.8874])
+    tol, f_s = SLIDE_TOL, model.static_force_N
     assert np.all(np.asarray(long.contact_loss)) and np.all(np.asarray(long.convergence) < 1e-7)
     assert np.all(np.asarray(auto.converged)) and np.all(np.asarray(auto.contact_loss))
     err = np.abs(np.asarray(auto.max_mesh_force_N - long.max_mesh_force_N)) / f_s
@@ -463,13 +466,8 @@ def test_period_two_orbit_is_recognised_and_measured_whole(spur):
     slide to its budget and report an unconverged period-1 reading), keep
     ``converged`` False (it means period 1), and give the peak over both periods of the
     orbit. At 300 rad/s the orbit has period 1."""
-    model = TorsionalModel.build(spur, table1_relief("short"), formulation="te",
-                                 damping_ratio=0.03)
-    speeds = jnp.asarray([1500.0, 300.0])
-    tol = SLIDE_TOL
-    auto = sim_slide(model, speeds)
-    long = sim_long(model, speeds)
-    f_s = model.static_force_N
+    model, speeds, auto, long = _slide_case(spur, 0.03, [1500.0, 300.0])
+    tol, f_s = SLIDE_TOL, model.static_force_N
     peaks = np.asarray(long.signals.mesh_force_N[0]).reshape(4, -1).max(1) / f_s
     assert abs(peaks[0] - peaks[1]) > 1.0 and abs(peaks[0] - peaks[2]) < 1e-6, peaks
     np.testing.assert_array_equal(np.asarray(auto.period_multiple), [2, 1])
