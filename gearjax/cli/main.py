@@ -414,7 +414,11 @@ def compile_bound(args) -> bool:
 def _use_emitters(args) -> None:
     """Before JAX starts its CPU backend: XLA's legacy emitters for a compile-bound sweep
     (:func:`compile_bound`), unless ``XLA_FLAGS`` names the flag or
-    ``GEARJAX_XLA_DEFAULTS=0``."""
+    ``GEARJAX_XLA_DEFAULTS=0``. Only for the ``gearjax`` command itself (``main()`` without
+    ``argv``): in a process whose backend already runs the flag would not apply, yet JAX's
+    persistent-cache keys read ``XLA_FLAGS``, so that process's executables would be
+    stored and found under the legacy emitters' keys (the test suite's shared cache mixed
+    them, and one 3D test then ran for more than 15 min instead of 21 s)."""
     flags = os.environ.get("XLA_FLAGS", "")
     if (_FUSION_FLAG in flags or os.environ.get("GEARJAX_XLA_DEFAULTS", "1") == "0"
             or _jaxlib_minor() != _FUSION_FLAG_JAXLIB or not compile_bound(args)):
@@ -428,7 +432,8 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         _use_host_devices(args.command)
-        _use_emitters(args)
+        if argv is None:  # the process is this command: JAX's backend has not started
+            _use_emitters(args)
     except ValueError as exc:
         return _fail(str(exc))
     _use_compilation_cache()
