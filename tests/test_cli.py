@@ -125,7 +125,8 @@ def test_compile_bound_sweeps_take_xla_legacy_emitters(monkeypatch):
     bound = {("sweep",): True, ("sweep", "--model", "torsional", "--speeds", "1:2:9000"): True,
              ("sweep", "--speeds", "20:900:300"): True,
              ("sweep", "--speeds", "20:900:301"): False, ("sweep", "--pitch-errors"): False,
-             ("sweep", "--eccentricity", "1e-5"): False, ("paper",): False,
+             ("sweep", "--eccentricity", "1e-5"): False, ("sweep", "--damping", "0.03"): False,
+             ("sweep", "--model", "torsional", "--damping", "0.03"): True, ("paper",): False,
              ("optimise",): False}
     for argv, want in bound.items():
         assert cli.compile_bound(parse(list(argv))) is want, argv
