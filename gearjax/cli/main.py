@@ -322,11 +322,15 @@ def _use_cacheable_checks() -> None:
     _errors.EQX_ON_ERROR = "nan"
 
 
-def _use_compilation_cache() -> None:
+def _use_compilation_cache(own_process: bool) -> None:
+    """JAX's persistent compilation cache in :func:`compilation_cache_dir`; for the
+    ``gearjax`` process itself (``own_process``) also :func:`_use_cacheable_checks`, which
+    would change equinox's checks for the rest of a caller's process."""
     path = compilation_cache_dir()
     if path is None:
         return
-    _use_cacheable_checks()
+    if own_process:
+        _use_cacheable_checks()
     import jax
 
     if not jax.config.jax_compilation_cache_dir:  # a caller's own choice stays
@@ -381,9 +385,8 @@ def _use_host_devices(command: str) -> None:
 # excitation period, hence the integration, by up to a gear revolution) at a damping of at
 # least COMPILE_BOUND_3D_DAMPING (lighter damping lengthens the transients and the
 # contact-loss orbits: Fig. 8, zeta 0.03, 45 speeds: 90 s with the legacy emitters
-# against 84 s). Measured on
-# jaxlib 0.10.2 and applied to jaxlib 0.10.x only: XLA aborts the process on a flag it does
-# not know, and another version's emitters are not measured.
+# against 84 s). Measured on jaxlib 0.10.2 and applied to jaxlib 0.10.x only: XLA aborts
+# the process on a flag it does not know, and another version's emitters are not measured.
 _FUSION_FLAG = "--xla_cpu_use_fusion_emitters"
 _FUSION_FLAG_JAXLIB = (0, 10)
 COMPILE_BOUND_3D_SPEEDS = 300
@@ -442,7 +445,7 @@ def main(argv: list[str] | None = None) -> int:
             _use_emitters(args)
     except ValueError as exc:
         return _fail(str(exc))
-    _use_compilation_cache()
+    _use_compilation_cache(own_process=argv is None)
     stall = getattr(args, "stall_timeout", None)
     if stall is not None and not (stall >= 0 and math.isfinite(stall)):
         return _fail(f"--stall-timeout={stall}: must be a finite number of seconds >= 0 "

@@ -49,8 +49,8 @@ model's, and an orbit with contact loss decays more slowly. Sdof te, short relie
 zeta 0.1, 2000 speeds 100-1400 rad/s: 27 speeds at 667-685 rad/s (contact loss; their
 orbits decay by 0.76-0.94 per period, Floquet radius of the shooting) were flagged
 unconverged after 19-20 periods; now (669.7, 674.9, 680.1 rad/s) 44, 72 and 36 periods,
-and every speed reads converged, in 12.3 s instead of 8.4 s (the contact-loss speeds' extra periods, in
-lockstep). The README main job is unchanged in time (34 s), as is Fig. 8 (3D, zeta 0.03,
+and every speed reads converged, in 12.3 s instead of 8.4 s (the contact-loss speeds'
+extra periods, in lockstep). The README main job is unchanged in time (34 s), as is Fig. 8 (3D, zeta 0.03,
 82 s): every speed converged (perturbation at 780 rad/s had used the accelerated
 transient's whole count and now slides once), dynamic factors within 9.4e-5 of
 ``docs/paper/fig08`` (that speed, whose measure there was 7.1e-4; the others 5e-6).
@@ -90,8 +90,9 @@ in the measured periods (``min F_D <= 0``) a sliding measurement also takes the 
 own ratio ``q`` between successive periods, ``change q / (1 - q)``. Measured on the sdof
 case above (669.7, 674.9, 680.1 rad/s): the linear reading passed at 0.94e-3 with the
 max force 1.0e-2, 1.1e-2, 4.0e-3 F_S off a 400-period transient at rtol 1e-10; with the
-ratio it passes at 0.91-0.97e-3 and the errors are 1.0e-3, 1.0e-3, 0.9e-3 F_S. ``converged`` means "periodic with the excitation
-period to within ``convergence_tol``": a sub-harmonic, quasi-periodic or growing response
+ratio it passes at 0.91-0.97e-3 and the errors are 1.0e-3, 1.0e-3, 0.9e-3 F_S.
+``converged`` means "periodic with the excitation period to within ``convergence_tol``":
+a sub-harmonic (``period_multiple``, below), quasi-periodic or growing response
 (parametric instability, :mod:`gearjax.dynamics.stability`) or an insufficient transient
 reads as not converged, and an undamped model (decay rate 0) never does. A failed
 integration (step limit, non-finite state) gives ``solver_ok = False``, ``converged =

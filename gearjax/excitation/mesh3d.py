@@ -153,10 +153,10 @@ class QuasiStaticMesh3D(eqx.Module):
 
 
 @eqx.filter_jit
-def _state_codes(qsm: QuasiStaticMesh3D, ts, kinks: bool):
-    """:meth:`QuasiStaticMesh3D.state_code` at the angles ``ts`` (compiled once per
-    model shape: the design-dependent layout is not part of ``qsm``)."""
-    return jax.vmap(lambda t: qsm.state_code(t, kinks))(ts)
+def _state_codes(qsm: QuasiStaticMesh3D, ts):
+    """:meth:`QuasiStaticMesh3D.state_code` with the relief zones at the angles ``ts``
+    (compiled once per model shape: the design-dependent layout is not part of ``qsm``)."""
+    return jax.vmap(lambda t: qsm.state_code(t, True))(ts)
 
 
 def state_codes(qsm: QuasiStaticMesh3D, theta, kinks: bool) -> np.ndarray:
@@ -168,7 +168,7 @@ def state_codes(qsm: QuasiStaticMesh3D, theta, kinks: bool) -> np.ndarray:
     n = t.shape[0]
     size = -(-n // 32) * 32
     tp = np.concatenate([t, np.full(size - n, t[0] if n else 0.0)])
-    out = [np.asarray(_state_codes(qsm, jnp.asarray(tp[i:i + 32]), True))
+    out = [np.asarray(_state_codes(qsm, jnp.asarray(tp[i:i + 32])))
            for i in range(0, size, 32)]
     nc = qsm.mesh.n_cells
     codes = np.concatenate(out)[:n] if out else np.zeros((0, 1 + 3 * nc), int)
