@@ -76,37 +76,12 @@ acceleration peak-to-peak, ``contact_loss`` (``min F_D <= 0``: separation for th
 formulation, a tensile -- unphysical -- force for the linear te/perturbation ones), the
 convergence measure and ``converged``.
 
-``convergence`` is the largest relative change of the per-period extrema between the last
-two measured periods (forces over F_S, DTE and acceleration over their peak-to-peak) or,
-if larger, what is left of the transient: modal models (``model.transient_amplitudes``)
-extrapolate the state's change over the last period mode by mode, ``|mu_j| / |1 - mu_j|``
-times each mode's change (``mu_j`` its free-decay multiplier per period), and sum the
-modes' shares of each output; a model without it has its extrema's change divided by
-``|1 - mu|`` of the slowest mode its outputs see (``model.slowest_output_mode``), which
-also amplifies integration noise (the 3D rig at 220 rad/s: extrema noise ~5e-6 F_S read
-as 1e-3, while the modal extrapolation bounds the measured error of a short transient
-by 4-5x and reads 3e-6 there). Both read the linear model's free decay; with contact loss
-in the measured periods (``min F_D <= 0``) a sliding measurement also takes the change's
-own ratio ``q`` between successive periods, ``change q / (1 - q)``. Measured on the sdof
-case above (669.7, 674.9, 680.1 rad/s): the linear reading passed at 0.94e-3 with the
-max force 1.0e-2, 1.1e-2, 4.0e-3 F_S off a 400-period transient at rtol 1e-10; with the
-ratio it passes at 0.91-0.97e-3 and the errors are 1.0e-3, 1.0e-3, 0.9e-3 F_S.
-``converged`` means "periodic with the excitation period to within ``convergence_tol``":
-a sub-harmonic (``period_multiple``, below), quasi-periodic or growing response
-(parametric instability, :mod:`gearjax.dynamics.stability`) or an insufficient transient
-reads as not converged, and an undamped model (decay rate 0) never does. A failed
-integration (step limit, non-finite state) gives ``solver_ok = False``, ``converged =
-False`` and NaN metrics: never a silent NaN.
-
-A sliding measurement also recognises a sub-harmonic orbit: it stops once the last
-period's extrema equal those m = 2..``MAX_PERIOD_MULTIPLE`` periods back (measured, then
-slid past) to ``convergence_tol`` while the change over one period stays above 100
-``convergence_tol`` (so a period-1 transient decaying with an alternating ratio is not
-mistaken for one), and reports ``period_multiple = m`` with the extrema taken over all m
-periods (those slid past on the grid); ``converged`` stays False. Sdof te, short relief,
-zeta 0.03, 1450-1550 rad/s: period 2 after 138-148 periods, the max force within ~1e-6
-relative of a 400-period transient measured over 4-6 periods; before, those speeds slid to
-the whole budget and were reported unconverged with a period-1 reading.
+``convergence`` and ``period_multiple`` are read by :mod:`gearjax.dynamics.periodicity`:
+the change of the per-period extrema over the last period, or what is left of the
+transient if larger, and sub-harmonic orbits recognised by a sliding measurement.
+``converged`` means "periodic with the excitation period to within ``convergence_tol``".
+A failed integration (step limit, non-finite state) gives ``solver_ok = False``,
+``converged = False`` and NaN metrics: never a silent NaN.
 
 Derivatives: every operation on the metric path is differentiable; the default
 ``adjoint=diffrax.ForwardMode()`` gives forward-mode derivatives through the solve. Both
@@ -125,10 +100,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from ..errors import SimulationError
-from ..models.base import AbstractGearModel, free_decay_per_period
+from ..models.base import AbstractGearModel
 from .legs import solve_legs
 from .metrics import output_grid, refine_windows, window_extrema
 from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
+from .periodicity import (convergence_measure, initial_memo, per_period_extrema,
+                          with_periods_slid_past)
 
 __all__ = [
     "simulate",
@@ -222,10 +199,11 @@ class SimulationResult(eqx.Module):
     n_steps : accepted + rejected steps of all windows.
     transient_periods : excitation periods integrated before measuring.
     period_multiple : the response's period in excitation periods: 1 where ``converged``;
-        m = 2..``MAX_PERIOD_MULTIPLE`` for a sub-harmonic orbit (an automatic transient's
-        sliding measurement found the last period's extrema repeat m periods back, to
-        ``convergence_tol``; the metrics then cover all m periods); 0 neither (not yet
-        periodic within the transient's budget, quasi-periodic, chaotic or growing).
+        m = 2..4 (:data:`gearjax.dynamics.periodicity.MAX_PERIOD_MULTIPLE`) for a
+        sub-harmonic orbit (an automatic transient's sliding measurement found the last
+        period's extrema repeat m periods back, to ``convergence_tol``; the metrics then
+        cover all m periods); 0 neither (not yet periodic within the transient's budget,
+        quasi-periodic, chaotic or growing).
     mesh_force_orders_N, dte_orders_m, accel_orders_m_s2 : (5,) single-sided peak
         amplitudes of mesh orders 1..5 of F_D (N), DTE (m) and the acceleration (m/s^2;
         NaN for models without one) over the measured periods
@@ -369,13 +347,6 @@ def transient_start(model, omega):
 # errors, a period of a pinion revolution) 325 -> 326 s, its memory chunks growing from
 # 16-20 to 24-30 speeds that cost as much (a chunk costs ~ speeds x slowest speed's steps).
 DEFAULT_MEASURED_PERIODS = 2
-# the largest decay ratio per period that the convergence measure of a contact-loss orbit
-# extrapolates (simulate's module docstring, "Metrics"): what is left is read as at most
-# 99 times the last change
-Q_CONTACT_LOSS_MAX = 0.99
-# the longest sub-harmonic period (in excitation periods) simulate's sliding measurement
-# recognises (SimulationResult.period_multiple)
-MAX_PERIOD_MULTIPLE = 4
 DEFAULT_SAMPLES_PER_MESH_PERIOD = 128  # and its output grid density
 
 
@@ -520,82 +491,15 @@ def simulate(
     n_win = 2 * jax.eval_shape(observed, ts[0], y0).shape[0]  # a max and a min per output
     f_s = model.static_force_N
 
-    def per_period_extrema(vals):  # (n_meas, 2 n_out): F max, F min, DTE max, min, ...
-        per = vals.reshape(n_measured_periods, grid.per_period, -1)
-        return per, jnp.stack([per.max(1), per.min(1)], axis=2).reshape(n_measured_periods, -1)
-
-    def convergence_of(vals, ys, memo):  # -> (measure, sub-harmonic period), next memo
-        none = jnp.asarray(0)
-        if n_measured_periods < 2:
-            return (jnp.asarray(jnp.inf), none), memo
-        _, ext = per_period_extrema(vals)
-        # last two periods; forces / F_S, DTE / DTE ptp, accel / accel ptp (the grid's ptp
-        # over the measured periods, floored at 1e-3 of the largest |value|, for signals
-        # that hardly vary)
-        ptp = jnp.max(ext[:, 0::2], axis=0) - jnp.min(ext[:, 1::2], axis=0)
-        dte_s = jnp.maximum(ptp[1], 1e-3 * jnp.max(jnp.abs(ext[:, 2:4])))
-        acc_s = jnp.maximum(ptp[2], 1e-3 * jnp.max(jnp.abs(ext[:, 4:6]))) if has_acc else None
-        scales = [f_s, f_s, dte_s, dte_s] + ([acc_s, acc_s] if has_acc else [])
-        scales = jnp.stack([jnp.maximum(jnp.abs(s), 1e-300) for s in scales])
-        change = conv = jnp.max(jnp.abs(ext[-1] - ext[-2]) / scales)
-        # what is left of the transient: modal models extrapolate the state's change over
-        # the last period mode by mode (model.transient_amplitudes); without one, the
-        # extrema's change over the slowest mode the outputs see (a component decaying
-        # like mu^k per period changes by |1 - mu| of what is left of it; faster
-        # components and integration noise are over-counted by the same factor)
-        amps = None
-        if extrapolate:  # the state's change over the last period, at one phase
-            last = (n_measured_periods - 1) * grid.per_period
-            amps = model.transient_amplitudes(ys[last] - ys[last - grid.per_period], omega)
-        slow = model.slowest_output_mode() if extrapolate and amps is None else None
-        if amps is not None:
-            # the floored scales: an output that is identically zero (no pinion-centre
-            # motion in a torsional structure) has a zero remainder, not 0/0
-            left = [amps[0] / scales[0], amps[1] / scales[2]] + (
-                [amps[2] / scales[4]] if has_acc else [])
-            conv = jnp.maximum(conv, jnp.max(jnp.stack(left)))
-        elif slow is not None:
-            w_s, z_s = slow
-            _, gap = free_decay_per_period(jnp.where(jnp.isfinite(w_s), w_s, 0.0), z_s,
-                                           period / omega)
-            factor = jnp.where(jnp.isfinite(w_s), 1.0 / jnp.clip(gap, 1e-12, 1.0), 1.0)
-            conv = conv * factor
-        if slide:
-            # contact loss: the free decay of the linear model does not bound what is
-            # left; the change's own ratio q over successive periods does, as
-            # change q / (1 - q); without a measurement before, none yet (inf: slide on).
-            # q is capped at Q_CONTACT_LOSS_MAX: at the noise floor of the extrema (~1e-6
-            # F_S with contact loss) q is a random ratio, and a cap of 0.999 read
-            # 5e-4-9.5e-4 there (Fig. 8, te, 760-860 rad/s) against a measured 1e-6
-            before = memo["change"]
-            q = jnp.clip(change / before, 0.0, Q_CONTACT_LOSS_MAX)
-            seen = jnp.where(jnp.isfinite(before), change * q / (1.0 - q), jnp.inf)
-            conv = jnp.where(jnp.min(vals[:, 0]) <= 0.0, jnp.maximum(conv, seen), conv)
-        # a sub-harmonic orbit: the last period's extrema repeat m = 2..MAX_PERIOD_MULTIPLE
-        # periods back (the measured periods, then those slid past, most recent first;
-        # NaN where not yet seen), while the change over one period stays large: a
-        # period-1 transient decaying with an alternating (or rotating) ratio lambda has
-        # its m-back residual below convergence_tol only once its one-period change is
-        # below ~convergence_tol / (1 - |lambda|), so a change over 1 / (1 -
-        # Q_CONTACT_LOSS_MAX) = 100 times convergence_tol leaves only |lambda| > 0.99,
-        # which the period-1 measure caps at Q_CONTACT_LOSS_MAX anyway (a weaker
-        # sub-harmonic stays 0: not yet periodic)
-        seq = jnp.concatenate([ext[::-1], memo["past"]])
-        back = jnp.max(jnp.abs(seq[2:MAX_PERIOD_MULTIPLE + 1] - seq[:1]) / scales[None], axis=1)
-        hit = (back <= convergence_tol) & (
-            change >= convergence_tol / (1.0 - Q_CONTACT_LOSS_MAX))
-        multiple = jnp.where(jnp.any(hit), jnp.argmax(hit) + 2, 0).astype(none.dtype)
-        past = jnp.concatenate([ext[:1], memo["past"][:-1]])  # should ext[0] be slid past
-        return (conv, multiple), dict(change=change, past=past)
-
     def windows_of(g, memo):  # the measured states on the grid -> the windows' legs,
         vals = jax.vmap(observed)(ts, g)  # the convergence, what a slide keeps
         j0, tf = refine_windows(vals, ts, N_REFINE)
-        return ((ts[j0], g[j0], tf),) + convergence_of(vals, g, memo)
+        return ((ts[j0], g[j0], tf),) + convergence_measure(
+            model, omega, vals, g, memo, n_periods=n_measured_periods,
+            extrapolate=extrapolate, slide=slide, convergence_tol=convergence_tol)
 
     has_acc = jax.eval_shape(observed, ts[0], y0).shape[0] > 2
-    memo = dict(change=jnp.asarray(jnp.inf),  # the measurement before: its change, and the
-                past=jnp.full((MAX_PERIOD_MULTIPLE, n_win), jnp.nan))  # periods slid past
+    memo = initial_memo(n_win)  # the measurement before: its change, the periods slid past
     # an automatic transient too short for the response (a contact-loss orbit decays
     # more slowly than the linear model's count) slides the measured periods on, up to
     # the automatic maximum in all (forward mode: a reverse-mode adjoint checkpoints
@@ -627,13 +531,9 @@ def simulate(
     wvals = jax.vmap(lambda y, c, t: jax.vmap(observed)(t, y)[:, c])(
         win_ys, cols, tf)
     v_max, v_min = window_extrema(vals, ts, j0, wvals)
-    if MAX_PERIOD_MULTIPLE > n_measured_periods:
-        # a sub-harmonic orbit of more periods than measured: the extrema of its other
-        # periods (on the grid, slid past just before) belong to the response
-        use = (jnp.arange(MAX_PERIOD_MULTIPLE) < multiple - n_measured_periods)[:, None]
-        v_max = jnp.maximum(v_max, jnp.max(jnp.where(use, memo["past"][:, 0::2], -jnp.inf), 0))
-        v_min = jnp.minimum(v_min, jnp.min(jnp.where(use, memo["past"][:, 1::2], jnp.inf), 0))
-    per, _ = per_period_extrema(vals)
+    # a sub-harmonic orbit of more periods than measured: its other periods' extrema
+    v_max, v_min = with_periods_slid_past(v_max, v_min, memo, multiple, n_measured_periods)
+    per, _ = per_period_extrema(vals, n_measured_periods)
     f_max, f_min = v_max[0], v_min[0]
     dte_ptp = v_max[1] - v_min[1]
     acc_ptp = v_max[2] - v_min[2] if has_acc else jnp.asarray(jnp.nan)
