@@ -84,6 +84,8 @@ CASES = [
     (["quasistatic", "--relief-amplitude=-1e-6"], ["relief_amplitude_m"]),
     (["quasistatic", "--positions", "2"], ["--positions=2"]),
     (["harris-map", "--speeds", "5:1:3"], ["--speeds='5:1:3'"]),
+    (["harris-map", "--amplitudes", "0:1e-4:3"], ["--amplitudes='0:1e-4:3'", "<= 4e-05 (m)"]),
+    (["harris-map", "--extents", "x"], ["--extents='x'", "A:B:N"]),
     (["harris-map", "--inertias", "1,-2"], ["--inertias='1,-2'"]),
     # issue 16: array sizes against memory, before computing
     (["quasistatic", "--positions", "100000000"], ["--positions=100000000", "GiB", "at most"]),

@@ -17,7 +17,7 @@ import numpy as np
 from ..dynamics import watchdog
 from ..design.objectives import DESIGN_METHODS, DynamicObjective, method_tolerances
 from ..errors import DesignError
-from .scenario import add_nlte_reaction, nlte_reaction_of
+from .scenario import add_nlte_reaction, linspace_option, nlte_reaction_of
 
 __all__ = ["register"]
 
@@ -25,15 +25,12 @@ _OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
 _DYNAMIC = _OBJECTIVES[:3]
 
 
-def _range(text: str, option: str, lo: float, hi: float, integer_n: bool = True):
+def _range(text: str, option: str, lo: float, hi: float, unit: str):
     try:
-        a, b, n = text.split(":")
-        a, b, n = float(a), float(b), int(n)
-    except ValueError:
-        raise DesignError(f"{option}={text!r}: expected A:B:N, e.g. 300:500:8") from None
-    if not (lo <= a <= b <= hi and n >= 1 and math.isfinite(b)):
-        raise DesignError(f"{option}={text!r}: need {lo:g} <= A <= B <= {hi:g} and N >= 1")
-    return np.linspace(a, b, n)
+        return linspace_option(text, option, example="300:500:8", lo=lo, hi=hi,
+                               positive=False, unit=unit)
+    except ValueError as exc:
+        raise DesignError(str(exc)) from None
 
 
 def _common(p, add_rig):
@@ -115,8 +112,8 @@ def _setup(args, separate=False):
             raise DesignError(f"--rtol={args.rtol!r}: must lie in [1e-13, 1e-2]") from None
     reaction = nlte_reaction_of(args)
     prepare_output_dir("--out", args.out)  # before any computing: created and writable
-    speeds = _range(args.speeds, "--speeds", 1e-6, 1e6)
-    amps = _range(args.amplitudes, "--amplitudes", 0.0, 40e-6)
+    speeds = _range(args.speeds, "--speeds", 1e-6, 1e6, "rad/s")
+    amps = _range(args.amplitudes, "--amplitudes", 0.0, 40e-6, "m")
     if args.max_frequency is not None and not (math.isfinite(args.max_frequency)
                                                and args.max_frequency >= 0):
         raise DesignError(f"--max-frequency={args.max_frequency!r}: need a cut-off >= 0 Hz (0: all modes)")
@@ -146,7 +143,7 @@ def _setup(args, separate=False):
                          torques_Nm=rig.pinion_torque_Nm, **kw)
     top = float(obj.space.upper[-1])
     exts = (np.linspace(0.1, min(0.8, top), 7) if args.extents is None
-            else _range(args.extents, "--extents", float(obj.space.lower[-1]), top))
+            else _range(args.extents, "--extents", float(obj.space.lower[-1]), top, ""))
     return rig, obj, amps, exts
 
 

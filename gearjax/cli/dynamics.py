@@ -61,9 +61,10 @@ from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
-from .scenario import add_nlte_reaction, add_nlte_switches, nlte_options_of, nlte_reaction_of
+from .scenario import (add_nlte_reaction, add_nlte_switches, linspace_option, nlte_options_of,
+                       nlte_reaction_of)
 
-__all__ = ["register", "case_name", "default_max_frequency_hz", "modal_cutoff"]
+__all__ = ["register", "parse_speeds", "case_name", "default_max_frequency_hz", "modal_cutoff"]
 
 FORMULATIONS = ("reference", "te", "perturbation")
 # undamped stability: |spectral radius - 1| below this is round-off of the monodromy matrix
@@ -194,15 +195,9 @@ def _add_dynamics(p: argparse.ArgumentParser):
                         "6000 Hz)")
 
 
-def _parse_speeds(text: str) -> np.ndarray:
-    try:
-        a, b, n = text.split(":")
-        a, b, n = float(a), float(b), int(n)
-    except ValueError:
-        raise ValueError(f"--speeds={text!r}: expected A:B:N, e.g. 20:900:60") from None
-    if not (0 < a <= b and n >= 1 and math.isfinite(b)):
-        raise ValueError(f"--speeds={text!r}: need 0 < A <= B (rad/s) and N >= 1")
-    return np.linspace(a, b, n)
+def parse_speeds(text: str) -> np.ndarray:
+    """The pinion speeds of ``--speeds A:B:N`` (rad/s): ``0 < A <= B``, ``N >= 1``."""
+    return linspace_option(text, "--speeds", example="20:900:60", unit="rad/s")
 
 
 def _parse_signal_speeds(text: str | None) -> list[float]:
@@ -317,7 +312,7 @@ def cmd_sweep(args) -> int:
                          "start a new --out folder)")
     check_direction(args)
     lead = init_distributed(args)
-    speeds = _parse_speeds(args.speeds)
+    speeds = parse_speeds(args.speeds)
     forms = _forms(args.formulations or ("te,perturbation" if args.te_file
                                          else "reference,te,perturbation"))
     _check_te_file(args, forms)
@@ -608,7 +603,7 @@ def cmd_stability(args) -> int:
 
     from .scenario import scenario_modifications
 
-    speeds = _parse_speeds(args.speeds)
+    speeds = parse_speeds(args.speeds)
     _check_damping(args.damping)
     _check_te_file(args, [args.formulation])
     # the monodromy's integrator takes --rtol (atol R/100): the accuracy of rho

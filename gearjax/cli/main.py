@@ -413,9 +413,11 @@ def compile_bound(args) -> bool:
         return False
     if not args.damping >= COMPILE_BOUND_3D_DAMPING:
         return False
+    from .dynamics import parse_speeds
+
     try:
-        n = int(args.speeds.split(":")[2])
-    except (IndexError, ValueError):
+        n = parse_speeds(args.speeds).size
+    except ValueError:
         return False  # the command reports the bad --speeds itself
     return n <= COMPILE_BOUND_3D_SPEEDS
 

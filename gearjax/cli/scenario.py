@@ -14,11 +14,31 @@ the NLTE'' reaction torque acts") for ``sweep``, ``stability``, ``optimise`` and
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
-__all__ = ["Scenario", "scenario_modifications", "add_nlte_reaction", "nlte_reaction_of",
+__all__ = ["linspace_option", "Scenario", "scenario_modifications", "add_nlte_reaction", "nlte_reaction_of",
            "add_nlte_switches", "nlte_options_of", "add_eccentricity", "eccentricity_of"]
+
+def linspace_option(text: str, option: str, *, example: str, lo: float = 0.0,
+                    hi: float = math.inf, positive: bool = True, unit: str = "") -> np.ndarray:
+    """The values ``A:B:N`` of a range option (``--speeds``, ``--amplitudes``, ...):
+    ``numpy.linspace(A, B, N)``, with ``lo <= A <= B <= hi`` (``0 < A`` if ``positive``),
+    ``B`` finite and ``N >= 1``; else ``ValueError`` naming ``option``, the ``unit`` of A
+    and B and an ``example``."""
+    try:
+        a, b, n = text.split(":")
+        a, b, n = float(a), float(b), int(n)
+    except ValueError:
+        raise ValueError(f"{option}={text!r}: expected A:B:N, e.g. {example}") from None
+    low = f"{lo:g} < A" if positive and lo <= 0.0 else f"{lo:g} <= A"
+    high = ("" if math.isinf(hi) else f" <= {hi:g}") + (f" ({unit})" if unit else "")
+    if not (lo <= a <= b <= hi and (a > 0.0 or not positive) and n >= 1
+            and math.isfinite(b)):
+        raise ValueError(f"{option}={text!r}: need {low} <= B{high} and N >= 1")
+    return np.linspace(a, b, n)
+
 
 MAX_ECCENTRICITY_UM = 1000.0  # above 1 mm: a unit mistake (the option is in micrometres)
 
