@@ -278,6 +278,17 @@ def test_rerun_refuses_then_overwrite(capsys, tmp_path):
     assert code == 0 and json.loads((out / "summary.json").read_text())["resumed"] == {"te": 2}
     code, _, err = _run(capsys, SWEEP + ["--speeds", "300:500:3", "--out", out, "--resume"])
     assert code == 2 and "another case" in err and "speeds_rad_s" in err
+    # a results.csv of an earlier version (one column fewer, one speed still to run): refused
+    # by --resume before computing (its rows are not read under the new columns, and the
+    # new rows are not appended under the old header)
+    lines = (out / "results.csv").read_text().splitlines()
+    old = "".join(line.rsplit(",", 1)[0] + "\n" for line in lines[:2])
+    (out / "results.csv").write_text(old)
+    stamp = (out / "summary.json").stat().st_mtime_ns
+    code, _, err = _run(capsys, argv + ["--resume"])
+    assert code == 2 and "--resume" in err and "results.csv" in err and "earlier version" in err
+    assert (out / "summary.json").stat().st_mtime_ns == stamp  # nothing run, nothing written
+    assert (out / "results.csv").read_text() == old  # its rows kept as they were
 
 
 def test_ctrl_c_keeps_results_and_resume_finishes(tmp_path):

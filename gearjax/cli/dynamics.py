@@ -300,6 +300,7 @@ def _tolerances(args) -> dict:
 
 def cmd_sweep(args) -> int:
     from ..rigs.registry import get_rig
+    from ..dynamics.results import CSV_COLUMNS, ORDER_COLUMNS, check_header
     from ..dynamics.sweep import sweep
     from .outputs import prepare_output_dir
     from .results import (RESULT_FILES, check_resume, done_speeds, max_force_by_speed,
@@ -359,6 +360,8 @@ def cmd_sweep(args) -> int:
                            overwrite=args.overwrite)
         if args.resume:
             check_resume(out, record)
+            for path, columns in ((csv_path, CSV_COLUMNS), (orders_path, ORDER_COLUMNS)):
+                check_header(path, columns, "--resume")
             done = done_speeds(read_rows(csv_path, repair=True))
             read_rows(orders_path, repair=True)
         write_case(out, record)

@@ -17,7 +17,7 @@ from ..errors import GearjaxError
 from .orders import N_MESH_ORDERS
 
 __all__ = ["SweepResult", "CSV_COLUMNS", "METRIC_FIELDS", "ORDER_FIELDS", "ORDER_COLUMNS",
-           "csv_rows", "order_rows", "empty_metrics", "append_rows"]
+           "csv_rows", "order_rows", "empty_metrics", "append_rows", "check_header"]
 
 CSV_COLUMNS = (
     "speed_rad_s",
@@ -150,19 +150,29 @@ def order_rows(res, sl=slice(None)):
     return out
 
 
+def check_header(path, columns, field: str = "results file") -> None:
+    """Refuse (:class:`GearjaxError` on ``field``) a non-empty CSV file ``path`` whose header
+    is not ``columns``: rows appended under another header (an earlier version's run)
+    would be read into the wrong columns."""
+    if not os.path.exists(path) or os.path.getsize(path) == 0:
+        return
+    with open(path, newline="") as fh:
+        header = next(csv.reader(fh), [])
+    if tuple(header) != tuple(columns):
+        raise GearjaxError(
+            field, str(path), f"the columns of {os.path.basename(path)} "
+            f"({', '.join(header)}) are not those this gearjax writes "
+            f"({', '.join(columns)}): an earlier version's run; use --overwrite or another "
+            "--out folder")
+
+
 def append_rows(path, columns, rows) -> None:
     """Append ``rows`` (dicts keyed by ``columns``) to the CSV file ``path``, its header
     first when the file is new or empty (``results.csv``, ``orders.csv``: rows are written
-    as speeds finish, so an interrupted sweep keeps them)."""
+    as speeds finish, so an interrupted sweep keeps them); a file under another header is
+    refused (:func:`check_header`)."""
+    check_header(path, columns)
     new = not os.path.exists(path) or os.path.getsize(path) == 0
-    if not new:  # rows under another header would be read into the wrong columns
-        with open(path, newline="") as fh:
-            header = next(csv.reader(fh), [])
-        if tuple(header) != tuple(columns):
-            raise GearjaxError(
-                "results file", path, f"its columns ({', '.join(header)}) are not those "
-                f"this gearjax writes ({', '.join(columns)}): an earlier version's run; "
-                "use --overwrite or another --out folder")
     with open(path, "a", newline="") as fh:
         wr = csv.DictWriter(fh, fieldnames=columns)
         if new:
