@@ -8,7 +8,7 @@ Methods, each one jitted call over all speeds, timed in the same process:
 
 * transient: :func:`gearjax.dynamics.sweep.sweep` (automatic transient, 3 measured
   periods, exact metrics);
-* harmonic: :func:`gearjax.dynamics.harmonic.harmonic_sweep` at ``--rtol`` (harmonics
+* harmonic: :func:`gearjax.dynamics.harmonic_sweep.harmonic_sweep` at ``--rtol`` (harmonics
   chosen per speed), without and with the Floquet radius (one monodromy period);
 * shooting: :func:`gearjax.dynamics.steady.steady_sweep` (monodromy, metrics by a
   2-period simulate), as the accuracy reference: Dopri8 at rtol 1e-10 for both.
@@ -44,7 +44,7 @@ import numpy as np
 import gearjax  # noqa: F401  (x64, CPU flags)
 from gearjax import (Mesh, ToothModifications, baud_velex_pair, static_mesh_force,
                      table1_relief)
-from gearjax.dynamics.harmonic import harmonic_sweep
+from gearjax.dynamics.harmonic_sweep import harmonic_sweep
 from gearjax.dynamics.steady import steady_sweep
 from gearjax.dynamics.sweep import sweep
 from gearjax.models.torsional import TorsionalModel

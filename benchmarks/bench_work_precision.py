@@ -13,7 +13,7 @@ methods carry their transient error too (that is what a user gets). Run time: th
 median of repeated calls after compilation (compile time reported apart, via a first
 call minus the run time).
 
-Methods: the frequency-domain solver :func:`gearjax.dynamics.harmonic.harmonic_sweep`
+Methods: the frequency-domain solver :func:`gearjax.dynamics.harmonic_sweep.harmonic_sweep`
 (te/perturbation, speeds where its linear orbit keeps contact); diffrax through :func:`gearjax.dynamics.simulate.simulate` (Tsit5, Dopri5, Dopri8,
 Kvaerno5 implicit) with its automatic transient; a fixed-step Tsit5 (diffrax
 ``ConstantStepSize``, steps not aligned with the jumps); the shooting solver
@@ -53,7 +53,7 @@ from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import simulate
 from gearjax.dynamics.steady import steady_sweep
-from gearjax.dynamics.harmonic import harmonic_sweep
+from gearjax.dynamics.harmonic_sweep import harmonic_sweep
 from gearjax.dynamics.sweep import sweep
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -149,7 +149,7 @@ def run_steady(model, speeds, rtol):
 
 
 def run_harmonic(model, speeds, rtol):
-    """The frequency-domain solver (:func:`gearjax.dynamics.harmonic.harmonic_sweep`,
+    """The frequency-domain solver (:func:`gearjax.dynamics.harmonic_sweep.harmonic_sweep`,
     te/perturbation): NaN at the speeds where its linear orbit loses contact (there the
     contact law's orbit is not the linear one; ``sweep`` hands those to the transient)."""
     def f():

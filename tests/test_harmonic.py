@@ -31,7 +31,8 @@ import pytest
 from scipy.linalg import expm
 
 from gearjax import Mesh, ToothModifications, baud_velex_pair, static_mesh_force, table1_relief
-from gearjax.dynamics.harmonic import harmonic_steady_states, harmonic_sweep
+from gearjax.dynamics.harmonic import harmonic_steady_states
+from gearjax.dynamics.harmonic_sweep import harmonic_sweep
 from gearjax.errors import SimulationError
 from gearjax.models.torsional import TorsionalModel
 from oscillators import HarmonicOscillator
@@ -260,7 +261,7 @@ def test_auto_falls_back_to_the_transient_when_the_split_does_not_fit(square_wav
     refuses (``SimulationError`` on ``model``, e.g. a residual above ``rank_one_tol``) runs
     every speed by the transient instead of stopping the sweep (the README's main job once
     stopped there); ``method="harmonic"`` asked explicitly still raises."""
-    import gearjax.dynamics.harmonic as harmonic_mod
+    import gearjax.dynamics.harmonic_sweep as harmonic_mod
     import gearjax.dynamics.sweep as sweep_mod
     from gearjax.dynamics.sweep import sweep
 

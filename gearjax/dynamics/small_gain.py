@@ -18,7 +18,7 @@ has ``c = 0``: bound 0.
 
 The sup is sampled at :data:`SMALL_GAIN_GRID` frequencies across each mode's half-power
 band (and zero); a bound below :data:`SMALL_GAIN_MARGIN` proves stability (the margin
-covers the sampling). Used by :func:`gearjax.dynamics.harmonic.harmonic_sweep` (speeds it
+covers the sampling). Used by :func:`gearjax.dynamics.harmonic_sweep.harmonic_sweep` (speeds it
 proves need no Floquet radius) and ``gearjax stability --method harmonic``
 (:func:`gearjax.dynamics.harmonic.small_gain_bounds`).
 """

@@ -123,7 +123,7 @@ def sweep(
         (the default device), ``"all"`` every device of the default backend.
     method : ``"auto"``: :func:`auto_method` (the transient, measured cheapest for every
         model). ``"harmonic"``:
-        :func:`gearjax.dynamics.harmonic.harmonic_sweep` (the periodic orbit of the linear
+        :func:`gearjax.dynamics.harmonic_sweep.harmonic_sweep` (the periodic orbit of the linear
         equations in the frequency domain, no integration), kept at the speeds where it is
         the model's orbit (contact holds over the period, harmonics converged, stability
         proven by the small-gain bound or, for models of at most
@@ -447,7 +447,7 @@ def _write_csv(paths, res, speeds):
 
 
 def _harmonic(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs):
-    from .harmonic import harmonic_sweep
+    from .harmonic_sweep import harmonic_sweep
 
     if devices is not None or jax.process_count() > 1:
         raise SimulationError("devices", devices, 'method="harmonic" runs on one device of one '
