@@ -40,7 +40,8 @@ periods and stayed unconverged (1.1-1.7e-3, reference; te 1.2-2.4e-3 to 860 rad/
 rig's 9.8 Hz mode decays by 0.99943 per mesh period. With the slow-mode stage they converge
 in 155-262 periods (reference, convergence 6e-6-1.7e-5; te 160-200 periods, < 1e-6), their
 dynamic factors within 3.6e-5 of 3000 plain periods' (whose own measure is 3-5e-5). The
-``convergence`` measure below judges the result the same way whichever transient led to it.
+``convergence`` measure (:mod:`gearjax.dynamics.periodicity`) judges the result the same
+way whichever transient led to it.
 
 Where the measured periods of an automatic transient (forward-mode adjoint) have not
 converged, the measurement slides on period by period (:mod:`gearjax.dynamics.legs`) until
@@ -415,9 +416,9 @@ def simulate(
         the period mean of the quasi-static state) or ``"initial"``
         (``model.initial_state(omega)``).
     y0 : explicit start state at theta = 0 (overrides ``start``), e.g. a periodic orbit.
-    extrapolate : for modal models, estimate what is left of the transient (module
-        docstring: per mode from the state, or the slowest output mode's ``1 / |1 - mu|``),
-        not only the last change of the extrema.
+    extrapolate : for modal models, estimate what is left of the transient
+        (:mod:`gearjax.dynamics.periodicity`: per mode from the state, or the slowest
+        output mode's ``1 / |1 - mu|``), not only the last change of the extrema.
     accelerate : for the automatic transient (``n_transient_periods=None``) of a model
         with :meth:`~gearjax.models.base.AbstractGearModel.periodic_estimate` (the 3D
         model), integrate it period by period and replace each period's end state by the
