@@ -93,3 +93,30 @@ def test_cli_stall_timeout(tmp_path):
     from gearjax.cli.main import main
 
     assert main(["optimise", "--stall-timeout", "-1", "--out", str(tmp_path / "o")]) == 2
+
+
+_GIL_HANG = """
+    import re
+    from gearjax.dynamics import watchdog
+    with watchdog.stall_guard(1.0, what="GIL-holding hang", backstop={backstop},
+                              backstop_grace_s=1.0):
+        watchdog.progress("chunk 1/2")
+        re.match(r"(a+)+$", "a" * 40 + "b")  # minutes in C, holding the GIL throughout
+    print("not reached")
+"""
+
+
+def test_backstop_ends_a_hang_that_holds_the_gil():
+    """A hang that never releases the GIL keeps the watchdog thread asleep (negative
+    control: still running after 8 s, its 1 s timeout long past); the faulthandler
+    backstop ends it 1 s after the watchdog's deadline with every thread's stack."""
+    import pytest
+
+    with pytest.raises(subprocess.TimeoutExpired):
+        _run(_GIL_HANG.format(backstop=False), timeout=8.0)
+    p, wall = _run(_GIL_HANG.format(backstop=True))
+    assert p.returncode == 1, (p.returncode, p.stderr)
+    assert "not reached" not in p.stdout
+    assert "Timeout (0:00:02)!" in p.stderr, p.stderr
+    assert '"<string>", line 7' in p.stderr, p.stderr  # where it hung
+    assert wall < 30

@@ -454,7 +454,8 @@ def main(argv: list[str] | None = None) -> int:
                      "(0 disables the watchdog)")
     from ..dynamics.watchdog import stall_guard
 
-    with stall_guard(stall, what=f"gearjax {args.command}"):
+    # the GIL-free backstop only where this process is the command (see watchdog)
+    with stall_guard(stall, what=f"gearjax {args.command}", backstop=argv is None):
         return _dispatch(args)
 
 

@@ -9,6 +9,15 @@ to stderr naming the last progress point, runs the stall hooks (e.g. "results so
 are in results.csv") and ends the process with :data:`STALL_EXIT_CODE` through
 ``os._exit`` (a normal exit would wait for the stuck main thread).
 
+The watchdog thread needs the GIL to wake up. A hang that holds it (a C call that never
+releases it) would keep the thread asleep; the *backstop* (``backstop=True``, what the
+``gearjax`` command uses) is a :func:`faulthandler.dump_traceback_later` timer, a C
+thread that needs no GIL, armed :data:`BACKSTOP_GRACE_S` seconds after the watchdog's
+own deadline and re-armed at every progress: it prints every thread's Python stack to
+stderr (where it hung) and ends the process with exit status 1. faulthandler has one
+such timer per process, so only the process's own command arms it (an in-process
+caller, e.g. pytest's ``faulthandler_timeout``, keeps its own).
+
 Usage (the CLI's ``--stall-timeout`` does this around every command)::
 
     from gearjax.dynamics import watchdog
@@ -23,17 +32,19 @@ the timeout generous (default :data:`DEFAULT_STALL_TIMEOUT_S`).
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import os
 import sys
 import threading
 import time
 from typing import Callable
 
-__all__ = ["DEFAULT_STALL_TIMEOUT_S", "STALL_EXIT_CODE", "stall_guard", "progress",
+__all__ = ["DEFAULT_STALL_TIMEOUT_S", "STALL_EXIT_CODE", "BACKSTOP_GRACE_S", "stall_guard", "progress",
            "add_stall_hook", "StallGuard"]
 
 DEFAULT_STALL_TIMEOUT_S = 600.0
 STALL_EXIT_CODE = 3
+BACKSTOP_GRACE_S = 30.0  # the watchdog's hooks and message get this long before the backstop
 
 _lock = threading.Lock()
 _active: list["StallGuard"] = []
@@ -41,10 +52,12 @@ _active: list["StallGuard"] = []
 
 class StallGuard:
     """One watchdog thread: ends the process when :meth:`progress` is not called for
-    ``timeout_s`` seconds between :meth:`start` and :meth:`stop`."""
+    ``timeout_s`` seconds between :meth:`start` and :meth:`stop`; with ``backstop``, also
+    the faulthandler timer ``backstop_grace_s`` later (see the module docstring)."""
 
     def __init__(self, timeout_s: float, what: str = "computation", *,
-                 exit_code: int = STALL_EXIT_CODE, stream=None, exit: Callable | None = None):
+                 exit_code: int = STALL_EXIT_CODE, stream=None, exit: Callable | None = None,
+                 backstop: bool = False, backstop_grace_s: float = BACKSTOP_GRACE_S):
         self.timeout_s = float(timeout_s)
         self.what = what
         self.exit_code = exit_code
@@ -56,12 +69,23 @@ class StallGuard:
         self._where = "start"
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self.backstop = backstop
+        self.backstop_grace_s = float(backstop_grace_s)
 
     def progress(self, where: str | None = None, expect_s: float | None = None) -> None:
         self._last = time.monotonic()
         self._allow = self.timeout_s if expect_s is None else max(self.timeout_s, float(expect_s))
         if where is not None:
             self._where = where
+        self._arm_backstop()
+
+    def _arm_backstop(self) -> None:
+        if self.backstop and not self._stop.is_set():  # re-arming replaces the last timer
+            try:
+                faulthandler.dump_traceback_later(self._allow + self.backstop_grace_s,
+                                                  exit=True, file=sys.stderr)
+            except (AttributeError, ValueError, OSError):  # a stderr without a file descriptor
+                self.backstop = False
 
     def add_hook(self, fn: Callable[[], str | None]) -> None:
         self._hooks.append(fn)
@@ -71,10 +95,13 @@ class StallGuard:
         self._thread = threading.Thread(target=self._run, name="gearjax-stall-watchdog",
                                         daemon=True)
         self._thread.start()
+        self._arm_backstop()
         return self
 
     def stop(self) -> None:
         self._stop.set()
+        if self.backstop:
+            faulthandler.cancel_dump_traceback_later()
 
     def _run(self) -> None:
         while not self._stop.is_set():
