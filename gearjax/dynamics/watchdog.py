@@ -39,8 +39,8 @@ import threading
 import time
 from typing import Callable
 
-__all__ = ["DEFAULT_STALL_TIMEOUT_S", "STALL_EXIT_CODE", "BACKSTOP_GRACE_S", "stall_guard", "progress",
-           "add_stall_hook", "StallGuard"]
+__all__ = ["DEFAULT_STALL_TIMEOUT_S", "STALL_EXIT_CODE", "BACKSTOP_GRACE_S", "stall_guard",
+           "progress", "add_stall_hook", "StallGuard"]
 
 DEFAULT_STALL_TIMEOUT_S = 600.0
 STALL_EXIT_CODE = 3
