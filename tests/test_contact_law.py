@@ -12,7 +12,8 @@ Independent checks:
   from the mesh stiffness and the inertias, and E must survive a separation and the impact
   that ends it;
 * the Section 6.3.1 sdof case through the main critical speed (zeta 0.03, short relief): no
-  tensile force in any formulation, TE-based peaks within 2x of the reference (they were
+  tensile force in any formulation; peaks close to the reference, te closer than the
+  perturbation one (paper Section 6.3); the issue's criterion was within 2x (they were
   14x: 52.6 against 3.6, a parametrically unstable linear equation).
 """
 
@@ -134,8 +135,10 @@ def test_energy_balance_through_an_impact():
 
 def test_section_631_sdof_no_tension_and_te_close_to_reference(spur):
     """Sdof, short relief, zeta 0.03, 600-1000 rad/s through the main critical speed: no
-    tensile mesh force in any formulation (min >= -1e-6 F_S) and the TE-based peak dynamic
-    factors within 2x of the reference (issue criterion); contact loss is reported by all."""
+    tensile mesh force in any formulation (min >= -1e-6 F_S), contact loss reported by all,
+    and the TE-based peak dynamic factors close to the reference (the issue asked for 2x).
+    Paper Section 6.3: the TE-based formulation stays close to the reference, the
+    perturbation one at the main order is less accurate near the critical speeds."""
     speeds = np.arange(600.0, 1001.0, 80.0)
     peaks = {}
     for f in ("reference", "te", "perturbation"):
@@ -146,8 +149,14 @@ def test_section_631_sdof_no_tension_and_te_close_to_reference(spur):
         assert np.min(res.min_mesh_force_N) >= -1e-6 * f_s, f
         assert np.any(res.contact_loss), f
         peaks[f] = float(np.max(res.max_mesh_force_N)) / f_s
-    for f in ("te", "perturbation"):
-        assert 0.5 < peaks[f] / peaks["reference"] < 2.0, peaks
+    # measured peak / F_S (all at 680 rad/s): reference 3.466, te 3.515 (+1.4 %),
+    # perturbation 3.686 (+6.3 %). Bands ~2x / 1.6x the measured deviations: te within 3 %
+    # (te run at zeta 0.027, a 10 % damping error, reads +3.1 %; the perturbation
+    # formulation in its place reads +6.3 %), perturbation within 10 %, and te the closer.
+    dev = {f: peaks[f] / peaks["reference"] - 1.0 for f in ("te", "perturbation")}
+    assert abs(dev["te"]) < 0.03, peaks
+    assert abs(dev["perturbation"]) < 0.10, peaks
+    assert abs(dev["te"]) < abs(dev["perturbation"]), peaks
 
 
 def test_3d_te_contact_law_is_the_cell_law_for_perfect_teeth():

@@ -98,11 +98,12 @@ def square_wave():
 
 
 def test_peak_mesh_force_is_exact_at_every_speed(square_wave):
-    """Max and min mesh force within 2e-4 F_S of the closed-form orbit from the
-    quasi-static range to above the critical speed (the sampled grid alone missed the
-    low-speed peak, which sits at a stiffness jump, by 5.7e-2 F_S at 100 rad/s). At 353 and
-    800 rad/s the linear orbit's force turns tensile (closed form): there the contact law
-    holds the mesh force at zero, so the minimum is exactly 0 and ``contact_loss`` is set."""
+    """Max and min mesh force within 5e-6 F_S of the closed-form orbit from the
+    quasi-static range to above the critical speed (the issue's target was 2e-4 F_S; the
+    sampled grid alone missed the low-speed peak, which sits at a stiffness jump, by
+    5.7e-2 F_S at 100 rad/s). At 353 and 800 rad/s the linear orbit's force turns tensile
+    (closed form): there the contact law holds the mesh force at zero, so the minimum is
+    exactly 0 and ``contact_loss`` is set."""
     model, pair, k1, k2 = square_wave
     f_s = static_mesh_force(pair, TORQUE)
     speeds = np.array([100.0, 226.0, 353.0, 600.0, 800.0, 1200.0])
@@ -114,8 +115,13 @@ def test_peak_mesh_force_is_exact_at_every_speed(square_wave):
         if f_min <= 0.0:  # not the linear orbit any more
             assert float(res.min_mesh_force_N[i]) == 0.0, w
             continue
-        assert float(res.max_mesh_force_N[i]) == pytest.approx(f_max, abs=2e-4 * f_s), w
-        assert float(res.min_mesh_force_N[i]) == pytest.approx(f_min, abs=2e-4 * f_s), w
+        # measured |error| / F_S: max <= 1.2e-7 (1200 rad/s), min <= 7.9e-7 (100 rad/s; the
+        # shooting's Dopri8 at rtol 1e-9), so 5e-6 is ~6x the worst. A 1e-4 relative shift
+        # of the speed or of k1, k2 in the closed form moves an extremum by 6.2e-6 to
+        # 2.6e-4 F_S at each linear speed here: this bound catches all of them, 2e-4 only
+        # the speed shift at 100 rad/s.
+        assert float(res.max_mesh_force_N[i]) == pytest.approx(f_max, abs=5e-6 * f_s), w
+        assert float(res.min_mesh_force_N[i]) == pytest.approx(f_min, abs=5e-6 * f_s), w
     assert np.sum(res.contact_loss) == 2  # the closed form separates at 353 and 800 rad/s
 
 

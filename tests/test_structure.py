@@ -340,14 +340,25 @@ def test_free_free_shaft_has_six_rigid_body_modes() -> None:
 
 # ------------------------------------------------------------------------ frequencies
 def test_pinned_pinned_slender_euler_bernoulli() -> None:
-    # Slender (L/d = 100): w_n = (n pi / L)^2 sqrt(E I / (rho A)), within 0.5 %.
+    # Slender (L/d = 100). Timoshenko closed form (timoshenko_pinned_frequency, below):
+    # measured error of the 20 elements 6.0e-7 / 9.6e-6 / 4.8e-5 for modes 1-3, falling as
+    # h^3 (7.5e-6 / 1.2e-4 / 5.9e-4 at 10 elements, 7e-8 / 1.1e-6 / 5.7e-6 at 40): rtol 1e-4.
+    # Dropping shear and rotary inertia (the EB frequencies) is off by 1.2e-4 / 4.7e-4 /
+    # 1.1e-3, which this catches.
     L, d, n_el = 2.0, 0.02, 20
     A, I, _ = section(d)
     s = uniform_shaft(n_el, L, d)
-    ref = np.array([(n * math.pi / L) ** 2 * math.sqrt(E * I / (RHO * A)) for n in (1, 2, 3)])
+    tim = np.array([timoshenko_pinned_frequency(n, L, A, I, k_hutchinson_solid(NU))
+                    for n in (1, 2, 3)])
+    # Euler-Bernoulli slender limit w_n = (n pi / L)^2 sqrt(E I / (rho A)): shear and rotary
+    # inertia lower it by about (n pi r_g / L)^2 (1 + E / (k G)) / 2 with r_g = d / 4, i.e.
+    # 1.2e-4 / 4.7e-4 / 1.1e-3 (measured on the elements: 1.2e-4 / 4.6e-4 / 1.0e-3), so
+    # below EB and within 1.5e-3 of it.
+    eb = np.array([(n * math.pi / L) ** 2 * math.sqrt(E * I / (RHO * A)) for n in (1, 2, 3)])
     for disp, rot in ((V, PSI), (W, PHI)):
         w = plane_eigs(s, disp, rot, [0, n_el])[:3]
-        assert np.allclose(w, ref, rtol=5e-3)
+        assert np.allclose(w, tim, rtol=1e-4, atol=0)
+        assert np.all(w < eb) and np.allclose(w, eb, rtol=1.5e-3, atol=0)
 
 
 def test_pinned_pinned_euler_bernoulli_limit_converges() -> None:
