@@ -469,18 +469,27 @@ def test_dynamic_objective_gradients(mesh_iso, shared):
 @pytest.mark.slow
 def test_dynamic_optimum_beats_table1(mesh_iso):
     """Optimised relief lowers the peak dynamic factor over 660-900 rad/s (around the main
-    critical speed, 776 rad/s) below both Table 1 reliefs, checked by plain forward sweeps
-    of rebuilt models on a denser grid."""
+    critical speed, 776 rad/s) below both Table 1 reliefs and well below both start designs,
+    checked by plain forward sweeps of rebuilt models on a denser grid (about 7 min on 2
+    loaded cores)."""
     speeds = np.linspace(660.0, 900.0, 8)
     space = ReliefSpace()
     obj = DynamicObjective(mesh_iso, space, speeds, "dynamic-factor", formulation="perturbation")
-    best, _ = multi_start(obj, [[13.3e-6, 0.35], [20e-6, 0.5]], max_iter=15, learning_rate=0.15)
+    starts = {"start0": (13.3e-6, 0.35), "start1": (20e-6, 0.5)}
+    best, _ = multi_start(obj, list(starts.values()), max_iter=15, learning_rate=0.15)
     dense = np.linspace(660.0, 900.0, 31)
     peak = {}
-    for name, x in {"short": (13.3e-6, 0.2), "long": (13.3e-6, 0.5), "opt": tuple(best.x)}.items():
+    designs = {"short": (13.3e-6, 0.2), "long": (13.3e-6, 0.5), **starts, "opt": tuple(best.x)}
+    for name, x in designs.items():
         res = sweep(_build(mesh_iso, *x, formulation="perturbation"), dense, progress=False)
         peak[name] = float(np.max(res.dynamic_factor))
     assert peak["opt"] < peak["short"] and peak["opt"] < peak["long"], peak
+    # start0 alone already beats both Table 1 reliefs and multi_start returns the best
+    # start, so the optimiser must also beat every start design by a clear margin. Measured
+    # (31 speeds): short 3.706, long 2.493, start0 2.385, start1 2.686, optimum 1.244 at
+    # (14.41 um, 0.306), 0.52x the better start; 0.8x leaves the optimum 50 % headroom and
+    # fails an optimiser that never moves (1.0x)
+    assert peak["opt"] < 0.8 * min(peak["start0"], peak["start1"]), peak
 
 
 @pytest.mark.slow

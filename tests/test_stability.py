@@ -118,13 +118,23 @@ def test_perturbation_multipliers_are_constant_coefficient(square_wave):
 
 def test_relief_model_and_errors():
     """Gear model with Table 1 short relief: vmapped spectral radius equals the per-speed
-    multipliers; bad speeds and models without a linear part give clear errors."""
+    multipliers, whose product obeys Liouville's formula (independent of k(theta)): the
+    trace of ``m x'' + c x' + k(t) x = 0`` is -c/m = -2 zeta omega_n whatever the relief,
+    so mu_1 mu_2 = det Phi = exp(-2 zeta omega_n T) with T = P / Omega (P the period in
+    theta); bad speeds and models without a linear part give clear errors."""
     model = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
                                  formulation="te", damping_ratio=0.03)
     speeds = [400.0, 1550.0]
     rho = spectral_radius(model, speeds)
+    omega_n = float(model.natural_frequency_rad_s())
     for w, r in zip(speeds, rho):
-        assert r == pytest.approx(np.abs(floquet_multipliers(model, w)).max(), rel=1e-12)
+        mu = floquet_multipliers(model, w)
+        assert r == pytest.approx(np.abs(mu).max(), rel=1e-12)
+        # Liouville: measured |mu_1 mu_2 / exp(-2 zeta omega_n T) - 1| = 6.0e-11 (400 rad/s,
+        # complex pair) and 5.7e-12 (1550 rad/s, real pair) with the monodromy's rtol 1e-10;
+        # 1e-8 leaves 100x (zeta 1e-5 relative off moves it by 7e-6)
+        liouville = math.exp(-2 * 0.03 * omega_n * float(model.period_rad) / w)
+        assert abs(np.prod(mu) / liouville - 1) < 1e-8, (w, np.prod(mu), liouville)
     assert rho[0] < 1 < rho[1]
     with pytest.raises(SimulationError, match="speeds_rad_s"):
         spectral_radius(model, [100.0, -1.0])
