@@ -231,9 +231,13 @@ def test_torsional_structure_matches_sdof_model(torsional_setup, formulation):
     r3, r1 = run(m3), run(m1)
     assert bool(r3.solver_ok) and bool(r1.solver_ok) and not bool(r1.contact_loss)
     assert float(r1.dynamic_factor) > 1.1  # a dynamic regime, not the static one
-    np.testing.assert_allclose(float(r3.max_mesh_force_N), float(r1.max_mesh_force_N), rtol=5e-5)
-    np.testing.assert_allclose(float(r3.min_mesh_force_N), float(r1.min_mesh_force_N), rtol=5e-5)
-    np.testing.assert_allclose(float(r3.dte_ptp_m), float(r1.dte_ptp_m), rtol=1e-4)
+    # measured 2026-11-24 (3D - sdof, relative; te / reference / perturbation): max force
+    # -1.8e-7 / -2.0e-7 / -2.7e-7, min force +3.5e-7 / +3.7e-7 / +3.9e-7, DTE ptp -2.8e-7 /
+    # -3.0e-7 / -6.9e-7, the same to 2 digits at rtol 1e-10 and with n_table 128: a fixed
+    # offset between the two codes, not integration error. Bounds ~5x the largest.
+    np.testing.assert_allclose(float(r3.max_mesh_force_N), float(r1.max_mesh_force_N), rtol=2e-6)
+    np.testing.assert_allclose(float(r3.min_mesh_force_N), float(r1.min_mesh_force_N), rtol=2e-6)
+    np.testing.assert_allclose(float(r3.dte_ptp_m), float(r1.dte_ptp_m), rtol=3e-6)
 
 
 # ---------------------------------------------------------------------- Eq. (42) vs (14)
@@ -335,8 +339,12 @@ def test_modal_transient_amplitudes_closed_form():
     free response z = A exp(-zeta w t) cos(w_d t) in the state (z / a, z' / (w a))."""
     from gearjax.models.base import modal_transient_amplitudes
 
-    om, zeta, speed, p_rad, a = np.array([300.0, 5000.0]), 0.02, 100.0, 0.25, 2e-6
-    big_a, t0 = 3e-5, 0.37
+    # p_rad 6.3 rad at 100 rad/s: omega P = 18.9 (3 cycles), |mu| = exp(-zeta omega P) =
+    # 0.685, |1 - mu| = 0.317: the mode clearly decays over the period, and dropping the |mu|
+    # factor would be a 46 % error (|mu| <= 0.5 cannot be used: the function counts a mode
+    # only where |mu| > |1 - mu|)
+    om, zeta, speed, p_rad, a = np.array([300.0, 5000.0]), 0.02, 100.0, 6.3, 2e-6
+    big_a = 3e-5
     period = p_rad / speed
     wd = om[0] * np.sqrt(1 - zeta**2)
 
@@ -346,15 +354,21 @@ def test_modal_transient_amplitudes_closed_form():
         zd = big_a * e * (-zeta * om[0] * np.cos(wd * t) - wd * np.sin(wd * t))
         return np.array([z / a, 0.0, zd / (om[0] * a), 0.0])
 
-    dy = jnp.asarray(state(t0 + period) - state(t0))
-    f, d, acc = modal_transient_amplitudes(dy, speed, p_rad, om, zeta, a,
-                                           np.array([3.0, 7.0]), np.array([1.0, 1.0]),
-                                           np.array([0.5, 0.0]))
-    left = big_a * np.exp(-zeta * om[0] * (t0 + period))  # envelope after the period
-    np.testing.assert_allclose([float(f), float(d), float(acc)],
-                               [3.0 * left, left, 0.5 * om[0] ** 2 * left], rtol=0.05)
-    # a fast mode's change is not amplified like a slow one's (30 rad/s: 1/|1 - mu| ~ 13)
-    om2 = np.array([30.0, 5300.0])
+    # phases over half a cycle (the ripple's period): the amplitude read from (z, z' /
+    # omega) of a damped mode is A e^(-zeta omega t) sqrt(1 + zeta sin(2 phi) + O(zeta^2)),
+    # a ripple of +-zeta/2 = +-1 % about the envelope (measured: -1.0007e-2 to +0.991e-2
+    # over 64 phases, the same for all three outputs)
+    for t0 in 0.37 + np.arange(8) * (np.pi / wd / 8):
+        dy = jnp.asarray(state(t0 + period) - state(t0))
+        f, d, acc = modal_transient_amplitudes(dy, speed, p_rad, om, zeta, a,
+                                               np.array([3.0, 7.0]), np.array([1.0, 1.0]),
+                                               np.array([0.5, 0.0]))
+        left = big_a * np.exp(-zeta * om[0] * (t0 + period))  # envelope after the period
+        np.testing.assert_allclose([float(f), float(d), float(acc)],
+                                   [3.0 * left, left, 0.5 * om[0] ** 2 * left], rtol=0.011)
+    # a fast mode's change is not amplified like a slow one's (30 rad/s, period 0.25 rad at
+    # 100 rad/s: 1/|1 - mu| ~ 13)
+    om2, p_rad = np.array([30.0, 5300.0]), 0.25
     fast = modal_transient_amplitudes(jnp.asarray([0.0, 1.0, 0.0, 0.0]), speed, p_rad, om2,
                                       zeta, 1.0, np.ones(2), np.ones(2), None)
     slow = modal_transient_amplitudes(jnp.asarray([1.0, 0.0, 0.0, 0.0]), speed, p_rad, om2,

@@ -33,18 +33,24 @@ SAMPLES = 128  # simulate's default samples per mesh period
 SPEEDS = np.array([300.0, 780.0])
 
 
-def _closed_form(model, omega, with_nlte: bool, n_per_sample=16):
-    """(F_D, DTE) of the linear sdof equation without the NLTE'' term at ``omega``:
+def _closed_form(model, omega, with_nlte: bool, n_per_sample=16, theta=None):
+    """(F_D, DTE, TE_S) of the linear sdof equation without the NLTE'' term at ``omega``:
     forcing ``K x_stat`` with ``x_stat = TE_S - NLTE`` (``with_nlte``) or ``TE_S`` (NLTE =
-    0), ``x_h = K x_stat_h / (K - m_eq nu^2 + i c nu)``; F_D = F_S + k_S cos b_b (x -
-    x_stat) (Eq. (24)) on a dense grid and on both sides of the stiffness jumps (x by
-    trigonometric interpolation: x is C^1 there)."""
+    0), ``x_h = K x_stat_h / (K - m_eq nu^2 + i c nu)`` from the FFT of x_stat on ``SAMPLES
+    * n_per_sample`` points per period; F_D = F_S + k_S cos b_b (x - x_stat) (Eq. (24)) on
+    that grid and on both sides of the stiffness jumps, or at the angles ``theta`` if given
+    (x by trigonometric interpolation: x is C^1 there)."""
     mesh, mods, pair = model.mesh, model.mods, model.mesh.pair
     period = model.period_rad
     n = SAMPLES * n_per_sample
-    theta = np.arange(n) * (period / n)
-    jumps = np.asarray(model.jump_thetas, dtype=float)
-    th_all = np.concatenate([theta, jumps - 1e-9 * period, jumps + 1e-9 * period])
+    grid = np.arange(n) * (period / n)
+    if theta is None:
+        jumps = np.asarray(model.jump_thetas, dtype=float)
+        th_all = np.concatenate([grid, jumps - 1e-9 * period, jumps + 1e-9 * period])
+        out = slice(0, None)
+    else:
+        th_all = np.concatenate([grid, np.mod(np.asarray(theta, dtype=float), period)])
+        out = slice(n, None)
     f_s = float(model.static_force_N)
     qs = quasi_static(mesh, mods, jnp.asarray(th_all), f_s)
     te_s, nlte = np.asarray(qs.te_s_m), np.asarray(qs.nlte_m)
@@ -59,7 +65,8 @@ def _closed_form(model, omega, with_nlte: bool, n_per_sample=16):
     h = np.fft.fftfreq(n, d=1.0 / n)
     nu = h * (2 * math.pi / period) * omega
     xh = K * np.fft.fft(x_stat[:n]) / (K - m_eq * nu**2 + 1j * c * nu)
-    x = np.real(np.exp(2j * np.pi * np.outer(th_all / period, h)) @ xh) / n
+    th, x_stat, k_s, nlte, te_s = th_all[out], x_stat[out], k_s[out], nlte[out], te_s[out]
+    x = np.real(np.exp(2j * np.pi * np.outer(th / period, h)) @ xh) / n
     f_d = f_s + k_s * cos_b * (x - x_stat)
     dte = x + nlte if with_nlte else x
     return f_d, dte, te_s
@@ -92,24 +99,38 @@ def test_sdof_without_nlte_dd_matches_closed_form(long_sdof):
             np.testing.assert_allclose(float(res.dte_ptp_m[i]), np.ptp(dte), rtol=1e-4)
 
 
-def test_sdof_quasi_static_limit(long_sdof):
-    """On the quasi-static solution (the Omega -> 0 orbit): without NLTE'' the approach is
-    x = TE_S - NLTE exactly, with NLTE = 0 everywhere x = TE_S; DTE = TE_S and F_D = F_S
-    for both (TE_S, NLTE from :func:`gearjax.quasi_static`)."""
-    theta = np.array([0.01, 0.07, 0.13, 0.2])
+def test_sdof_low_speed_matches_closed_form(long_sdof):
+    """Towards the quasi-static limit: at 5 rad/s (mesh frequency 130 rad/s, omega_n / 159)
+    the response is x_stat = TE_S - NLTE (resp. TE_S) plus the ringing of the mode at
+    omega_n excited by the kinks of x_stat (about 160 cycles per mesh period), DTE -> TE_S.
+    The simulated signals (not the extrema: the metrics grid of 128 samples per mesh period
+    does not resolve 160 cycles) against the FFT closed form above at the same angles,
+    point by point, for both NLTE switches."""
+    sim = eqx.filter_jit(lambda m, w: simulate(m, w, n_measured_periods=2, save_signals=True))
+    omega = 5.0
     for model, with_nlte in zip(long_sdof, (True, False)):
-        qs = quasi_static(model.mesh, model.mods, jnp.asarray(theta), float(model.static_force_N))
-        te_s, nlte = np.asarray(qs.te_s_m), np.asarray(qs.nlte_m)
-        assert np.ptp(nlte) > 0.1 * np.ptp(te_s)
-        for i, th in enumerate(theta):
-            y = model.initial_state(1.0, th)
-            x = float(y[0] * model.x_ref)
-            want = te_s[i] - nlte[i] if with_nlte else te_s[i]
-            np.testing.assert_allclose(x, want, rtol=1e-9)
-            out = model.outputs(jnp.asarray(th), y, 1.0)
-            np.testing.assert_allclose(float(out.dte_m), te_s[i], rtol=1e-9)
-            np.testing.assert_allclose(float(out.mesh_force_N), float(model.static_force_N),
-                                       rtol=1e-9)
+        res = sim(WithoutContactLaw(model), jnp.asarray(omega))
+        assert bool(res.solver_ok) and bool(res.converged)
+        th = np.asarray(res.signals.theta_rad)
+        # 2^15 FFT points: x_stat has kinks (harmonics ~ 1/h^2), the closed form's error
+        # falls like n^-2 (measured max |F_D error| / scale 6.3e-3, 6.5e-4, 2.8e-5 with 2^11,
+        # 2^13, 2^15 points)
+        f_d, dte, te_s = _closed_form(model, omega, with_nlte, n_per_sample=256, theta=th)
+        f_s = float(model.static_force_N)
+        if with_nlte:  # the long relief: the two switches really differ
+            nlte = np.asarray(quasi_static(model.mesh, model.mods, jnp.asarray(th), f_s).nlte_m)
+            assert np.ptp(nlte) > 0.1 * np.ptp(te_s)
+        scale = np.max(np.abs(f_d - f_s))  # the dynamic part: 3.7e-3 / 2.0e-3 F_S (measured)
+        dyn = np.max(np.abs(dte - te_s))
+        # near the quasi-static limit: F_D -> F_S, DTE -> TE_S (0.64 % of ptp TE_S here)
+        assert 1e-4 * f_s < scale < 1e-2 * f_s
+        assert 0 < dyn < 0.02 * np.ptp(te_s)
+        # measured 2026-11-24: max error / scale 2.8e-5 (F_D) and 2.8e-5 (DTE - TE_S) with
+        # NLTE, 5.0e-5 and 2.9e-5 with NLTE = 0; budget: the closed form's truncation (~4e-5,
+        # the 2^13 -> 2^15 trend) plus the integration (rtol 1e-7 of x_ref -> ~1e-7 F_S,
+        # 5e-5 of the smaller scale)
+        assert np.max(np.abs(np.asarray(res.signals.mesh_force_N) - f_d)) < 2e-4 * scale
+        assert np.max(np.abs(np.asarray(res.signals.dte_m) - dte)) < 2e-4 * dyn
 
 
 def test_3d_without_inertial_terms_differs_by_nlte_dd_e():

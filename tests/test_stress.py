@@ -4,9 +4,10 @@ never a silent NaN or a wrong number. Accuracy is checked against independent re
 (closed forms, limits, a second method, energy).
 
 Only the first test runs in the default quick suite (``-m "not slow"``); the others are
-marked slow (measured 2026-11-22 under load ~8 on 2 cores: contact loss 99 s, light/heavy
-discs 60 s each, float32 longer; under load ~2: energy drift 16 s, extreme reliefs 26 s,
-1e12 N/m bearings 60 s, rigid-bearing limit 71 s): run them with ``-m slow``."""
+marked slow (measured 2026-11-22 under load ~8 on 2 cores: contact loss 99 s; under load
+~2: energy drift 16 s, extreme reliefs 26 s, 1e12 N/m bearings 60 s, rigid-bearing limit
+71 s; 2026-11-24, load ~2: light / heavy discs 16 s / 6 s after one another, float32 189 s,
+the 1 rad/s transient 16 s): run them with ``-m slow``."""
 
 from __future__ import annotations
 
@@ -72,29 +73,68 @@ def test_speeds_from_quasi_static_to_three_times_critical(spur):
 
 
 @pytest.mark.slow
-def test_quasi_static_speed_by_transient_hits_step_limit_or_agrees(spur):
-    """simulate at 1 rad/s: either agrees with the steady state (shooting, an independent
-    solver; DF - 1 = 4e-4 there, O(Omega / omega_n) from the kinks of TE_S) or says
-    solver_ok=False (step limit, which applies to each leg of the integration: transient,
-    each measured period), never a wrong number."""
+def test_quasi_static_speed_by_transient_agrees_with_shooting(spur):
+    """simulate at 1 rad/s (r = omega_n / Omega ~ 2e4: very stiff in theta) with a step
+    limit of 20 000 per leg (transient, each measured period): the limit is not reached
+    (measured 2026-11-24: solver_ok, converged after the minimum 8 periods) and the result
+    agrees with the steady state by shooting, an independent solver (DF - 1 = 4.0e-4 there,
+    O(Omega / omega_n) from the kinks of TE_S)."""
     model = _model(spur)
     res = eqx.filter_jit(lambda m, w: simulate(m, w, max_steps=20_000))(model, jnp.asarray(1.0))
     _no_silent_nan(jax.tree.map(lambda a: np.asarray(a)[None], res))
-    if bool(res.solver_ok):
-        st = steady_sweep(model, np.array([1.0]), progress=False)
-        assert bool(st.converged[0])
-        assert abs(float(res.dynamic_factor) - float(st.dynamic_factor[0])) < 1e-6
-    else:
-        assert not bool(res.converged)
+    assert bool(res.solver_ok) and bool(res.converged)
+    st = steady_sweep(model, np.array([1.0]), progress=False)
+    assert bool(st.converged[0])
+    assert float(res.dynamic_factor) - 1 > 100 * 1e-6  # the bound below is not vacuous
+    # measured difference 2.2e-10 (DF 1.000399824); bound: rtol 1e-7 of the state (x /
+    # x_ref) is ~1e-7 in DF, times 10
+    assert abs(float(res.dynamic_factor) - float(st.dynamic_factor[0])) < 1e-6
+
+
+def _heavy_inertia_limit(model):
+    """(max, min) of F_D / F_S in the limit Omega >> omega_c of the te model with NLTE = 0
+    (Eq. (20), ' = d/dtheta): ``x'' + 2 zeta r x' + r^2 (k_S / k_m) (x - TE_S) = 0``, r =
+    omega_n / Omega. Expanding x = x0 + r^2 x1 + ...: x0'' = 0, so the periodic x0 is a
+    constant x_bar, and x1 is periodic only if the period mean of k_S (x_bar - TE_S)
+    vanishes: x_bar = <k_S TE_S> / <k_S> (the mean force balance); then F_D = F_S + k_S
+    cos b_b (x_bar - TE_S) (Eq. (24)), with an error O((omega_c / Omega)^2) (r in mesh
+    periods: omega_c = omega_n / z1). Independent of the model's tables: the means by
+    Gauss-Legendre between the quasi-static state changes (exact quadrature of the
+    piecewise-smooth TE_S, k_S), the extrema on 2048 points plus both sides of every
+    jump."""
+    from gearjax import quasi_static
+
+    period = float(model.period_rad)
+    jumps = np.unique(np.asarray(model.jump_thetas, dtype=float) % period)
+    edges = np.concatenate([[0.0], jumps[jumps > 0], [period]])
+    g, w = np.polynomial.legendre.leggauss(16)
+    a, b = edges[:-1, None], edges[1:, None]
+    t_gauss = ((a + b) / 2 + (b - a) / 2 * g).ravel()
+    w_gauss = ((b - a) / 2 * w).ravel()
+    theta = np.concatenate([t_gauss, np.arange(2048) * (period / 2048),
+                            jumps - 1e-9 * period, jumps + 1e-9 * period])
+    f_s = float(model.static_force_N)
+    qs = quasi_static(model.mesh, model.mods, jnp.asarray(theta), f_s)
+    te_s, k_s = np.asarray(qs.te_s_m), np.asarray(qs.loaded_stiffness_N_per_m)
+    assert not model.nlte_terms and np.all(np.asarray(qs.nlte_m) == 0)  # short relief
+    m = t_gauss.size
+    k_mean = w_gauss @ k_s[:m] / period
+    # the quadrature reproduces the model's k_m (measured 4e-15)
+    assert abs(k_mean / float(model.mean_stiffness_N_per_m()) - 1) < 1e-12
+    x_bar = (w_gauss @ (k_s * te_s)[:m]) / (w_gauss @ k_s[:m])
+    f_d = f_s + k_s * model.cos_bb * (x_bar - te_s)
+    return f_d.max() / f_s, f_d.min() / f_s
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
 def test_very_light_and_very_heavy_discs(spur, scale):
     """Inertias x1e-3 (omega_n x31.6: 0.05 and 0.2 of the critical speed, the latter a
-    super-harmonic resonance w_c/5, DF 1.4) and x1e3
-    (far above resonance: the inertias cannot follow, x_D -> -(x_S - mean), the dynamic
-    mesh force is set by the stiffness fluctuation): shooting and a transient agree."""
+    super-harmonic resonance w_c/5, DF 1.4) and x1e3 (5 and 20 times the critical speed):
+    shooting and a transient agree. Far above resonance the inertias cannot follow: x ->
+    x_bar = <k_S TE_S> / <k_S>, the dynamic mesh force is set by the stiffness fluctuation
+    (:func:`_heavy_inertia_limit`); shooting approaches that limit as (omega_c /
+    Omega)^2."""
     model = _model(spur, scale_inertia=scale)
     w_c = float(model.natural_frequency_rad_s()) / spur.pair.z1
     speeds = np.array([0.05 * w_c, 0.2 * w_c]) if scale < 1 else np.array([5 * w_c, 20 * w_c])
@@ -102,9 +142,38 @@ def test_very_light_and_very_heavy_discs(spur, scale):
     tr = sweep(model, speeds, progress=False, n_transient_periods=None)
     _no_silent_nan(st)
     _no_silent_nan(tr)
-    both = st.converged & tr.converged
-    assert np.any(both)
-    np.testing.assert_allclose(st.dynamic_factor[both], tr.dynamic_factor[both], rtol=1e-5)
+    assert np.all(st.converged) and not np.any(st.contact_loss)
+    df_tr = np.array(tr.dynamic_factor)
+    if scale < 1:
+        assert np.all(tr.converged)
+    else:
+        # the automatic transient is ln(1e6) / (2 pi zeta omega_c / Omega) mesh periods: 366
+        # at 5 w_c, 1466 at 20 w_c, beyond the default cap of 400, after which the free
+        # response is still exp(-2 pi 0.03 400 / 20) = 0.023 of its start: flagged
+        # unconverged there, and only there (measured: convergence 0.58, DF 1.5362 against
+        # the shooting's 1.5215) ...
+        np.testing.assert_array_equal(tr.converged, [True, False])
+        # ... and converged with the cap raised above 1466 periods
+        long = sweep(model, speeds[1:], progress=False, max_transient_mesh_periods=2000)
+        assert long.converged[0]
+        df_tr[1] = long.dynamic_factor[0]
+        # the limit: measured DF 1.520611 (limit), 1.534925 and 1.521477 (shooting at 5 and
+        # 20 w_c); errors / ((w_c / Omega)^2 (DF_lim - 1)) = 0.69 and 0.67, their ratio 16.5
+        # (16 for (omega_c / Omega)^2; the next term, relatively O((w_c / Omega)^2) = 4 % at
+        # 5 w_c, makes the rest); min F_D / F_S: limit 0.70770, errors 0.60 and 0.57 of
+        # (w_c / Omega)^2 (1 - min_lim)
+        df_lim, min_lim = _heavy_inertia_limit(model)
+        assert min_lim > 0.5  # contact holds: the linear force law of the limit applies
+        eps = (w_c / speeds) ** 2
+        err = st.dynamic_factor - df_lim
+        assert np.all(np.abs(err) < eps * (df_lim - 1)), (err, df_lim)
+        assert abs(err[0] / err[1] / 16 - 1) < 0.1, err
+        err_min = st.min_mesh_force_N / float(model.static_force_N) - min_lim
+        assert np.all(np.abs(err_min) < eps * (1 - min_lim)), (err_min, min_lim)
+    # measured relative differences 1.2e-8, 1.3e-7 (light), 8.7e-8, 3.9e-7 (heavy, 20 w_c
+    # with the long transient); the automatic transient leaves 1e-6 (transient_decay) of
+    # the quasi-static start's deviation from the orbit (DF - 1 up to 0.5 here)
+    np.testing.assert_allclose(st.dynamic_factor, df_tr, rtol=1e-5)
 
 
 @pytest.mark.slow
@@ -240,25 +309,31 @@ def test_energy_drift_over_10000_mesh_periods():
 
 
 @pytest.mark.slow
-def test_float32_is_refused_or_close():
-    """gearjax enables float64 on import; forcing float32 back (jax_enable_x64 False)
-    must either raise or give a result flagged/close to float64 (documented: float32
-    loses ~7 digits; the metrics stay within 1e-3)."""
+def test_float32_is_flagged_not_computed():
+    """gearjax enables float64 on import; forcing float32 back (jax_enable_x64 False) is not
+    refused up front (no error is raised today), and no number comes out either: the
+    integrations cannot meet their tolerances in float32 (eps 1.2e-7 against the shooting's
+    rtol 1e-9 and the measurement's 1e-7) and run to their step limits. Measured
+    2026-11-24 at 400 rad/s: periodic_state used all of max_steps=1e5 and reported ok
+    False; simulate gave solver_ok False at rtol 1e-7 and also at 1e-5; this steady_sweep
+    took 217 s (189 s as this test; presumably both default step limits, 1e6 shooting
+    and 2e6 measuring steps) and returned the flag below. Pinned:
+    solver_ok and converged False and every metric NaN -- a flag, never a float32 number
+    passed off as a result."""
     mesh = Mesh.build(baud_velex_pair(False))
     model = _model(mesh)
     ref = steady_sweep(model, [400.0], progress=False)
+    assert ref.solver_ok[0] and ref.converged[0] and np.isfinite(ref.dynamic_factor[0])
     jax.config.update("jax_enable_x64", False)
     try:
-        try:
-            st = steady_sweep(model, [400.0], progress=False)
-        except Exception as exc:  # a clear error is acceptable
-            assert str(exc)
-            return
-        _no_silent_nan(st)
-        if st.converged[0]:
-            assert abs(st.dynamic_factor[0] / ref.dynamic_factor[0] - 1) < 1e-3
+        st = steady_sweep(model, [400.0], progress=False)
     finally:
         jax.config.update("jax_enable_x64", True)
+    _no_silent_nan(st)
+    assert not st.solver_ok[0] and not st.converged[0]
+    for name in ("max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
+                 "spectral_radius"):
+        assert np.isnan(getattr(st, name)[0]), name
 
 
 def _stiff_bearing_rig(k_bearing):
