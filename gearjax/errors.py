@@ -17,6 +17,7 @@ __all__ = [
     "SimulationError",
     "DesignError",
     "RigError",
+    "check_float64",
 ]
 
 _NO_VALUE = object()
@@ -70,3 +71,20 @@ class DesignError(GearjaxError):
 
 class RigError(GearjaxError):
     """Unknown rig or bad rig data."""
+
+
+def check_float64() -> None:
+    """Raise a :class:`SimulationError` naming ``jax_enable_x64`` if JAX computes in float32.
+
+    gearjax enables float64 on import; a caller that turns it off again (``jax.config.update(
+    "jax_enable_x64", False)``) would get no answer but a long wait: the solvers' tolerances
+    (shooting rtol 1e-9, measurement 1e-7) lie below float32's 1.2e-7 resolution, so every
+    integration runs to its step limit (measured: a one-speed sdof ``steady_sweep`` took
+    217 s and returned NaN metrics). The dynamic solvers call this on entry."""
+    import jax
+
+    if not jax.config.jax_enable_x64:
+        raise SimulationError(
+            "jax_enable_x64", False,
+            "gearjax computes in float64 (its tolerances lie below float32's resolution); "
+            'restore it with jax.config.update("jax_enable_x64", True)')

@@ -61,7 +61,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..errors import SimulationError
+from ..errors import SimulationError, check_float64
 from . import watchdog
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import (default_solver, jump_controller, jump_density, simulate,
@@ -167,6 +167,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     """
     if direction not in DIRECTIONS:
         raise SimulationError("direction", direction, f"must be one of {', '.join(DIRECTIONS)}")
+    check_float64()
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     if speeds.size == 0 or not np.all(np.isfinite(speeds) & (speeds > 0)):
         raise SimulationError("speeds_rad_s", speeds[:5].tolist(),

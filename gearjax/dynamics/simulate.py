@@ -100,7 +100,7 @@ import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 import numpy as np
-from ..errors import SimulationError
+from ..errors import SimulationError, check_float64
 from ..models.base import AbstractGearModel
 from .legs import solve_legs
 from .metrics import output_grid, refine_windows, window_extrema
@@ -441,6 +441,7 @@ def simulate(
                               "must be a gear model (gearjax.models.base.AbstractGearModel)")
     _check_config(n_transient_periods, n_measured_periods, samples_per_mesh_period,
                   transient_decay, min_transient_mesh_periods, max_transient_mesh_periods)
+    check_float64()
     if not isinstance(omega, jax.core.Tracer):
         w = np.asarray(omega, dtype=float)
         if w.ndim != 0:

@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..errors import SimulationError
+from ..errors import SimulationError, check_float64
 from ..models.base import AbstractGearModel
 
 __all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "check_speeds",
@@ -121,7 +121,9 @@ def spectral_radius(model, speeds_rad_s, **kwargs) -> np.ndarray:
 
 def check_speeds(speeds):
     """Raise a SimulationError naming ``speeds_rad_s`` unless ``speeds`` (1-D array) holds
-    at least one speed and all are finite and > 0 (rad/s)."""
+    at least one speed and all are finite and > 0 (rad/s); and unless JAX computes in
+    float64 (:func:`gearjax.errors.check_float64`)."""
+    check_float64()
     bad = ~(np.isfinite(speeds) & (speeds > 0))
     if speeds.size == 0 or np.any(bad):
         raise SimulationError(

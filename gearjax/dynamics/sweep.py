@@ -34,6 +34,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..errors import check_float64
 from . import watchdog
 from .results import (CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, append_rows,
                       empty_metrics)
@@ -154,6 +155,7 @@ def sweep(
     SimulationError
         for empty, non-finite or non-positive speeds or a bad chunk size.
     """
+    check_float64()
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     if speeds.size == 0:
         raise SimulationError("speeds_rad_s", speeds_rad_s, "no speeds given")
