@@ -187,3 +187,25 @@ def test_closed_form_refuses_what_it_does_not_cover():
         piecewise_oscillator_orbit(1.0, 10.0, [(1.0, 0.1)], 1.0)
     with pytest.raises(ModelError, match="contact_ratio"):
         square_wave_segments(2.3, 1e-3, 1e8, 2e8)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "known defect (session 22): below ~20 rad/s the free ringing after each stiffness jump "
+    "(omega_n / mesh frequency = 170 at 5 rad/s) is faster than the 128-sample grid and the "
+    "refinement around the smallest grid value, so the ringing minimum is missed; passes "
+    "with samples_per_mesh_period=4096"))
+def test_low_speed_ringing_extrema(square_wave):
+    """At 5 rad/s the force drops to F_S/2 at the two-to-one pair jump and rings down to
+    0.2537 F_S (closed form, zeta 0.1); measured: simulate reads 0.5000 F_S with the default
+    grid (+0.246 F_S), 0.25371614 F_S with 4096 samples per mesh period (1.4e-7 F_S). The 3D
+    te main job shows the same at its lowest speed: min force +2.0e-3 F_S at 20 rad/s
+    (128 against 2048 samples), none from 40 rad/s."""
+    from gearjax.dynamics.simulate import simulate
+
+    model, pair, k1, k2 = square_wave
+    f_s = static_mesh_force(pair, TORQUE)
+    f_max, f_min = exact_force_extrema(pair, k1, k2, tuple(np.asarray(model.inertias_kg_m2)),
+                                       5.0, f_s)
+    res = simulate(model, 5.0)
+    assert float(res.max_mesh_force_N) == pytest.approx(f_max, abs=5e-6 * f_s)
+    assert float(res.min_mesh_force_N) == pytest.approx(f_min, abs=5e-6 * f_s)
