@@ -195,10 +195,14 @@ def test_closed_form_refuses_what_it_does_not_cover():
     "refinement around the smallest grid value, so the ringing minimum is missed; passes "
     "with samples_per_mesh_period=4096"))
 def test_low_speed_ringing_extrema(square_wave):
-    """At 5 rad/s the force drops to F_S/2 at the two-to-one pair jump and rings down to
-    0.2537 F_S (closed form, zeta 0.1); measured: simulate reads 0.5000 F_S with the default
-    grid (+0.246 F_S), 0.25371614 F_S with 4096 samples per mesh period (1.4e-7 F_S). The 3D
-    te main job shows the same at its lowest speed: min force +2.0e-3 F_S at 20 rad/s
+    """At 5 rad/s the force jumps to 2 F_S where the second pair engages and rings about F_S
+    (170 free periods per mesh period); its first undershoot, half a free period later, is
+    the minimum, 0.2537 F_S (closed form, zeta 0.1). The 128-sample grid aliases the
+    ringing, so its smallest value is the F_S/2 one-sided point where a pair leaves, and
+    the refinement around it is elsewhere. Measured: simulate reads 0.5000 F_S (+0.246
+    F_S), 0.25371614 F_S with 4096 samples per mesh period (1.4e-7 F_S); a refinement
+    window widened to one sample spacing either side of the grid extreme did not help. The
+    3D te main job shows the same at its lowest speed: min force +2.0e-3 F_S at 20 rad/s
     (128 against 2048 samples), none from 40 rad/s."""
     from gearjax.dynamics.simulate import simulate
 
