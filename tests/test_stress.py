@@ -314,7 +314,8 @@ def test_float32_is_refused_at_once():
     computing: the tolerances (shooting rtol 1e-9, measurement 1e-7) lie below float32's
     1.2e-7 resolution, so every integration ran to its step limit (measured 2026-11-24 at
     400 rad/s before the check: this steady_sweep took 217 s and returned solver_ok False
-    and NaN metrics). The same model in float64 converges (the control)."""
+    and NaN metrics). The same model in float64 converges (test_speeds_from_quasi_static_to_
+    three_times_critical runs it; a control here cost 15 s of compilation)."""
     from gearjax import SimulationError
     from gearjax.dynamics.continuation import continuation_sweep
     from gearjax.dynamics.harmonic_sweep import harmonic_sweep
@@ -337,8 +338,6 @@ def test_float32_is_refused_at_once():
                 call()
     finally:
         jax.config.update("jax_enable_x64", True)
-    ref = steady_sweep(model, [400.0], progress=False)
-    assert ref.solver_ok[0] and ref.converged[0] and np.isfinite(ref.dynamic_factor[0])
 
 
 def _stiff_bearing_rig(k_bearing):
