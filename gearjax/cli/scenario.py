@@ -18,8 +18,10 @@ import math
 
 import numpy as np
 
-__all__ = ["linspace_option", "Scenario", "scenario_modifications", "add_nlte_reaction", "nlte_reaction_of",
-           "add_nlte_switches", "nlte_options_of", "add_eccentricity", "eccentricity_of"]
+__all__ = ["linspace_option", "Scenario", "scenario_modifications", "add_nlte_reaction",
+           "nlte_reaction_of", "add_nlte_switches", "nlte_options_of", "add_eccentricity",
+           "eccentricity_of"]
+
 
 def linspace_option(text: str, option: str, *, example: str, lo: float = 0.0,
                     hi: float = math.inf, positive: bool = True, unit: str = "") -> np.ndarray:

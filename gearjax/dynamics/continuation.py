@@ -61,11 +61,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..errors import SimulationError, check_float64
+from ..errors import SimulationError
 from . import watchdog
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import (default_solver, jump_controller, jump_density, simulate,
                        transient_periods)
+from .stability import check_speeds
 from .steady import periodic_state
 
 __all__ = ["continuation_sweep", "BranchResult", "branch_jumps", "hysteresis_band",
@@ -167,11 +168,8 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     """
     if direction not in DIRECTIONS:
         raise SimulationError("direction", direction, f"must be one of {', '.join(DIRECTIONS)}")
-    check_float64()
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
-    if speeds.size == 0 or not np.all(np.isfinite(speeds) & (speeds > 0)):
-        raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
-                              "need at least one finite pinion speed > 0 (rad/s)")
+    check_speeds(speeds)  # and float64
     if np.unique(speeds).size != speeds.size:
         raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
                               "speeds must be distinct (a branch visits each once)")

@@ -72,10 +72,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..linalg import solve as dense_solve
-from ..errors import check_float64
 from . import watchdog
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import SimulationError, SimulationResult, jump_controller, simulate
+from .stability import check_speeds
 
 __all__ = [
     "periodic_state",
@@ -366,11 +366,8 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     ``transient_periods`` is 0 for shooting speeds and the transient used for continued
     ones; ``n_steps`` counts shooting and measuring steps.
     """
-    check_float64()
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
-    if speeds.size == 0 or not np.all(np.isfinite(speeds) & (speeds > 0)):
-        raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
-                              "need at least one finite pinion speed > 0 (rad/s)")
+    check_speeds(speeds)  # and float64
     if chunk_size is None:
         # the batched monodromy (chunk x n x n per stage) must stay cache-sized: measured on
         # the 3D spur rig (n = 182), 8 speeds in chunks of 2: 2.6 s/speed; 100 speeds in one
