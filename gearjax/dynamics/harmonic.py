@@ -74,7 +74,7 @@ from ..errors import SimulationError
 from ..excitation.events import distinct_angles
 from ..models.base import LINEAR_FORMULATIONS, AbstractGearModel
 from .krylov import gmres
-from .metrics import output_grid, refined_extrema
+from .metrics import JumpClusters, jump_clusters, output_grid, refined_extrema, ringing_length
 from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
 from .small_gain import small_gain_bound
 from .stability import check_speeds, monodromy
@@ -473,8 +473,14 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
     n_mesh = int(round(period / model.mesh_period_rad))
     # the output grid of simulate (mid-cell samples, both sides of every jump) over one
     # period, closed by the periodic neighbours of its ends so that every point is interior
-    offs = output_grid(period, samples_per_mesh_period * n_mesh, model.jump_thetas, 1).offsets
+    grid = output_grid(period, samples_per_mesh_period * n_mesh, model.jump_thetas, 1)
+    offs = grid.offsets
     ts = jnp.asarray(np.concatenate([offs[-1:] - period, offs, offs[:1] + period]))
+    # the windows after the jumps, as in simulate (metrics, rule 3); ts[i + 1] is offs[i]
+    clusters = jump_clusters(grid, period, model.jump_thetas)
+    clusters = JumpClusters(clusters.before + 1, clusters.after + 1)
+    ring = ringing_length(omega, model.natural_frequency_rad_s(),
+                          period / (samples_per_mesh_period * n_mesh))
     ys = orbit(ts)
     err = jnp.max(jnp.abs(ys - half(ts))) / jnp.maximum(jnp.max(jnp.abs(ys)), 1e-300)
 
@@ -487,7 +493,7 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
 
     # the orbit is the flow: the refinement windows read it instead of integrating
     vals, v_max, v_min = refined_extrema(observed, lambda t0, y0, t: orbit(t), ts, ys,
-                                         n_refine=_N_REFINE)
+                                         n_refine=_N_REFINE, jumps=(clusters, ring))
     orders = mesh_order_amplitudes(order_matrix(  # one period of the grid: vals[1:-1]
         period, model.mesh_period_rad, samples_per_mesh_period * n_mesh, model.jump_thetas),
         vals[None, 1:-1])

@@ -46,7 +46,8 @@ SLOW_STAGE_GROWTH = 4.0
 def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: int,
                windows_of: Callable, memo, t_transient, accelerated: bool, n_transient,
                n_max_transient: int, tol: float, max_steps: int, adjoint,
-               convergence_tol: float = math.inf, n_extend=0, n_max_extend: int = 0):
+               convergence_tol: float = math.inf, n_extend=0, n_max_extend: int = 0,
+               n_skip=0):
     """Integrate the legs of one simulation (module docstring).
 
     Parameters
@@ -76,6 +77,9 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
         ``n_max_extend``, 0: never; within it at least once). A transient too short for the
         response (a contact-loss orbit decays more slowly than the linear model's estimate
         of the automatic count) then ends on a periodic response rather than a flag.
+    n_skip : the last ``n_skip`` windows are not integrated (traced; their states stay 0):
+        windows a speed does not need (under ``vmap`` the loop still runs until every
+        speed of the batch is done).
 
     Returns
     -------
@@ -98,7 +102,7 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
     tr_ts = jnp.full(n_out, t1_tr)
 
     def cond(c):
-        return c["leg"] < n_legs
+        return c["leg"] < n_legs - n_skip
 
     def body(c):
         leg, y = c["leg"], c["y"]

@@ -5,7 +5,8 @@ The dynamic mesh force of Eqs. (22)/(24) jumps wherever the mesh stiffness does 
 engagement, quasi-static active-set changes): ``F_D = F_S + k(theta) cos(b_b) x_D`` with a
 continuous state. Its maximum often sits *at* a jump, and a uniform sample grid reads it
 one sample late; between jumps a sampled maximum reads low by the curvature times the
-squared sample spacing. Two rules make the extrema exact to the integration tolerance:
+squared sample spacing; at low speed the free ringing after a jump is faster than the
+grid. Three rules make the extrema exact to the integration tolerance:
 
 1. The output grid holds, besides ``samples_per_mesh_period`` mid-cell samples per mesh
    period, the two one-sided points ``s_j -/+ delta`` of every jump angle ``s_j`` of the
@@ -13,9 +14,19 @@ squared sample spacing. Two rules make the extrema exact to the integration tole
    there are the one-sided limits to ``delta`` times their slope).
 2. Around the largest (smallest) grid value the solution is integrated again over the two
    adjacent grid intervals, the outputs are read on ``n_refine`` points per interval and
-   the vertex of a parabola through the best three gives the extremum
+   the vertex of the quartic through the best five gives the extremum
    (:func:`refined_extrema`): the states there are as accurate as the integration, and
-   the remaining error between jumps is of fourth order in ``h / n_refine``.
+   the remaining error between jumps is of sixth order in ``h / n_refine``.
+3. Where the period of the free mode that dominates the mesh deflection spans fewer than
+   16 grid intervals (low speed: ``2 pi Omega / omega_n`` rad), the grid aliases the
+   ringing that a jump starts, and rule 2 refines around a grid value elsewhere (sdof,
+   perfect spur teeth, zeta 0.1, 5 rad/s: the minimum, the first undershoot half a free
+   period after a pair engages, 0.2537 F_S, was read 0.5000 F_S; the 3D main job's at
+   20 rad/s 2.0e-3 F_S high, its acceleration peak-to-peak 6 % low). The solution is
+   then also integrated from the one-sided point after each of the largest jumps of the
+   force (:func:`jump_windows`; jumps closer than a sixteenth of a grid interval ring as
+   one) over two free periods (at most four grid intervals) and read on ``2 n_refine``
+   points, the extremum from the quartic vertex again (:func:`jump_window_extrema`).
 
 A cubic Hermite interpolant of the state between grid points (from the states and the
 vector field) was tried first: its fourth-order interpolation error reached 1.7e-6 F_S at
@@ -32,7 +43,9 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = ["JUMP_SIDE", "OutputGrid", "output_grid", "refined_extrema", "refine_windows",
-           "window_extrema"]
+           "window_extrema", "JumpClusters", "jump_clusters", "ringing_length", "ringing_resolved",
+           "n_jump_windows",
+           "jump_windows", "jump_window_extrema"]
 
 JUMP_SIDE = 1e-9  # one-sided points at s_j -/+ JUMP_SIDE * period
 
@@ -75,8 +88,8 @@ def _vertex_max(t, v, short):
     points around it equally spaced, farther apart than ``short`` (no jump between them),
     the middle one the largest (interpolation, no extrapolation) and the three second
     differences alike (no kink: a mesh force that stays at zero while the teeth separate,
-    or a cell that loses contact, would put a parabola's vertex beyond the signal).
-    Fourth-order error."""
+    or a cell that loses contact, would put a parabola's vertex beyond the signal); the
+    vertex refined on the quartic through the five (:func:`_quartic_vertex`)."""
     i = jnp.clip(jnp.argmax(v), 2, v.shape[0] - 3)
     y0, y1, y2 = v[i - 1], v[i], v[i + 1]
     dt = jnp.diff(jax.lax.dynamic_slice(t, (i - 2,), (5,)))
@@ -89,10 +102,32 @@ def _vertex_max(t, v, short):
     sound = ((jnp.max(jnp.abs(dt - d1)) <= 1e-6 * d1) & (jnp.min(dt) > short) & (y1 >= y0)
              & (y1 >= y2) & (curv < 0) & smooth)
     vertex = y1 - (y0 - y2) ** 2 / (8.0 * jnp.where(curv < 0, curv, -1.0))
+    vertex = _quartic_vertex(v[i - 2], y0, y1, y2, v[i + 2], vertex)
     return jnp.maximum(jnp.max(v), jnp.where(sound, vertex, -jnp.inf))
 
 
-def refined_extrema(outputs, flow, ts, ys, n_refine: int = 64):
+def _quartic_vertex(vm2, vm1, v0, v1, v2, parabola):
+    """Maximum of the quartic through five equally spaced values (at s = -2..2, unit
+    spacing) near s = 0: three Newton steps on its derivative from the parabola's vertex
+    (sixth-order error: a free oscillation sampled 64 times per period is read to 1e-8 of
+    its amplitude, the parabola to 4e-6); the parabola's ``parabola`` where Newton leaves
+    ``|s| <= 1`` or the quartic is not concave there."""
+    a1 = (vm2 - 8.0 * vm1 + 8.0 * v1 - v2) / 12.0
+    a2 = (-vm2 + 16.0 * vm1 - 30.0 * v0 + 16.0 * v1 - v2) / 24.0
+    a3 = (-vm2 + 2.0 * vm1 - 2.0 * v1 + v2) / 12.0
+    a4 = (vm2 - 4.0 * vm1 + 6.0 * v0 - 4.0 * v1 + v2) / 24.0
+    d1 = lambda s: a1 + s * (2.0 * a2 + s * (3.0 * a3 + s * 4.0 * a4))  # noqa: E731
+    d2 = lambda s: 2.0 * a2 + s * (6.0 * a3 + s * 12.0 * a4)  # noqa: E731
+    s = -a1 / jnp.where(a2 < 0, 2.0 * a2, -1.0)
+    for _ in range(3):
+        s = s - d1(s) / jnp.where(d2(s) < 0, d2(s), -1.0)
+    good = (jnp.abs(s) <= 1.0) & (d2(s) < 0) & jnp.isfinite(s)
+    s = jnp.where(good, s, 0.0)
+    value = v0 + s * (a1 + s * (a2 + s * (a3 + s * a4)))
+    return jnp.where(good, value, parabola)
+
+
+def refined_extrema(outputs, flow, ts, ys, n_refine: int = 64, jumps=None):
     """Max and min of each output over the grid, refined between grid points.
 
     Parameters
@@ -102,6 +137,9 @@ def refined_extrema(outputs, flow, ts, ys, n_refine: int = 64):
         solution started from ``y0`` at ``t0`` (the integrator, with its own tolerances).
     ts : (N,) grid angles, ``ys`` : (N, n) states on the grid.
     n_refine : points per grid interval in the refinement windows.
+    jumps : ``(clusters, length)``: also the windows after the largest jumps
+        (:func:`jump_windows`, ``2 n_refine`` points over ``length`` rad; ``clusters``
+        (:func:`jump_clusters`) index ``ts`` as one period); None: none.
 
     Returns
     -------
@@ -122,7 +160,14 @@ def refined_extrema(outputs, flow, ts, ys, n_refine: int = 64):
     cols = jnp.repeat(jnp.arange(vals.shape[1]), 2)
     wvals = jax.vmap(lambda j, c, t: jax.vmap(outputs)(t, flow(ts[j], ys[j], t))[:, c])(
         j0, cols, tf)
-    return (vals,) + window_extrema(vals, ts, j0, wvals)
+    v_max, v_min = window_extrema(vals, ts, j0, wvals)
+    if jumps is not None:
+        clusters, length = jumps
+        jj, tj = jump_windows(vals, ts, clusters, ts.shape[0], length, 2 * n_refine)
+        wj = jax.vmap(lambda j, t: jax.vmap(outputs)(t, flow(ts[j], ys[j], t)))(jj, tj)
+        j_max, j_min = jump_window_extrema(vals, ts, jj, tj, wj)
+        v_max, v_min = jnp.maximum(v_max, j_max), jnp.minimum(v_min, j_min)
+    return vals, v_max, v_min
 
 
 def refine_windows(vals, ts, n_refine: int = 64):
@@ -177,3 +222,123 @@ def window_extrema(vals, ts, j0, wvals):
     maxima = [jnp.maximum(jnp.max(vals[:, c]), best[2 * c]) for c in range(q)]
     minima = [jnp.minimum(jnp.min(vals[:, c]), best[2 * c + 1]) for c in range(q)]
     return jnp.stack(maxima), jnp.stack(minima)
+
+
+# ------------------------------------------------------------------ ringing after jumps
+# (rule 3 of the module docstring)
+JUMP_WINDOW_FREE_PERIODS = 2.0
+JUMP_WINDOW_MAX_INTERVALS = 4.0
+MAX_JUMP_WINDOWS = 8  # windows after the largest jumps of the force; all where fewer
+CLUSTER_INTERVALS = 1.0 / 16.0  # jumps closer than this (grid intervals) ring as one
+RESOLVED_INTERVALS = 16.0  # grid intervals per free period from which no window is needed
+
+
+class JumpClusters(NamedTuple):
+    """Jump angles of a period grouped where closer than ``CLUSTER_INTERVALS`` of a grid
+    interval (the cells of one 3D contact line engaging one after the other, within 0.04
+    of a grid interval on the Baud-Velex rig), as indices into one period of the output
+    grid (NumPy, build time).
+
+    before : (n_c,) the one-sided point before each cluster's first jump (for a jump at
+        0, the period's last point: the same jump one period on).
+    after : (n_c,) the one-sided point after its last jump (the ringing's start).
+    """
+
+    before: np.ndarray
+    after: np.ndarray
+
+
+def jump_clusters(grid: OutputGrid, period: float, jump_thetas) -> JumpClusters:
+    """The jump clusters of ``jump_thetas`` on ``grid`` (:func:`output_grid`, whose first
+    ``grid.per_period`` offsets are one period from 0)."""
+    period = float(period)
+    one = np.asarray(grid.offsets[: grid.per_period], dtype=float)
+    jumps = np.unique(np.mod(np.asarray(jump_thetas, dtype=float).reshape(-1), period))
+    if jumps.size == 0:
+        return JumpClusters(np.zeros(0, int), np.zeros(0, int))
+    n_samples = int(np.sum(grid.samples[: grid.per_period]))
+    gap = CLUSTER_INTERVALS * period / n_samples
+    # cyclic clusters: break where the gap to the next jump is that or more
+    nxt = np.roll(jumps, -1) + np.where(np.arange(jumps.size) == jumps.size - 1, period, 0.0)
+    breaks = np.nonzero(nxt - jumps >= gap)[0]
+    if breaks.size == 0:  # every jump close to the next: one cluster
+        firsts, lasts = jumps[:1], jumps[-1:]
+    else:
+        lasts = jumps[breaks]
+        firsts = jumps[(breaks + 1) % jumps.size]
+        firsts = np.roll(firsts, 1)  # cluster k runs from firsts[k] to lasts[k]
+    d = JUMP_SIDE * period
+
+    def index(t):  # the grid point at angle t (mod period)
+        i = int(np.argmin(np.abs(one - np.mod(t, period))))
+        assert abs(one[i] - np.mod(t, period)) < 0.5 * d, t
+        return i
+
+    # a jump at 0: its point before is the period's last one (the same jump, a period on)
+    before = np.array([index(f - d) for f in firsts])
+    after = np.array([index(a + d) for a in lasts])
+    return JumpClusters(before.astype(int), after.astype(int))
+
+
+def ringing_resolved(omega, omega_n, interval):
+    """True where the grid resolves the ringing of the free mode ``omega_n`` (rad/s) at
+    pinion speed ``omega`` (rad/s): its period in theta spans at least
+    ``RESOLVED_INTERVALS`` grid intervals ``interval`` (rad). The windows after the jumps
+    are then not needed: the grid's extreme lies on the ringing's largest lobe (a sample
+    is within ``1 - cos(pi / 16) = 2 %`` of the lobe's extremum, the next lobe of the
+    same sign ``exp(-2 pi zeta)`` smaller: 17 % at zeta 0.03) and the window around it
+    refines it."""
+    return 2.0 * jnp.pi * omega / omega_n >= RESOLVED_INTERVALS * interval
+
+
+def ringing_length(omega, omega_n, interval):
+    """Length (rad of theta) of the window after a jump at pinion speed ``omega`` (rad/s):
+    ``JUMP_WINDOW_FREE_PERIODS`` periods of the free mode ``omega_n`` (rad/s), at most
+    ``JUMP_WINDOW_MAX_INTERVALS`` grid intervals ``interval`` (rad)."""
+    free = 2.0 * jnp.pi * omega / omega_n
+    return jnp.minimum(JUMP_WINDOW_FREE_PERIODS * free, JUMP_WINDOW_MAX_INTERVALS * interval)
+
+
+def n_jump_windows(clusters: JumpClusters) -> int:
+    """Windows after the jumps (static): ``MAX_JUMP_WINDOWS``, fewer where fewer clusters."""
+    return min(MAX_JUMP_WINDOWS, int(clusters.after.shape[0]))
+
+
+def jump_windows(vals, ts, clusters: JumpClusters, per_period: int, length, n_points: int):
+    """The windows after the largest jumps of output 0 (the mesh force) on the grid values
+    ``vals`` (N, q) at ``ts`` (N,), N a whole number of periods of ``per_period`` points:
+    per cluster the period where its jump is largest, then the ``MAX_JUMP_WINDOWS``
+    largest clusters (all where fewer). Returns ``(j (K,), tf (K, n_points))``: each
+    window's start (a grid index, the point after the jump) and its angles
+    ``ts[j] + length (1..n_points) / n_points``."""
+    n = vals.shape[0]
+    n_per = n // per_period
+    base = per_period * np.arange(n_per)[:, None]
+    ia = jnp.asarray(clusters.after[None, :] + base)  # (n_per, n_c)
+    ib = jnp.asarray(clusters.before[None, :] + base)
+    mag = jnp.abs(vals[ia, 0] - vals[ib, 0])  # (n_per, n_c)
+    p = jnp.argmax(mag, axis=0)
+    _, top = jax.lax.top_k(jnp.max(mag, axis=0), n_jump_windows(clusters))
+    j = ia[p[top], top]
+    u = jnp.arange(1, n_points + 1) / n_points
+    return j, ts[j][:, None] + length * u[None, :]
+
+
+def jump_window_extrema(vals, ts, j, tf, wvals):
+    """Max and min of each output over the windows after the jumps: ``wvals`` (K, n, q)
+    the outputs at the angles ``tf`` (K, n) of :func:`jump_windows`, which start at the
+    grid points ``j`` (K,), and the vertex of a parabola through the largest value and
+    its neighbours (:func:`_vertex_max`). Returns ``(maxima (q,), minima (q,))``;
+    ``-inf``/``inf`` without windows."""
+    q = vals.shape[1]
+    if j.shape[0] == 0:
+        return jnp.full(q, -jnp.inf), jnp.full(q, jnp.inf)
+    tw = jnp.concatenate([ts[j][:, None], tf], axis=1)  # (K, n + 1), uniformly spaced
+    vw = jnp.concatenate([vals[j][:, None, :], wvals], axis=1)  # (K, n + 1, q)
+
+    def best(t, v):  # (n + 1,), (n + 1, q) -> max, min per output
+        one = lambda s: jax.vmap(lambda c: s * _vertex_max(t, s * c, 0.0), 1)(v)  # noqa: E731
+        return one(1.0), one(-1.0)
+
+    mx, mn = jax.vmap(best)(tw, vw)
+    return jnp.max(mx, axis=0), jnp.min(mn, axis=0)

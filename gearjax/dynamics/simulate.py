@@ -103,7 +103,9 @@ import numpy as np
 from ..errors import SimulationError, check_float64
 from ..models.base import AbstractGearModel
 from .legs import solve_legs
-from .metrics import output_grid, refine_windows, window_extrema
+from .metrics import (jump_clusters, jump_window_extrema, jump_windows, n_jump_windows,
+                      output_grid, refine_windows, ringing_length, ringing_resolved,
+                      window_extrema)
 from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
 from .periodicity import (convergence_measure, initial_memo, per_period_extrema,
                           with_periods_slid_past)
@@ -490,18 +492,30 @@ def simulate(
         return jnp.stack(cols)
 
     n_grid = ts.shape[0]
-    n_win = 2 * jax.eval_shape(observed, ts[0], y0).shape[0]  # a max and a min per output
+    n_ref = 2 * jax.eval_shape(observed, ts[0], y0).shape[0]  # a max and a min per output
+    clusters = jump_clusters(grid, period, jumps)
+    omega_n, interval = model.natural_frequency_rad_s(), period / n_samples
+    ring = ringing_length(omega, omega_n, interval)
+    resolved = ringing_resolved(omega, omega_n, interval)  # no windows after the jumps
+
+    def all_windows(vals):  # around the grid's extremes, after the largest jumps
+        j0, tf = refine_windows(vals, ts, N_REFINE)
+        jj, tj = jump_windows(vals, ts, clusters, grid.per_period, ring, 2 * N_REFINE)
+        return (j0, tf), (jj, tj)
+
+    n_win = n_ref + n_jump_windows(clusters)
     f_s = model.static_force_N
 
     def windows_of(g, memo):  # the measured states on the grid -> the windows' legs,
         vals = jax.vmap(observed)(ts, g)  # the convergence, what a slide keeps
-        j0, tf = refine_windows(vals, ts, N_REFINE)
+        (j0, tf), (jj, tj) = all_windows(vals)
+        j0, tf = jnp.concatenate([j0, jj]), jnp.concatenate([tf, tj])
         return ((ts[j0], g[j0], tf),) + convergence_measure(
             model, omega, vals, g, memo, n_periods=n_measured_periods,
             extrapolate=extrapolate, slide=slide, convergence_tol=convergence_tol)
 
     has_acc = jax.eval_shape(observed, ts[0], y0).shape[0] > 2
-    memo = initial_memo(n_win)  # the measurement before: its change, the periods slid past
+    memo = initial_memo(n_ref)  # the measurement before: its change, the periods slid past
     # an automatic transient too short for the response (a contact-loss orbit decays
     # more slowly than the linear model's count) slides the measured periods on, up to
     # the automatic maximum in all (forward mode: a reverse-mode adjoint checkpoints
@@ -519,7 +533,8 @@ def simulate(
         n_out=n_out, n_win=n_win, windows_of=windows_of, memo=memo, t_transient=t_tr,
         accelerated=accelerated, n_transient=n_tr, n_max_transient=n_max, tol=10.0 * rtol,
         max_steps=max_steps, adjoint=adjoint, convergence_tol=convergence_tol,
-        n_extend=n_ext_max - (0 if accelerated else n_tr), n_max_extend=n_ext_max)
+        n_extend=n_ext_max - (0 if accelerated else n_tr), n_max_extend=n_ext_max,
+        n_skip=jnp.where(resolved, n_win - n_ref, 0))
     if accelerated:
         n_tr = k_tr
     n_tr = n_tr + n_slid
@@ -528,11 +543,13 @@ def simulate(
     ok = ok_tr & jnp.all(success[:n_meas]) & jnp.all(jnp.isfinite(ys))
     steps = steps_tr + jnp.sum(n_steps[:n_meas])
     vals = jax.vmap(observed)(ts, ys)
-    j0, tf = refine_windows(vals, ts, N_REFINE)
+    (j0, tf), (jj, tj) = all_windows(vals)
+    wvals = jax.vmap(jax.vmap(observed))(jnp.concatenate([tf, tj]), win_ys)  # (n_win, k, q)
     cols = jnp.repeat(jnp.arange(vals.shape[1]), 2)  # window k refines output k // 2
-    wvals = jax.vmap(lambda y, c, t: jax.vmap(observed)(t, y)[:, c])(
-        win_ys, cols, tf)
-    v_max, v_min = window_extrema(vals, ts, j0, wvals)
+    v_max, v_min = window_extrema(vals, ts, j0, wvals[jnp.arange(n_ref), :, cols])
+    j_max, j_min = jump_window_extrema(vals, ts, jj, tj, wvals[n_ref:])
+    v_max = jnp.where(resolved, v_max, jnp.maximum(v_max, j_max))
+    v_min = jnp.where(resolved, v_min, jnp.minimum(v_min, j_min))
     # a sub-harmonic orbit of more periods than measured: its other periods' extrema
     v_max, v_min = with_periods_slid_past(v_max, v_min, memo, multiple, n_measured_periods)
     per, _ = per_period_extrema(vals, n_measured_periods)
