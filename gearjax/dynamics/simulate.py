@@ -68,8 +68,9 @@ Metrics
 The state is saved on the output grid of :mod:`gearjax.dynamics.metrics` (mid-cell
 samples plus both sides of every jump, by the solver's dense interpolant, which does not
 constrain the steps); max and min mesh force, DTE and acceleration are read there and
-refined between grid points, so they are exact to the integration tolerance (the
-refinement windows are further legs of the same ``diffeqsolve`` call site, as are the
+refined between grid points and, where the grid is too coarse for the free ringing that
+a jump starts (low speed), after the largest jumps, so they are exact to the integration
+tolerance (the windows are further legs of the same ``diffeqsolve`` call site, as are the
 transient and each measured period, :mod:`gearjax.dynamics.legs`: one solver in the compiled
 program). Per speed:
 max and min mesh force F_D (N, Eqs. (22)/(24)), dynamic factor ``max F_D / F_S``, DTE and
