@@ -214,9 +214,9 @@ def test_low_speed_ringing_extrema(square_wave):
 
 
 def test_jump_clusters_are_cyclic_and_index_both_sides():
-    """Jumps closer than a grid interval form one cluster, also across the period's end;
-    its window starts at the point after its last jump and its size is read against the
-    point before its first."""
+    """Jumps closer than a sixteenth of a grid interval form one cluster, also across the
+    period's end; its window starts at the point after its last jump and its size is read
+    against the point before its first."""
     grid = output_grid(1.0, 8, [0.0, 0.3, 0.3 + 1e-4, 0.999], 1)
     cl = jump_clusters(grid, 1.0, [0.0, 0.3, 0.3 + 1e-4, 0.999])
     one = grid.offsets[: grid.per_period]

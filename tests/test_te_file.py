@@ -261,16 +261,7 @@ def test_3d_pure_sine_te_file_against_the_closed_form_modal_receptance():
     assert not model.nlte_terms and float(model.k_m) == pytest.approx(k0, rel=1e-12)
     assert float(model.c_wv) * k0 * model.cos_bb == pytest.approx(1.0, rel=1e-9)  # Eq. (35)
     speeds = np.array([300.0, 860.0])  # 860 rad/s: the main job's tooth critical speed
-    # jaxlib 0.10.2 segfaulted twice (CI of 6539ab4 and of 2ba2eef) serialising this
-    # sweep's executable into the persistent compilation cache (put_executable_and_time);
-    # no other process reads that entry, so this test compiles without writing it (the
-    # write threshold is read at every write; the cache's on/off switch only once)
-    before = jax.config.jax_persistent_cache_min_compile_time_secs
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1e9)
-    try:
-        res = sweep(model, speeds, progress=False)
-    finally:
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", before)
+    res = sweep(model, speeds, progress=False)
     assert np.all(res.converged) and not np.any(res.contact_loss)
     for i, omega in enumerate(speeds):
         dte, force = _modal_order1(model, omega, k0, a)

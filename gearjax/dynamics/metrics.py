@@ -43,9 +43,8 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = ["JUMP_SIDE", "OutputGrid", "output_grid", "refined_extrema", "refine_windows",
-           "window_extrema", "JumpClusters", "jump_clusters", "ringing_length", "ringing_resolved",
-           "n_jump_windows",
-           "jump_windows", "jump_window_extrema"]
+           "window_extrema", "JumpClusters", "jump_clusters", "ringing_length",
+           "ringing_resolved", "n_jump_windows", "jump_windows", "jump_window_extrema"]
 
 JUMP_SIDE = 1e-9  # one-sided points at s_j -/+ JUMP_SIDE * period
 
@@ -277,7 +276,7 @@ def jump_clusters(grid: OutputGrid, period: float, jump_thetas) -> JumpClusters:
     # a jump at 0: its point before is the period's last one (the same jump, a period on)
     before = np.array([index(f - d) for f in firsts])
     after = np.array([index(a + d) for a in lasts])
-    return JumpClusters(before.astype(int), after.astype(int))
+    return JumpClusters(before, after)
 
 
 def ringing_resolved(omega, omega_n, interval):
@@ -329,8 +328,8 @@ def jump_windows(vals, ts, clusters: JumpClusters, per_period: int, length, n_po
 def jump_window_extrema(vals, ts, j, tf, wvals):
     """Max and min of each output over the windows after the jumps: ``wvals`` (K, n, q)
     the outputs at the angles ``tf`` (K, n) of :func:`jump_windows`, which start at the
-    grid points ``j`` (K,), and the vertex of a parabola through the largest value and
-    its neighbours (:func:`_vertex_max`). Returns ``(maxima (q,), minima (q,))``;
+    grid points ``j`` (K,), and the vertex of the quartic through the largest value and
+    its four neighbours (:func:`_vertex_max`). Returns ``(maxima (q,), minima (q,))``;
     ``-inf``/``inf`` without windows."""
     q = vals.shape[1]
     if j.shape[0] == 0:
