@@ -26,9 +26,9 @@ jax.config.update("jax_numpy_rank_promotion", "raise")
 def _share_compilations_in_this_session():
     """One JAX persistent compilation cache for the whole test session: the pytest-xdist
     workers, the notebook kernels and the CLI subprocesses inherit its folder
-    (JAX_COMPILATION_CACHE_DIR, set by the first process, the controller); the
-    subprocesses and kernels store their XLA executables there and reuse each other's
-    identical programs (the workers read only, below). A fresh, empty
+    (JAX_COMPILATION_CACHE_DIR, set by the first process, the controller) and reuse each
+    other's XLA executables of identical programs (e.g. the builds of the 3D te model,
+    ~20 s of compilation in every fresh process, ~4 s from the cache). A fresh, empty
     folder per session, removed at its end: nothing carries over between runs, and no test
     checks compilation itself (trace counts are unaffected). A folder chosen by the
     caller is used as it is."""
@@ -38,14 +38,6 @@ def _share_compilations_in_this_session():
         os.environ["JAX_COMPILATION_CACHE_DIR"] = folder
         atexit.register(shutil.rmtree, folder, True)
     jax.config.update("jax_compilation_cache_dir", folder)
-    # the test processes themselves read the cache but write nothing to it (the command
-    # line's subprocesses and the notebook kernels still do): jaxlib 0.10.2 segfaulted
-    # inside executable.serialize() (JAX's put_executable_and_time) in four suite runs,
-    # each time in a long-lived worker writing a sweep program (two CI runs, two local
-    # runs on 2026-11-25, the second with only programs of 4 s or more written; never in
-    # 20 fresh processes compiling the same programs alone or in pairs); no write, no
-    # serialize
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1e9)
 
 
 _share_compilations_in_this_session()
@@ -68,6 +60,20 @@ _compile_for_tests()
 
 
 import pytest  # noqa: E402
+
+from gearjax.dynamics import code_memory  # noqa: E402
+
+
+@pytest.fixture(autouse=True)
+def _release_compiled_code():
+    """After every test, drop JAX's compiled programs once this worker holds more than half
+    of the kernel's memory-map cap (:mod:`gearjax.dynamics.code_memory`). Without it the
+    long-lived workers crept up to the cap (58,600 and 64,600 of 65,530 maps measured in
+    one run) and a worker that crossed it segfaulted inside XLA's compile or
+    ``executable.serialize()`` (about one suite run in three, CI and local, until
+    2026-11-25). Later tests reload what they need from the session's persistent cache."""
+    yield
+    code_memory.release_if_crowded(0.5)
 
 
 @pytest.fixture(scope="session")

@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from ..dynamics import code_memory
 from .spaces import ReliefSpace
 
 __all__ = ["OptimisationResult", "optimise", "coarse_starts", "multi_start"]
@@ -66,6 +67,7 @@ def optimise(objective, x0, *, learning_rate: float = 0.15, max_iter: int = 60,
     """
     space = objective.space
     x0 = space.check(x0, "x0")
+    code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
     t0 = time.perf_counter()
     sched = optax.cosine_decay_schedule(learning_rate, max(1, max_iter), alpha=0.05)
     opt = optax.adam(sched)

@@ -62,7 +62,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import SimulationError
-from . import watchdog
+from . import code_memory, watchdog
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import (default_solver, jump_controller, jump_density, simulate,
                        transient_periods)
@@ -173,6 +173,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     if np.unique(speeds).size != speeds.size:
         raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
                               "speeds must be distinct (a branch visits each once)")
+    code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
     cfg = tuple(sorted(dict(max_newton=int(max_newton), newton_tol=float(newton_tol),
                             convergence_tol=float(convergence_tol)).items()))
     settle_cfg = tuple(sorted(dict(

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import SimulationError
-from . import watchdog
+from . import code_memory, watchdog
 from .harmonic import check_linear_model, harmonic_steady_states
 from .orders import N_MESH_ORDERS
 from .results import SweepResult
@@ -105,6 +105,7 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     check_linear_model(model)
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)
+    code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
     if not (0.0 < rtol < 1.0):
         raise SimulationError("rtol", rtol, "must lie in (0, 1)")
     if rank_one_tol is None:  # the split's residual moves the orbit by about as much

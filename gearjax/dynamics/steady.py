@@ -72,7 +72,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..linalg import solve as dense_solve
-from . import watchdog
+from . import code_memory, watchdog
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import SimulationError, SimulationResult, jump_controller, simulate
 from .stability import check_speeds
@@ -368,6 +368,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     """
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)  # and float64
+    code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
     if chunk_size is None:
         # the batched monodromy (chunk x n x n per stage) must stay cache-sized: measured on
         # the 3D spur rig (n = 182), 8 speeds in chunks of 2: 2.6 s/speed; 100 speeds in one

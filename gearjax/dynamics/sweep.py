@@ -35,7 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import check_float64
-from . import watchdog
+from . import code_memory, watchdog
 from .results import (CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, append_rows,
                       empty_metrics)
 from .simulate import SimulationError, SimulationResult, simulate
@@ -166,6 +166,7 @@ def sweep(
         )
     if method not in METHODS:
         raise SimulationError("method", method, f"must be one of {', '.join(METHODS)}")
+    code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
     auto = method == "auto"
     if auto:  # the frequency-domain solver runs on one device of one process
         one = devices is None and jax.process_count() == 1

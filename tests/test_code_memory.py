@@ -1,0 +1,51 @@
+"""Release of compiled code before the kernel's memory-map cap (gearjax.dynamics.code_memory).
+
+The crash itself (a compile at ``vm.max_map_count`` segfaults in jaxlib 0.10.2) needs a
+lowered sysctl to reproduce in reasonable time, i.e. root; these tests check what the
+guard relies on: that compiled programs hold memory maps, that the release gives them
+back, that the jitted functions still work afterwards, and that below the threshold
+nothing is released."""
+
+import sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from gearjax.dynamics import code_memory
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="counts /proc/self/maps")
+
+
+def _compiled_programs(n):
+    """n distinct jitted programs, each compiled once and kept alive."""
+    x = jnp.linspace(0.0, 1.0, 8)
+    fns = [jax.jit(lambda x, k=k: jnp.sin(k * x) + jnp.cumsum(x)) for k in range(n)]
+    for f in fns:
+        f(x).block_until_ready()
+    return fns, x
+
+
+def test_map_count_reads_proc_and_the_cap_is_positive():
+    with open("/proc/self/maps") as f:
+        lines = sum(1 for _ in f)
+    n = code_memory.map_count()
+    assert n is not None and abs(n - lines) <= 5  # the read itself may map a buffer
+    assert code_memory.max_map_count() > 0
+
+
+def test_release_gives_the_maps_back_and_functions_still_work():
+    fns, x = _compiled_programs(200)
+    before = code_memory.map_count()
+    # threshold above the current count: nothing happens
+    assert not code_memory.release_if_crowded(0.5, max_maps=4 * before)
+    assert code_memory.map_count() >= before - 5
+    # threshold below it: JAX's caches dropped, and with them the programs' code maps
+    assert code_memory.release_if_crowded(0.5, max_maps=before)
+    after = code_memory.map_count()
+    assert before - after >= 2 * 200, (before, after)  # at least text + data per program
+    # the jitted functions compile again on their next call and compute the same
+    for k in (0, 7, 199):
+        np.testing.assert_allclose(fns[k](x), np.sin(k * np.asarray(x)) + np.cumsum(np.asarray(x)),
+                                   rtol=1e-15, atol=1e-15)
