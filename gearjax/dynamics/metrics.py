@@ -317,9 +317,7 @@ def jump_windows(vals, ts, clusters: JumpClusters, per_period: int, length, n_po
     ib = jnp.asarray(clusters.before[None, :] + base)
     mag = jnp.abs(vals[ia, 0] - vals[ib, 0])  # (n_per, n_c)
     p = jnp.argmax(mag, axis=0)
-    # the largest clusters by a sort (lax.top_k is XLA:CPU's TopK: suite runs with it
-    # crashed in native code 3 times in 4, see README "Known problems")
-    top = jnp.argsort(-jnp.max(mag, axis=0))[: n_jump_windows(clusters)]
+    _, top = jax.lax.top_k(jnp.max(mag, axis=0), n_jump_windows(clusters))
     j = ia[p[top], top]
     u = jnp.arange(1, n_points + 1) / n_points
     return j, ts[j][:, None] + length * u[None, :]
