@@ -49,3 +49,40 @@ def test_release_gives_the_maps_back_and_functions_still_work():
     for k in (0, 7, 199):
         np.testing.assert_allclose(fns[k](x), np.sin(k * np.asarray(x)) + np.cumsum(np.asarray(x)),
                                    rtol=1e-15, atol=1e-15)
+
+
+def test_optimise_releases_between_iterations(monkeypatch):
+    """An optimisation whose objective compiles a new program at every evaluation (as a
+    dynamic objective does after each structure change, when it rebuilds its model) stays
+    below the cap: :func:`gearjax.design.optimise` releases before every evaluation, not
+    only before its first (the slow CLI optimise test's worker crashed at the cap)."""
+    from gearjax.design import ReliefSpace, optimise
+    from gearjax.design.objectives import Evaluation
+
+    class Recompiling:
+        space = ReliefSpace()
+        programs = []  # kept alive, as JAX's caches keep a live model's programs
+
+        def __call__(self, x, grad=True):
+            k = len(self.programs)
+            f = jax.jit(lambda v: jnp.sum(jnp.sin(v + k)) + jnp.sum((v / self.space.upper) ** 2))
+            self.programs.append(f)
+            v = jnp.asarray(x)
+            val = float(f(v))
+            g = np.asarray(jax.grad(f)(v))
+            return Evaluation(np.asarray(x), val, val, g, np.asarray([val]))
+
+    x0 = np.array([10e-6, 0.5])
+    optimise(Recompiling(), x0, max_iter=2)  # compiles the optimiser's own eager steps
+    start = code_memory.map_count()
+    cap = int((start + 100) / code_memory.DEFAULT_FRACTION)  # release above start + 100
+    monkeypatch.setattr(code_memory, "max_map_count", lambda: cap)
+    seen = []
+    res = optimise(Recompiling(), x0, max_iter=20, patience=10**6, step_tol=0.0,
+                   callback=lambda h: seen.append(code_memory.map_count()))
+    assert res.iterations == 20 and len(Recompiling.programs) == 3 + 21
+    # measured ~15 maps per evaluation (the program and its gradient's), i.e. ~start + 310
+    # at the end without the releases; with them the count never passes the threshold by
+    # more than one evaluation's programs
+    assert max(seen) < start + 100 + 40, (start, seen)
+    assert min(seen[5:]) < max(seen)  # released at least once

@@ -67,7 +67,6 @@ def optimise(objective, x0, *, learning_rate: float = 0.15, max_iter: int = 60,
     """
     space = objective.space
     x0 = space.check(x0, "x0")
-    code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
     t0 = time.perf_counter()
     sched = optax.cosine_decay_schedule(learning_rate, max(1, max_iter), alpha=0.05)
     opt = optax.adam(sched)
@@ -80,6 +79,10 @@ def optimise(objective, x0, *, learning_rate: float = 0.15, max_iter: int = 60,
     first = None
     it = 0
     for it in range(max_iter + 1):
+        # before every evaluation: a structure change rebuilds the model and compiles its
+        # programs again, so one optimisation can add tens of thousands of memory maps
+        # (sdof reference, 660-900 rad/s: ~2,500 per minute); a long-lived process's cap
+        code_memory.release_if_crowded()
         x = np.asarray(space.from_unconstrained(u))
         x = np.clip(x, space.lower, space.upper)
         ev = objective(x, grad=True)
