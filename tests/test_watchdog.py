@@ -120,3 +120,19 @@ def test_backstop_ends_a_hang_that_holds_the_gil():
     assert "Timeout (0:00:02)!" in p.stderr, p.stderr
     assert '"<string>", line 7' in p.stderr, p.stderr  # where it hung
     assert wall < 30
+
+
+def test_stall_message_reaches_the_process_stderr_under_capture():
+    """An in-process command whose sys.stderr is a capture (pytest's capsys, a notebook)
+    still leaves the stall line on the process's real stderr: the capture dies with the
+    process (a slow test once ended its pytest worker this way without a word)."""
+    p, _ = _run("""
+        import io, sys, time
+        from gearjax.dynamics import watchdog
+        sys.stderr = io.StringIO()
+        with watchdog.stall_guard(1.0, what="captured optimise"):
+            watchdog.progress("optimiser step 3")
+            time.sleep(60)
+    """)
+    assert p.returncode == STALL_EXIT_CODE, (p.returncode, p.stderr)
+    assert "no progress for 1 s in captured optimise (last progress: optimiser step 3)" in p.stderr

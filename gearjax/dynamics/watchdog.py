@@ -124,9 +124,20 @@ class StallGuard:
                 note = f"stall hook failed: {exc}"
             if note:
                 lines.append(f"gearjax: {note}")
+        text = "\n".join(lines) + "\n"
+        # the process's own stderr too when sys.stderr is replaced (pytest's capture, a
+        # notebook): the capture is never read once the process ends, and an in-process
+        # main() under a test runner would otherwise vanish without a word
+        streams = [stream]
+        if self.stream is None and sys.__stderr__ is not None and sys.__stderr__ is not stream:
+            streams.append(sys.__stderr__)
         try:
-            stream.write("\n".join(lines) + "\n")
-            stream.flush()
+            for s in streams:
+                try:
+                    s.write(text)
+                    s.flush()
+                except (OSError, ValueError):  # a closed or broken stream
+                    pass
         finally:
             self._exit(self.exit_code)
 
