@@ -173,6 +173,32 @@ def test_force_gradient_through_contact_loss(mesh_iso):
     assert abs(ad - fd) <= 1e-3 * abs(fd), (ad, fd)
 
 
+def test_objective_rebuilds_before_integrating_another_structure(mesh_iso, monkeypatch):
+    """A design whose switching events differ from the model's build (another count or
+    order) gets a model built at it *before* any integration: the mapped model's angle
+    map does not fit such a design, and its integration crawled to the step limit (sdof
+    reference, 8 speeds: no value in 10 min, the CLI's watchdog ended the command). The
+    structure flag is the independent reading: models built at both designs have
+    different event sequences."""
+    from gearjax.design import objectives
+
+    x0, x1 = np.array([13.3e-6, 0.2]), np.array([13.3e-6, 0.21])
+    obj = DynamicObjective(mesh_iso, ReliefSpace(), [700.0], "peak-force", formulation="te",
+                           sim_kwargs=dict(n_transient_periods=4, n_measured_periods=2))
+    obj.model = m0 = obj.build(x0)
+    integrated = []
+    values = objectives._dyn_values
+
+    def watched(model, x, speeds, static):
+        integrated.append(bool(objectives._structure_holds(model, x, static[0])))
+        return values(model, x, speeds, static)
+
+    monkeypatch.setattr(objectives, "_dyn_values", watched)
+    ev = obj(x1, grad=False)
+    assert integrated == [True] and obj.n_builds == 2 and ev.structure_ok
+    assert obj.model.jump_kinds != m0.jump_kinds  # x1 has events of its own
+
+
 # ------------------------------------------------------------------ 3D model
 def _build_3d(amp, ext, formulation="te", mean_stiffness=None, cells_per_line=None):
 

@@ -349,8 +349,7 @@ class DynamicObjective:
         k = self._index
         speeds = jnp.asarray(self.speeds)
         for attempt in range(2):
-            if self.model is None:
-                self.model = self.build(x)
+            self._model_for(x)
             xj = jnp.asarray(x)
             if grad:
                 g, (sm, (ex, per, ok)) = _dyn_vjac(self.model, xj, speeds, self._static,
@@ -363,6 +362,21 @@ class DynamicObjective:
                 break
             self.model = None  # structure changed: rebuild at x
         return Evaluation(x, float(sm[k]), float(ex[k]), g, np.asarray(per)[k], bool(ok))
+
+    def _model_for(self, x):
+        """The current model if its discrete structure holds at ``x`` (switching events
+        of the same kinds on the same cells), else a model built at ``x``. Checked before
+        integrating: the mapped model of another structure has an angle map that does not
+        fit ``x``, and its integration can crawl to the step limit instead of failing
+        (sdof reference, zeta 0.03, 8 speeds, built at (25.8 um, 0.26), asked for
+        (26.7 um, 0.53): no value in 10 min, when a model built there gives value and
+        gradient in 18 s with the compile)."""
+        if self.model is not None and not bool(_structure_holds(self.model, jnp.asarray(x),
+                                                                self.space)):
+            self.model = None
+        if self.model is None:
+            self.model = self.build(x)
+        return self.model
 
     def rebuilt(self, x) -> Evaluation:
         """The objective at ``x`` on a model built at ``x``, as a forward sweep builds it
@@ -384,8 +398,7 @@ class DynamicObjective:
         """(smooth (3,), exact (3,), jacobian (3, size) or None) of peak-force,
         dynamic-factor and dte-ptp at ``x`` from one set of solves (same model)."""
         x = self.space.check(x)
-        if self.model is None:
-            self.model = self.build(x)
+        self._model_for(x)
         speeds = jnp.asarray(self.speeds)
         if grad:
             g, (sm, (ex, _, _)) = _dyn_vjac(self.model, jnp.asarray(x), speeds, self._static,
@@ -428,6 +441,12 @@ def _dyn_values_impl(model, x, speeds, static, adjoint=None):
 
 
 _dyn_values = eqx.filter_jit(_dyn_values_impl)
+
+
+@eqx.filter_jit
+def _structure_holds(model, x, space):
+    """Whether ``model`` mapped to design ``x`` keeps its build's discrete structure."""
+    return model.with_modifications(space.mods(x)).structure_ok
 
 
 @eqx.filter_jit
