@@ -199,6 +199,27 @@ def test_objective_rebuilds_before_integrating_another_structure(mesh_iso, monke
     assert obj.model.jump_kinds != m0.jump_kinds  # x1 has events of its own
 
 
+def test_sweeps_refuse_a_model_mapped_to_another_structure(mesh_iso):
+    """The forward solvers take a model as built: one mapped by ``with_modifications`` to
+    a design of other switching events is refused with a clear error before compiling,
+    never integrated into NaN (the design objectives rebuild instead, test above)."""
+    from gearjax.dynamics.continuation import continuation_sweep
+    from gearjax.dynamics.harmonic_sweep import harmonic_sweep
+    from gearjax.dynamics.steady import steady_sweep
+    from gearjax.errors import ModelError
+
+    m0 = _build(mesh_iso, 13.3e-6, 0.2)
+    m1 = m0.with_modifications(ToothModifications.tip_relief(13.3e-6, 0.21))
+    assert not bool(m1.structure_ok) and bool(m0.structure_ok)
+    for run in (lambda m: sweep(m, [700.0], progress=False),
+                lambda m: sweep(m, [700.0], method="harmonic", progress=False),
+                lambda m: steady_sweep(m, [700.0], progress=False),
+                lambda m: harmonic_sweep(m, [700.0]),
+                lambda m: continuation_sweep(m, [700.0, 710.0], progress=False)):
+        with pytest.raises(ModelError, match="switching events"):
+            run(m1)
+
+
 # ------------------------------------------------------------------ 3D model
 def _build_3d(amp, ext, formulation="te", mean_stiffness=None, cells_per_line=None):
 

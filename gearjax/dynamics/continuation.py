@@ -174,6 +174,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
         raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
                               "speeds must be distinct (a branch visits each once)")
     code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
+    model.require_structure()
     cfg = tuple(sorted(dict(max_newton=int(max_newton), newton_tol=float(newton_tol),
                             convergence_tol=float(convergence_tol)).items()))
     settle_cfg = tuple(sorted(dict(

@@ -106,6 +106,7 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)
     code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
+    model.require_structure()
     if not (0.0 < rtol < 1.0):
         raise SimulationError("rtol", rtol, "must lie in (0, 1)")
     if rank_one_tol is None:  # the split's residual moves the orbit by about as much

@@ -369,6 +369,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)  # and float64
     code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
+    model.require_structure()
     if chunk_size is None:
         # the batched monodromy (chunk x n x n per stage) must stay cache-sized: measured on
         # the 3D spur rig (n = 182), 8 speeds in chunks of 2: 2.6 s/speed; 100 speeds in one

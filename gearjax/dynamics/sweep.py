@@ -167,6 +167,7 @@ def sweep(
     if method not in METHODS:
         raise SimulationError("method", method, f"must be one of {', '.join(METHODS)}")
     code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
+    model.require_structure()
     auto = method == "auto"
     if auto:  # the frequency-domain solver runs on one device of one process
         one = devices is None and jax.process_count() == 1

@@ -100,6 +100,20 @@ class AbstractGearModel(eqx.Module):
         (tables, mean stiffness, scalings, angle map) recomputed from them. Traceable:
         jit/vmap/jacfwd through it differentiate the model in the design."""
 
+    def require_structure(self) -> None:
+        """Raise :class:`~gearjax.errors.ModelError` unless :attr:`structure_ok`: a model
+        mapped by :meth:`with_modifications` to a design whose switching events differ
+        from its build's (another count or order) has an angle map and tables that do not
+        fit that design, and integrating it crawls to the step limit and returns NaN
+        (sdof reference, zeta 0.03: minutes per speed). Host-level: the sweeps call it on
+        their concrete model before compiling."""
+        if not bool(jnp.all(jnp.asarray(self.structure_ok))):
+            raise ModelError(
+                "mods", "with_modifications(...)",
+                "the design changes the model's switching events (count or order) from "
+                "those of its build, so its angle map and tables do not fit it: build a "
+                "model at this design (TorsionalModel.build / build_model) instead")
+
     # ------------------------------------------------------------------ dynamics
     @abc.abstractmethod
     def angle(self, s):
