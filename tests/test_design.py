@@ -553,8 +553,10 @@ def test_cli_reference_optimum_survives_a_forward_sweep(tmp_path, capsys):
     reference formulation over the optimisation band (660-900 rad/s, one NLTE'' convention
     for both commands): the optimum's peak dynamic factor is <= 0.9x the better of the
     Table 1 short and long reliefs. Measured (2026-11-23): optimum 14.29 um x 0.312, peak
-    DF 1.269 without contact loss, against short 3.567 and long 2.739 (25 speeds); about
-    3 min for the optimiser on 2 loaded cores."""
+    DF 1.269 without contact loss, against short 3.567 and long 2.739 (25 speeds); 6 min
+    in all on 2 loaded cores (2026-11-25: the 4 starts rebuild the model 10 times, ~21 s of
+    compilation each; before c561689 the fourth start's first step integrated a model of
+    another structure and the stall watchdog ended the worker after 10 min)."""
     rc = main(["optimise", "--model", "torsional", "--formulation", "reference", "--objective",
                "peak-force", "--damping", "0.03", "--no-map", "--json", "--out", str(tmp_path / "o")])
     assert rc == 0
