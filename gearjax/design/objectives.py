@@ -360,7 +360,7 @@ class DynamicObjective:
                 g = None
             if bool(ok) or attempt == 1:
                 break
-            self.model = None  # structure changed: rebuild at x
+            self.model = None  # a failed integration: once more on a model built at x
         return Evaluation(x, float(sm[k]), float(ex[k]), g, np.asarray(per)[k], bool(ok))
 
     def _model_for(self, x):
