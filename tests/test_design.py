@@ -4,6 +4,7 @@ uniform stiffness, bounds, the dynamic optimum against Table 1 (forward sweep), 
 from __future__ import annotations
 
 import json
+import types
 
 import equinox as eqx
 import jax
@@ -647,11 +648,12 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(steady, "steady_sweep", capture)
+    built = types.SimpleNamespace(require_structure=lambda: None)  # what sweep asks first
     for r, shoot_rtol in ((1e-4, None), (1e-11, 1e-11)):
         shoot = DynamicObjective(mesh, ReliefSpace(), [300.0], model="3d", rig=RIG,
                                  method="steady", rtol=r)
         with pytest.raises(KeyboardInterrupt):
-            sweep(None, [300.0], method="steady", progress=False, **tolerance_options(r))
+            sweep(built, [300.0], method="steady", progress=False, **tolerance_options(r))
         assert {k: v for k, v in seen.items() if k not in ("chunk_size", "progress",
                 "continuation_kwargs")} == shoot.sim_kwargs
         assert shoot.sim_kwargs.get("rtol") == shoot_rtol
