@@ -611,6 +611,14 @@ def test_cli_optimise_smoke(tmp_path, capsys):
     assert out["nlte_reaction"] == "drive"  # the convention of every command (issue 15)
     assert out["objective_after"] <= out["objective_before"]
     assert (tmp_path / "history.png").exists() and (tmp_path / "map.png").exists()
+    # without --json: one progress line per optimiser step on stderr (a reference
+    # optimisation runs for minutes), none with it (above)
+    assert main(["optimise", "--objective", "te-rms", "--stiffness", "uniform", "--starts", "1",
+                 "--max-iter", "2", "--no-map", "--out", str(tmp_path / "p")]) == 0
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("  start ")]
+    runs = json.loads((tmp_path / "p" / "optimum.json").read_text())["runs"]
+    assert len(runs) == 1 and len(lines) == runs[0]["iterations"] + 1 >= 2, lines
+    assert lines[0].startswith("  start 1/1 step 0: amplitude_m=") and " extent=" in lines[0]
 
 
 def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):

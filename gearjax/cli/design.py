@@ -196,10 +196,21 @@ def _cmd_optimise(args) -> int:
         return _fail(str(exc))
     starts = coarse_starts(obj.space, args.starts)
     steps = [time.monotonic()]
+    at = {"start": 0, "builds": obj.n_builds if isinstance(obj, DynamicObjective) else 0}
 
-    def _step(_record):  # one optimiser step done: feed the stall watchdog
+    def _step(record):  # one optimiser step done: feed the stall watchdog, tell the user
         steps.append(time.monotonic())
         watchdog.progress(f"optimiser step {len(steps) - 1}")
+        at["start"] += record["iteration"] == 0
+        if args.json:  # stdout is the JSON; progress as sweep gives it: not with --json
+            return
+        builds = obj.n_builds if isinstance(obj, DynamicObjective) else 0
+        rebuilt = ", model built at this design" if builds > at["builds"] else ""
+        at["builds"] = builds
+        x = " ".join(f"{n}={v:.5g}" for n, v in zip(obj.space.names, record["x"]))
+        print(f"  start {at['start']}/{len(starts)} step {record['iteration']}: {x}  "
+              f"objective {record['exact']:.6g} (smoothed {record['smooth']:.6g}), "
+              f"{steps[-1] - steps[-2]:.1f} s{rebuilt}", file=sys.stderr, flush=True)
 
     best, runs = multi_start(obj, starts, max_iter=args.max_iter,
                              learning_rate=args.learning_rate, callback=_step)
