@@ -196,7 +196,11 @@ def _cmd_optimise(args) -> int:
         return _fail(str(exc))
     starts = coarse_starts(obj.space, args.starts)
     steps = [time.monotonic()]
-    at = {"start": 0, "builds": obj.n_builds if isinstance(obj, DynamicObjective) else 0}
+
+    def n_builds():  # models the dynamic objective has built (a quasi-static one builds none)
+        return obj.n_builds if isinstance(obj, DynamicObjective) else 0
+
+    at = {"start": 0, "builds": n_builds()}
 
     def _step(record):  # one optimiser step done: feed the stall watchdog, tell the user
         steps.append(time.monotonic())
@@ -204,7 +208,7 @@ def _cmd_optimise(args) -> int:
         at["start"] += record["iteration"] == 0
         if args.json:  # stdout is the JSON; progress as sweep gives it: not with --json
             return
-        builds = obj.n_builds if isinstance(obj, DynamicObjective) else 0
+        builds = n_builds()
         rebuilt = ", model built at this design" if builds > at["builds"] else ""
         at["builds"] = builds
         x = " ".join(f"{n}={v:.5g}" for n, v in zip(obj.space.names, record["x"]))

@@ -349,14 +349,13 @@ class DynamicObjective:
         k = self._index
         speeds = jnp.asarray(self.speeds)
         for attempt in range(2):
-            self._model_for(x)
+            model = self._model_for(x)
             xj = jnp.asarray(x)
             if grad:
-                g, (sm, (ex, per, ok)) = _dyn_vjac(self.model, xj, speeds, self._static,
-                                                   self.adjoint)
+                g, (sm, (ex, per, ok)) = _dyn_vjac(model, xj, speeds, self._static, self.adjoint)
                 g = np.asarray(g)[k]
             else:
-                sm, (ex, per, ok) = _dyn_values(self.model, xj, speeds, self._static)
+                sm, (ex, per, ok) = _dyn_values(model, xj, speeds, self._static)
                 g = None
             if bool(ok) or attempt == 1:
                 break
@@ -398,13 +397,13 @@ class DynamicObjective:
         """(smooth (3,), exact (3,), jacobian (3, size) or None) of peak-force,
         dynamic-factor and dte-ptp at ``x`` from one set of solves (same model)."""
         x = self.space.check(x)
-        self._model_for(x)
+        model = self._model_for(x)
         speeds = jnp.asarray(self.speeds)
         if grad:
-            g, (sm, (ex, _, _)) = _dyn_vjac(self.model, jnp.asarray(x), speeds, self._static,
+            g, (sm, (ex, _, _)) = _dyn_vjac(model, jnp.asarray(x), speeds, self._static,
                                             self.adjoint)
             return np.asarray(sm), np.asarray(ex), np.asarray(g)
-        sm, (ex, _, _) = _dyn_values(self.model, jnp.asarray(x), speeds, self._static)
+        sm, (ex, _, _) = _dyn_values(model, jnp.asarray(x), speeds, self._static)
         return np.asarray(sm), np.asarray(ex), None
 
     def grid(self, xs, reference_x=None) -> tuple[np.ndarray, np.ndarray]:

@@ -79,9 +79,9 @@ def optimise(objective, x0, *, learning_rate: float = 0.15, max_iter: int = 60,
     first = None
     it = 0
     for it in range(max_iter + 1):
-        # before every evaluation: a structure change rebuilds the model and compiles its
-        # programs again, so one optimisation can add tens of thousands of memory maps
-        # (sdof reference, 660-900 rad/s: ~2,750 per rebuild, 10 rebuilds in the CLI's 4 starts); a long-lived process's cap
+        # a long-lived process's map cap, before every evaluation: a structure change
+        # rebuilds the model and compiles its programs again (sdof reference, 660-900
+        # rad/s: ~2,750 maps per rebuild, 10 rebuilds in the CLI's 4 starts)
         code_memory.release_if_crowded()
         x = np.asarray(space.from_unconstrained(u))
         x = np.clip(x, space.lower, space.upper)
