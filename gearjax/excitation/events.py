@@ -126,14 +126,25 @@ def distinct_angles(points, period, rtol: float = 1e-9) -> np.ndarray:
     return np.asarray(out)
 
 
+# which of coinciding state changes names the event (:func:`classify_events`)
+_PRIORITY = {EV_ZONE1: 0, EV_ZONE2: 0, EV_LOADED: 1, EV_NLTE: 2}
+
+
 def classify_events(angles, lo, hi, c_lo, c_hi, n_cells, period, rtol: float = 1e-9):
     """Kind and cells of the switching event at each of ``angles`` (rad), one rule for
     every model: the brackets ``(lo, hi)`` of :func:`find_brackets` whose angle lies
     within ``rtol * period`` of it (circularly) are classified by :func:`event_kinds`
     from their codes ``c_lo``/``c_hi``; coinciding brackets with a fixed (geometric) one
-    among them pin the angle (``EV_FIXED``), else the first of them in the given order
-    gives kind and cells; an angle without a bracket (an engagement angle added from the
-    geometry) is fixed.
+    among them pin the angle (``EV_FIXED``), else the one of the highest priority gives
+    kind and cells: a relief-zone start, then a loaded-set change, then an NLTE-cell
+    change (the order of :func:`event_kinds` within one bracket; the first bracket among
+    equals). Not the first bracket by angle: two state changes of one event (a cell
+    entering its relief zone, and the NLTE cell that the argmin of equal removed
+    materials picks changing with it) lie a few floats apart in an order that the
+    compiled code's rounding decides (XLA:CPU's legacy emitters put the NLTE change
+    first on the Baud-Velex rig, whose Newton iteration on ``r_a - r_b`` then stepped
+    onto the unrelieved side, where the function and its slope are both 0). An angle
+    without a bracket (an engagement angle added from the geometry) is fixed.
 
     Returns
     -------
@@ -149,8 +160,9 @@ def classify_events(angles, lo, hi, c_lo, c_hi, n_cells, period, rtol: float = 1
         dist = np.minimum(dist, period - dist)
         near = [classified[i] for i in np.nonzero(dist <= rtol * period)[0]]
         if near and all(ev[0] != EV_FIXED for ev in near):
-            kinds.append(int(near[0][0]))
-            cells.append((int(near[0][1]), int(near[0][2])))
+            kind, a, b = min(near, key=lambda ev: _PRIORITY[ev[0]])  # first among equals
+            kinds.append(int(kind))
+            cells.append((int(a), int(b)))
         else:
             kinds.append(EV_FIXED)
             cells.append((0, 0))
@@ -250,7 +262,11 @@ def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = 4):
     """Event angles of the current design: ``newton_steps`` Newton iterations on
     ``switch(kind, a, b, theta)`` from each build angle ``s_j`` (events of kind
     ``EV_FIXED`` stay). Differentiable: at the root the unrolled iterations return
-    ``d theta_j = -(dg/d design) / (dg/d theta)`` (implicit function theorem)."""
+    ``d theta_j = -(dg/d design) / (dg/d theta)`` (implicit function theorem). A step
+    where ``dg/d theta`` is 0 is not taken (a kinked switching function, e.g. a removed
+    material that is 0 on one side of a relief start, whose iterate landed on the flat
+    side: 0/0 there was NaN, and the NaN angle made the model's structure flag False
+    at its own build design)."""
     s_j = jnp.asarray(s_j, dtype=float)
     kinds = jnp.asarray(kinds, dtype=jnp.int32)
     ab = jnp.asarray(cells, dtype=jnp.int32).reshape(-1, 2)
@@ -260,7 +276,8 @@ def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = 4):
         fixed = kind == EV_FIXED
         for _ in range(newton_steps):
             g, dg = jax.jvp(lambda t: switch(kind, a, b, t), (th,), (jnp.ones((), dtype=float),))
-            th = th - jnp.where(fixed, 0.0, g / jnp.where(fixed, 1.0, dg))
+            hold = fixed | (dg == 0.0)
+            th = th - jnp.where(hold, 0.0, g / jnp.where(hold, 1.0, dg))
         return th
 
     return jax.vmap(one)(s_j, kinds, ab[:, 0], ab[:, 1])
