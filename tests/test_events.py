@@ -10,7 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gearjax.excitation.events import EV_LOADED, EV_NLTE, EV_ZONE2, classify_events, moved_event_angles
+from gearjax.excitation.events import (EV_FIXED, EV_LOADED, EV_NLTE, EV_ZONE2, check_event_roots,
+                                       classify_events, moved_event_angles)
 from gearjax.gears.mesh import Mesh
 from gearjax.gears.modifications import ToothModifications
 from gearjax.models import torsional_layout
@@ -52,6 +53,24 @@ def test_newton_on_the_flat_side_of_a_kink_holds():
 
     out = np.asarray(moved_event_angles(switch, [1.5, 0.5], [EV_NLTE, EV_NLTE], [(0, 1), (0, 1)]))
     np.testing.assert_array_equal(out, [1.0, 0.5])
+
+
+def test_build_check_follows_every_newton_step_the_models_take():
+    """A concave switching function undefined left of its root (NaN there): from 1e-9 to
+    the right of the root the first Newton step overshoots by 1e-12 to the left, still
+    within the check's 1e-8 mesh periods, and the second is NaN. The build check runs the
+    models' four steps, so it keeps that event fixed with a warning (it ran one step and
+    let the NaN reach the model); a plain root passes unchanged."""
+    def switch(kind, a, b, th):
+        u = th - 1.0
+        return u - 1e6 * u**2 + 0.0 * jnp.sqrt(u)  # NaN, and NaN slope, for u < 0
+
+    s = [1.0 + 1e-9]
+    with pytest.warns(RuntimeWarning, match="kept at their build angles"):
+        kinds, cells = check_event_roots(switch, s, [EV_NLTE], [(0, 1)], 1.0)
+    assert kinds == [EV_FIXED] and cells == [(0, 0)]
+    plain = lambda kind, a, b, th: th - 1.0  # noqa: E731
+    assert check_event_roots(plain, [1.0], [EV_NLTE], [(0, 1)], 1.0) == ([EV_NLTE], [(0, 1)])
 
 
 @pytest.fixture

@@ -285,17 +285,20 @@ def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = 4):
 
 def check_event_roots(switch, s_j, kinds, cells, mesh_period: float, rtol: float = 1e-8):
     """Build-time self-check of the event classification: at the build design every
-    moving event's switching function must vanish at its build angle, i.e. one Newton
-    step from ``s_j`` must stay within ``rtol`` mesh periods. An event that fails (a
+    moving event's switching function must vanish at its build angle, i.e. the Newton
+    iterations the models take (:func:`moved_event_angles`, ``newton_steps=4``) from
+    ``s_j`` must stay within ``rtol`` mesh periods and finite. An event that fails (a
     misread bracket would make the angle map fold onto itself, giving a wrong mean
-    stiffness) is kept fixed, with a warning: the forward model is then exact and only the
-    derivative of that event's angle with respect to the design is lost.
+    stiffness; an iteration that leaves a kinked switching function's root can end in
+    NaN, which makes the model's structure flag False at its own design) is kept fixed,
+    with a warning: the forward model is then exact and only the derivative of that
+    event's angle with respect to the design is lost.
     Returns the (kinds, cells) to store."""
     kinds, cells = list(kinds), list(cells)
     idx = [j for j, k in enumerate(kinds) if k != EV_FIXED]
     if not idx:
         return kinds, cells
-    moved = np.asarray(_one_newton_step(
+    moved = np.asarray(_newton_steps(
         switch, jnp.asarray(np.asarray(s_j, dtype=float)[idx]),
         jnp.asarray([kinds[j] for j in idx], dtype=jnp.int32),
         jnp.asarray([cells[j] for j in idx], dtype=jnp.int32)))
@@ -314,8 +317,10 @@ def check_event_roots(switch, s_j, kinds, cells, mesh_period: float, rtol: float
 
 
 @eqx.filter_jit
-def _one_newton_step(switch, s, kinds, cells):
-    """One Newton step of :func:`moved_event_angles`, compiled once per switching-function
-    structure (``switch`` a pytree: an :class:`equinox.Partial` or a bound method of a
-    model) and number of events, not once per build."""
-    return moved_event_angles(switch, s, kinds, cells, 1)
+def _newton_steps(switch, s, kinds, cells, steps: int = 4):
+    """The ``steps`` Newton steps of :func:`moved_event_angles` in a loop (one step
+    compiled), once per switching-function structure (``switch`` a pytree: an
+    :class:`equinox.Partial` or a bound method of a model) and number of events, not
+    once per build."""
+    return jax.lax.fori_loop(0, steps,
+                             lambda _, th: moved_event_angles(switch, th, kinds, cells, 1), s)
