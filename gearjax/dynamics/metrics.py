@@ -204,6 +204,7 @@ def refine_windows(vals, ts, n_refine: int = 64):
     return j0, jax.vmap(angles)(j0)
 
 
+@jax.jit  # as jump_window_extrema
 def window_extrema(vals, ts, j0, wvals):
     """Max and min of each output over the grid values ``vals`` (N, q) and the refined
     window values ``wvals`` (2q, 2 n_refine) read at the angles of :func:`refine_windows`
@@ -356,6 +357,7 @@ def jump_windows(vals, ts, clusters: JumpClusters, per_period: int, length, n_po
     return j, ts[j][:, None] + length * u[None, :]
 
 
+@jax.jit  # one program, not dozens of dispatched operations, where simulate runs unjitted
 def jump_window_extrema(vals, ts, j, tf, wvals):
     """Max and min of each output over the windows after the jumps: ``wvals`` (K, n, q)
     the outputs at the angles ``tf`` (K, n) of :func:`jump_windows`, which start at the
