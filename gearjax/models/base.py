@@ -112,7 +112,10 @@ class AbstractGearModel(eqx.Module):
                 "mods", "with_modifications(...)",
                 "the design changes the model's switching events (count or order) from "
                 "those of its build, so its angle map and tables do not fit it: build a "
-                "model at this design (TorsionalModel.build / build_model) instead")
+                "model at this design (TorsionalModel.build / build_model) instead; a "
+                "model refused at its own build design has switching events its build "
+                "could not follow (a bug: please report it with the model's inputs; the 3D "
+                "build_model(..., moving_events=False) builds it without moving events)")
 
     # ------------------------------------------------------------------ dynamics
     @abc.abstractmethod
