@@ -53,7 +53,7 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = [
-    "EV_FIXED", "EV_LOADED", "EV_NLTE", "EV_ZONE1", "EV_ZONE2",
+    "EV_FIXED", "EV_LOADED", "EV_NLTE", "EV_ZONE1", "EV_ZONE2", "NEWTON_STEPS",
     "code", "code_jnp", "event_kinds", "distinct_angles", "classify_events", "find_brackets", "engagement_angles",
     "quiet_origin", "switch_value", "moved_event_angles", "check_event_roots",
 ]
@@ -61,6 +61,8 @@ __all__ = [
 # kinds of switching events (see :func:`switch_value`): fixed (geometric), loaded set,
 # NLTE cell, pinion relief zone start, gear relief zone start
 EV_FIXED, EV_LOADED, EV_NLTE, EV_ZONE1, EV_ZONE2 = 0, 1, 2, 3, 4
+# Newton steps that move an event with the design (the models' and the build check's)
+NEWTON_STEPS = 4
 
 
 def code_jnp(d):
@@ -258,7 +260,7 @@ def switch_value(mesh, mods, cells, theta, approach_minus_gap, kind, a, b):
     return g[kind]
 
 
-def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = 4):
+def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = NEWTON_STEPS):
     """Event angles of the current design: ``newton_steps`` Newton iterations on
     ``switch(kind, a, b, theta)`` from each build angle ``s_j`` (events of kind
     ``EV_FIXED`` stay). Differentiable: at the root the unrolled iterations return
@@ -286,7 +288,7 @@ def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = 4):
 def check_event_roots(switch, s_j, kinds, cells, mesh_period: float, rtol: float = 1e-8):
     """Build-time self-check of the event classification: at the build design every
     moving event's switching function must vanish at its build angle, i.e. the Newton
-    iterations the models take (:func:`moved_event_angles`, ``newton_steps=4``) from
+    iterations the models take (:func:`moved_event_angles`, :data:`NEWTON_STEPS`) from
     ``s_j`` must stay within ``rtol`` mesh periods and finite. An event that fails (a
     misread bracket would make the angle map fold onto itself, giving a wrong mean
     stiffness; an iteration that leaves a kinked switching function's root can end in
@@ -317,7 +319,7 @@ def check_event_roots(switch, s_j, kinds, cells, mesh_period: float, rtol: float
 
 
 @eqx.filter_jit
-def _newton_steps(switch, s, kinds, cells, steps: int = 4):
+def _newton_steps(switch, s, kinds, cells, steps: int = NEWTON_STEPS):
     """The ``steps`` Newton steps of :func:`moved_event_angles` in a loop (one step
     compiled), once per switching-function structure (``switch`` a pytree: an
     :class:`equinox.Partial` or a bound method of a model) and number of events, not

@@ -35,6 +35,7 @@ from ..gears.quasistatic import contact_gaps
 from ..structure.condensation import Condensation, QuasiStatic3D, quasi_static_3d
 from ..structure.element import PinionGearElement
 from .events import (
+    NEWTON_STEPS,
     check_event_roots,
     classify_events,
     distinct_angles,
@@ -145,7 +146,8 @@ class QuasiStaticMesh3D(eqx.Module):
         return switch_value(self.mesh, self.mods, cells, theta,
                             self.vectors(cells)[a] @ x - de[a], kind, a, b)
 
-    def event_angles(self, event_thetas, event_kinds, event_cells, newton_steps: int = 4):
+    def event_angles(self, event_thetas, event_kinds, event_cells,
+                     newton_steps: int = NEWTON_STEPS):
         """Event angles (rad) of this design: Newton on :meth:`switch_function` from the
         build angles (geometric events stay); differentiable in the design."""
         return moved_event_angles(self.switch_function, event_thetas, event_kinds,

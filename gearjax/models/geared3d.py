@@ -72,6 +72,7 @@ import jax.numpy as jnp
 
 from ..errors import ModelError
 from ..linalg import solve as dense_solve
+from ..excitation.events import NEWTON_STEPS
 from ..excitation.mesh3d import QuasiStaticMesh3D, tabulate
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..gears.mesh import Mesh
@@ -291,7 +292,7 @@ class Geared3DModel(AbstractGearModel):
         return eqx.tree_at(lambda m: (m.table, m.angle_map, m.structure_ok), m,
                            (table, amap, ok), is_leaf=lambda x: x is None)
 
-    def jump_angles_rad(self, newton_steps: int = 4):
+    def jump_angles_rad(self, newton_steps: int = NEWTON_STEPS):
         """The event angles ``theta_j`` (rad) of the current design, one per entry of
         :attr:`event_thetas`: Newton iterations on the switching functions from the
         build-time angle (geometric events stay fixed); differentiable in the

@@ -131,7 +131,7 @@ from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.contact import solve_unilateral, te_contact, unilateral_solve_pairwise
 from ..gears.quasistatic import contact_gaps, static_mesh_force
-from ..excitation.events import EV_FIXED, code_jnp, moved_event_angles
+from ..excitation.events import EV_FIXED, NEWTON_STEPS, code_jnp, moved_event_angles
 from ..excitation.sdof import sdof_signature, sdof_switch
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..excitation.te_file import te_model_fields
@@ -239,7 +239,7 @@ class _TorsionalInputs(eqx.Module):
         a, b): :func:`gearjax.excitation.sdof.sdof_switch`."""
         return sdof_switch(self.mesh, self.mods, self.static_force_N, kind, a, b, theta)
 
-    def jump_angles_rad(self, newton_steps: int = 4):
+    def jump_angles_rad(self, newton_steps: int = NEWTON_STEPS):
         """The switching angles ``theta_j`` (rad) of the current design, one per entry of
         :attr:`jump_thetas`: Newton iterations on :meth:`_switch_function` from the
         build-time angle (geometric ones stay fixed). Differentiable in the modifications:
