@@ -32,16 +32,14 @@ def test_coinciding_changes_are_named_by_priority_not_by_order():
     zone = (_codes(0, (1, 1), (0, 0)), _codes(0, (1, 1), (2, 0)))
     nlte = (_codes(0, (1, 1), (2, 0)), _codes(1, (1, 1), (2, 0)))
     load = (_codes(1, (1, 1), (2, 0)), _codes(1, (0, 1), (2, 0)))
-    for pair in ([nlte, zone], [zone, nlte]):
-        c_lo = np.stack([p[0] for p in pair])
-        c_hi = np.stack([p[1] for p in pair])
+
+    def named(brackets):  # the event named at t by these brackets, in this order
         hi = np.array([t, t + 1e-17])
-        assert classify_events([t], hi - 1e-17, hi, c_lo, c_hi, 2, period) == ((EV_ZONE2,), ((0, 0),))
-    for pair in ([nlte, load], [load, nlte]):
-        c_lo = np.stack([p[0] for p in pair])
-        c_hi = np.stack([p[1] for p in pair])
-        hi = np.array([t, t + 1e-17])
-        assert classify_events([t], hi - 1e-17, hi, c_lo, c_hi, 2, period) == ((EV_LOADED,), ((0, 0),))
+        return classify_events([t], hi - 1e-17, hi, np.stack([b[0] for b in brackets]),
+                               np.stack([b[1] for b in brackets]), 2, period)
+
+    assert named([nlte, zone]) == named([zone, nlte]) == ((EV_ZONE2,), ((0, 0),))
+    assert named([nlte, load]) == named([load, nlte]) == ((EV_LOADED,), ((0, 0),))
 
 
 def test_newton_on_the_flat_side_of_a_kink_holds():

@@ -109,15 +109,16 @@ def _vertex_max(t, v, short):
 
 def _quartic(vm2, vm1, v0, v1, v2):
     """Coefficients ``(a1, a2, a3, a4)`` of the quartic ``v0 + a1 s + ... + a4 s^4``
-    through five equally spaced values at ``s = -2..2`` (unit spacing), and its first and
-    second derivatives as functions of ``s``."""
+    through five equally spaced values at ``s = -2..2`` (unit spacing), and the quartic
+    and its first and second derivatives as functions of ``s``."""
     a1 = (vm2 - 8.0 * vm1 + 8.0 * v1 - v2) / 12.0
     a2 = (-vm2 + 16.0 * vm1 - 30.0 * v0 + 16.0 * v1 - v2) / 24.0
     a3 = (-vm2 + 2.0 * vm1 - 2.0 * v1 + v2) / 12.0
     a4 = (vm2 - 4.0 * vm1 + 6.0 * v0 - 4.0 * v1 + v2) / 24.0
     d1 = lambda s: a1 + s * (2.0 * a2 + s * (3.0 * a3 + s * 4.0 * a4))  # noqa: E731
     d2 = lambda s: 2.0 * a2 + s * (6.0 * a3 + s * 12.0 * a4)  # noqa: E731
-    return (a1, a2, a3, a4), d1, d2
+    p = lambda s: v0 + s * (a1 + s * (a2 + s * (a3 + s * a4)))  # noqa: E731
+    return (a1, a2, a3, a4), p, d1, d2
 
 
 def _quartic_vertex(vm2, vm1, v0, v1, v2, parabola):
@@ -126,13 +127,13 @@ def _quartic_vertex(vm2, vm1, v0, v1, v2, parabola):
     (sixth-order error: a free oscillation sampled 64 times per period is read to 1e-8 of
     its amplitude, the parabola to 4e-6); the parabola's ``parabola`` where Newton leaves
     ``|s| <= 1`` or the quartic is not concave there."""
-    (a1, a2, a3, a4), d1, d2 = _quartic(vm2, vm1, v0, v1, v2)
+    (a1, a2, _, _), p, d1, d2 = _quartic(vm2, vm1, v0, v1, v2)
     s = -a1 / jnp.where(a2 < 0, 2.0 * a2, -1.0)
     for _ in range(3):
         s = s - d1(s) / jnp.where(d2(s) < 0, d2(s), -1.0)
     good = (jnp.abs(s) <= 1.0) & (d2(s) < 0) & jnp.isfinite(s)
     s = jnp.where(good, s, 0.0)
-    value = v0 + s * (a1 + s * (a2 + s * (a3 + s * a4)))
+    value = p(s)
     return jnp.where(good, value, parabola)
 
 
@@ -247,9 +248,8 @@ def _start_max(v):
     y = v[:5]
     c = y[:-2] - 2.0 * y[1:-1] + y[2:]  # second differences at s = -1, 0, 1
     smooth = jnp.all(jnp.abs(c - c[1]) <= 0.25 * jnp.abs(c[1])) & (c[1] < 0)
-    (a1, a2, a3, a4), d1, d2 = _quartic(*y)
+    _, p, d1, d2 = _quartic(*y)
     grid = jnp.linspace(-2.0, 0.0, 17)  # samples 0..2
-    p = lambda s: y[2] + s * (a1 + s * (a2 + s * (a3 + s * a4)))  # noqa: E731
     s = grid[jnp.argmax(p(grid))]
     for _ in range(3):  # Newton on the derivative, kept in [-2, 0]
         s = jnp.clip(s - d1(s) / jnp.where(d2(s) < 0, d2(s), -1.0), -2.0, 0.0)
