@@ -262,25 +262,36 @@ def test_window_after_a_jump_finds_a_peak_before_its_second_point():
 
 
 def test_windows_after_jumps_find_ringing_between_samples():
-    """A decaying free oscillation started by each of 11 jumps, its period a twelfth of a
+    """A decaying free oscillation started by each of many jumps, its period a twelfth of a
     grid interval: the grid and the windows around its extremes miss its peak, the windows
-    after the largest jumps read it (closed form: the first stationary point of
-    exp(-a t) sin(w t)) to 1e-7. Of more jumps than ``MAX_JUMP_WINDOWS`` they keep the
-    largest: where the last jump, after which the peak lies, is among the smallest, the
-    peak is missed."""
-    from gearjax.dynamics.metrics import MAX_JUMP_WINDOWS
+    after the jumps read it (closed form: the first stationary point of exp(-a t) sin(w t))
+    to 1e-7. Of more jumps than :func:`n_jump_windows` they keep the largest of output 0
+    and, per extremum of each output, those after which it is nearest that extreme on the
+    grid:
+
+    * output 0, a staircase of the jumps with their ringing: its peak after the last jump,
+      the largest or (sizes reversed) the smallest; the second read through the nearest
+      rule (missed before it, when only the largest jumps had windows);
+    * output 1, a staircase that climbs over the first three jumps and steps down after,
+      ringing after every jump: its peak after the third, among the smallest jumps of
+      output 0 where the sizes grow, so only the nearest rule reads it."""
+    from gearjax.dynamics.metrics import (MAX_JUMP_WINDOWS, NEAR_EXTREME_WINDOWS,
+                                          n_jump_windows)
 
     w = 2 * np.pi / 0.01  # free period 0.01 = h / 12.5
     a = 0.5 * w  # decays between jumps 0.08 apart to exp(-25)
     t_peak = np.arctan(w / a) / w
     peak = np.exp(-a * t_peak) * np.sin(w * t_peak)
-    starts = 0.05 + 0.08 * np.arange(MAX_JUMP_WINDOWS + 3)
-    period = 1.0
-    grid = output_grid(period, 8, starts, 1)
+    n_jumps = MAX_JUMP_WINDOWS + 4 * NEAR_EXTREME_WINDOWS + 3  # more than the windows
+    starts = 0.05 + 0.08 * np.arange(n_jumps)
+    period = 2.0
+    grid = output_grid(period, 16, starts, 1)  # h = 0.125
     ts = jnp.asarray(grid.offsets)
     ys = ts[:, None]
     cl = jump_clusters(grid, period, starts)
     assert cl.after.size == starts.size
+    assert n_jump_windows(cl, 2) < starts.size
+    steps = np.where(np.arange(n_jumps) < 3, 0.3, -0.1)  # output 1's steps
 
     def flow(t0, y0, tf):  # y' = 1
         return y0[None, :] + (tf - t0)[:, None]
@@ -289,14 +300,13 @@ def test_windows_after_jumps_find_ringing_between_samples():
         def out(t, y, sizes=jnp.asarray(sizes)):
             tau = y[0] - jnp.asarray(starts)
             ring = jnp.where(tau >= 0, jnp.exp(-a * tau) * jnp.sin(w * tau), 0.0)
-            return jnp.stack([jnp.sum(sizes * ((tau >= 0) + ring))])
+            return jnp.stack([jnp.sum(sizes * ((tau >= 0) + ring)),
+                              jnp.sum(jnp.asarray(steps) * ((tau >= 0) + ring))])
 
-        top = sizes.sum() + sizes[-1] * peak  # the peak after the last jump
+        top = np.array([sizes.sum() + sizes[-1] * peak,  # the peak after the last jump
+                        0.9 + 0.3 * peak])  # output 1's after the third
         _, grid_max, _ = refined_extrema(out, flow, ts, ys)
-        assert float(grid_max[0]) < top - 1e-3  # missed without the windows after the jumps
+        assert np.all(np.asarray(grid_max) < top - 1e-3)  # missed without these windows
         _, mx, _ = refined_extrema(out, flow, ts, ys, jumps=(cl, 2 * 0.01))
-        if sizes[-1] == sizes.max():
-            # the quartic vertex's own error at this spacing, 0.02 / 128: 7.5e-8
-            assert float(mx[0]) == pytest.approx(top, abs=1e-7)
-        else:  # the last jump is among the three smallest: no window, the same miss
-            assert float(mx[0]) == float(grid_max[0])
+        # the quartic vertex's own error at this spacing, 0.02 / 128: 7.5e-8
+        np.testing.assert_allclose(np.asarray(mx), top, rtol=0, atol=1e-7)

@@ -504,7 +504,7 @@ def simulate(
         jj, tj = jump_windows(vals, ts, clusters, grid.per_period, ring, 2 * N_REFINE)
         return (j0, tf), (jj, tj)
 
-    n_win = n_ref + n_jump_windows(clusters)
+    n_win = n_ref + n_jump_windows(clusters, n_ref // 2)
     f_s = model.static_force_N
 
     def windows_of(g, memo):  # the measured states on the grid -> the windows' legs,
