@@ -208,3 +208,28 @@ def test_one_cpu_device_per_core_unless_told(monkeypatch):
         monkeypatch.setenv("GEARJAX_HOST_DEVICES", bad)
         with pytest.raises(ValueError, match="GEARJAX_HOST_DEVICES"):
             cli.host_device_count()
+
+
+def test_compile_ahead_only_where_a_linear_3d_sweep_follows_the_reference(monkeypatch):
+    """gearjax.cli.ahead: the te/perturbation program compiles during the reference sweep
+    only for a 3D independent transient sweep with a linear formulation after the
+    reference one (a torsional sweep compiles in seconds; the continuation and the other
+    methods run other programs); GEARJAX_COMPILE_AHEAD=0 turns it off."""
+    from argparse import Namespace
+
+    from gearjax.cli.ahead import worth_compiling_ahead
+
+    def pick(forms, form="reference", **kw):
+        args = Namespace(**{**dict(model="3d", direction="independent", method="auto"), **kw})
+        return worth_compiling_ahead(args, forms, form, None)
+
+    main_job = ["reference", "te", "perturbation"]
+    assert pick(main_job) == "te"
+    assert pick(["reference", "perturbation"], method="transient") == "perturbation"
+    assert pick(main_job, form="te") is None  # the te sweep itself
+    assert pick(["te", "reference"]) is None  # nothing linear left after the reference
+    assert pick(main_job, model="torsional") is None
+    assert pick(main_job, direction="up") is None
+    assert pick(main_job, method="harmonic") is None
+    monkeypatch.setenv("GEARJAX_COMPILE_AHEAD", "0")
+    assert pick(main_job) is None

@@ -57,6 +57,39 @@ def test_repeated_sweeps_trace_once(model, monkeypatch):
     assert np.all(np.isnan(a.accel_ptp_m_s2))  # torsional model: no acceleration observable
 
 
+def test_lowered_sweep_program_is_the_one_the_sweep_runs(model, monkeypatch):
+    """lower_sweep gives the program sweep then calls (the command line compiles the te one
+    on a thread while the reference sweep runs, gearjax.cli.ahead): compiled beforehand,
+    the sweep neither traces simulate again nor compiles anything of its size (every XLA
+    compilation during it under a tenth of the program's own; the persistent cache off, so
+    that only the in-memory one can serve it)."""
+    from jax import monitoring
+
+    from gearjax.dynamics.sweep import lower_sweep
+
+    counted = eqx.debug.assert_max_traces(simulate, max_traces=1)
+    monkeypatch.setattr(sweep_mod, "simulate", counted)
+    compiles, on = [], [False]
+    monitoring.register_event_duration_secs_listener(
+        lambda event, secs, **kw: compiles.append(secs)
+        if on[0] and event == "/jax/core/compile/backend_compile_duration" else None)
+    speeds = [130.0, 230.0, 330.0, 430.0, 530.0]  # 5 speeds in one chunk: a shape of its own
+    was = jax.config.jax_enable_compilation_cache
+    jax.config.update("jax_enable_compilation_cache", False)
+    try:
+        on[0] = True
+        lower_sweep(model, speeds, chunk_size=5, **OPTS).compile()
+        own, compiles[:] = max(compiles), []
+        res = sweep(model, speeds, chunk_size=5, progress=False, **OPTS)
+        on[0] = False
+    finally:
+        on[0] = False
+        jax.config.update("jax_enable_compilation_cache", was)
+    assert eqx.debug.get_num_traces(counted) == 1
+    assert own > 0.3 and max(compiles, default=0.0) < 0.1 * own, (own, sorted(compiles)[-3:])
+    assert np.all(res.solver_ok)
+
+
 def test_default_chunk_fits_memory(model, monkeypatch, capsys):
     """Without chunk_size a sweep takes as many speeds per call as memory_chunk allows:
     the saved states of one speed are the output grid (samples plus both sides of every

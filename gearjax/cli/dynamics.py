@@ -59,6 +59,7 @@ from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv
 from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
+from .ahead import compile_ahead, worth_compiling_ahead
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
 from .scenario import (add_nlte_reaction, add_nlte_switches, linspace_option, nlte_options_of,
@@ -387,20 +388,41 @@ def cmd_sweep(args) -> int:
     t_all = time.perf_counter()
     interrupted = False
     try:
+        def build(form):
+            return build_model(rig, mods, model=args.model, formulation=form,
+                               law=args.stiffness, damping_ratio=args.damping,
+                               encoder_position=args.encoders, **nlte,
+                               max_frequency_hz=cutoff_hz, nlte_reaction=reaction,
+                               te_table=te, moving_events=False)  # forward only
+
+        def todo_of(form):
+            return np.array([w for w in speeds if float(w) not in done.get(form, ())])
+
+        def sweep_options(model):
+            size = None if args.chunk is None else min(args.chunk, todo_of(model.formulation).size)
+            return dict(chunk_size=size, devices=devices, **periodic_start_options(model),
+                        **tolerances)
+
         linear = None  # a 3D te/perturbation model: the other one shares its build
+        early, ahead = {}, None  # a model built ahead, its program compiling (gearjax.cli.ahead)
         for form in forms:
             t0 = time.perf_counter()
             shared = linear is not None and form in LINEAR_FORMULATIONS
             if shared:
                 model = linear.with_formulation(form)
+            elif form in early:
+                model, t_pre = early.pop(form)
+                t0 -= t_pre  # its build's time, before the reference sweep
             else:
-                model = build_model(rig, mods, model=args.model, formulation=form,
-                                    law=args.stiffness, damping_ratio=args.damping,
-                                    encoder_position=args.encoders, **nlte,
-                                    max_frequency_hz=cutoff_hz, nlte_reaction=reaction,
-                                    te_table=te, moving_events=False)  # forward only
+                model = build(form)
             _check_modes(args, model, cutoff_hz)
             t_build = time.perf_counter() - t0
+            nxt = worth_compiling_ahead(args, forms, form, model)
+            if nxt is not None and todo_of(nxt).size and todo_of(form).size:
+                t1 = time.perf_counter()
+                built_ahead = build(nxt)
+                early[nxt] = (built_ahead, time.perf_counter() - t1)
+                ahead = compile_ahead(built_ahead, todo_of(nxt), **sweep_options(built_ahead))
             built = (f"the {linear.formulation} build" if shared else
                      f"{args.model} model built in {t_build:.1f} s")
             if args.model == "3d" and form in LINEAR_FORMULATIONS and not shared:
@@ -410,7 +432,7 @@ def cmd_sweep(args) -> int:
                 if args.model == "3d":
                     summary["n_modes"] = int(model.n_modes)
                     summary["w_x0_m"] = float(model.w_x0)
-            todo = np.array([w for w in speeds if float(w) not in done.get(form, ())])
+            todo = todo_of(form)
             if lead and not args.json:
                 left = f", {todo.size} left to compute" if todo.size < speeds.size else ""
                 print(f"  {form}: {speeds.size} speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rad/s{left} "
@@ -421,11 +443,11 @@ def cmd_sweep(args) -> int:
                                               progress=not args.json)
             elif todo.size:
                 # default: sweep's (CPU: 16-64 speeds per device; accelerators: memory)
-                size = None if args.chunk is None else min(args.chunk, todo.size)
-                res = sweep(model, todo, chunk_size=size, devices=devices,
-                            progress=not args.json, out_csv=csv_path, method=args.method,
-                            orders_csv=orders_path,
-                            **periodic_start_options(model), **tolerances)
+                if ahead is not None and form in LINEAR_FORMULATIONS:
+                    ahead.join()  # its program compiled: found in JAX's cache
+                    ahead = None
+                res = sweep(model, todo, progress=not args.json, out_csv=csv_path,
+                            method=args.method, orders_csv=orders_path, **sweep_options(model))
                 methods[form] = method_counts(res, args.method)
             times[form] = (t_build, time.perf_counter() - t0)
             if sig_speeds and lead:

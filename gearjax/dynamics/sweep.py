@@ -188,46 +188,11 @@ def sweep(
                       file=sys.stderr, flush=True)
             method = "transient"
     multi_process = jax.process_count() > 1
-    if devices is None and multi_process:
-        devices = "all"
-    if devices == "all":
-        devices = jax.devices()
-    n_dev = 1 if devices is None else len(devices)
     lead = jax.process_index() == 0  # the process that prints and writes
-    if n_dev < 1:
-        raise SimulationError("devices", devices, "need at least one device")
-    if chunk_size is None:
-        first = devices[0] if devices else jax.devices()[0]
-        chunk_size = default_chunk_size(model, speeds.size, n_dev, simulate_kwargs,
-                                        first.platform, device_memory_bytes(first))
-    if int(chunk_size) != chunk_size or chunk_size < 1:
-        raise SimulationError("chunk_size", chunk_size, "must be a positive integer")
-    chunk = int(math.ceil(int(chunk_size) / n_dev) * n_dev)
-    n_chunks = int(math.ceil(speeds.size / chunk))
+    fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, sim_kwargs = _plan(
+        model, speeds, chunk_size, devices, simulate_kwargs)
     total = n_chunks * chunk
-    sim_kwargs = tuple(sorted(simulate_kwargs.items()))
     formulation = model.formulation
-    compiled = model.compiled_form()  # 3D te and perturbation: one program for both
-
-    # order: the whole sweep sorted by cost (speed), chunks of consecutive speeds, each chunk
-    # dealt round-robin to the devices
-    order = _cost_order(speeds)
-    padded_idx = np.concatenate([order, np.full(total - speeds.size, order[-1])])
-    if n_dev > 1:
-        per = chunk // n_dev
-        # chunk c, device d, slot s <- sorted position (c * per + s) * n_dev + d
-        pos = np.arange(total).reshape(n_chunks * per, n_dev)  # row: interleaved group
-        layout = np.empty((n_chunks, n_dev, per), dtype=int)
-        for c in range(n_chunks):
-            for dv in range(n_dev):
-                layout[c, dv] = pos[c * per:(c + 1) * per, dv]
-        padded_idx = padded_idx[layout.reshape(-1)]
-        key = tuple(devices)
-        if key not in _SHARDED_CACHE:
-            _SHARDED_CACHE[key] = _make_sharded(devices)
-        fn = _SHARDED_CACHE[key]
-    else:
-        fn = _batched
 
     results = empty_metrics(total)
     if not lead:
@@ -310,6 +275,67 @@ CHUNK_MEMORY_FRACTION = 0.4
 # output evaluations on the grid and the batched loop's copies of them); 20 doubles
 _BYTES_PER_ENTRY = 20 * 8
 
+
+def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
+    """How :func:`sweep`'s transient runs ``speeds``: the compiled function, the model it
+    takes, the devices, the chunk and the speeds' padded, cost-sorted order."""
+    if devices is None and jax.process_count() > 1:
+        devices = "all"
+    if devices == "all":
+        devices = jax.devices()
+    n_dev = 1 if devices is None else len(devices)
+    if n_dev < 1:
+        raise SimulationError("devices", devices, "need at least one device")
+    if chunk_size is None:
+        first = devices[0] if devices else jax.devices()[0]
+        chunk_size = default_chunk_size(model, speeds.size, n_dev, simulate_kwargs,
+                                        first.platform, device_memory_bytes(first))
+    if int(chunk_size) != chunk_size or chunk_size < 1:
+        raise SimulationError("chunk_size", chunk_size, "must be a positive integer")
+    chunk = int(math.ceil(int(chunk_size) / n_dev) * n_dev)
+    n_chunks = int(math.ceil(speeds.size / chunk))
+    total = n_chunks * chunk
+    sim_kwargs = tuple(sorted(simulate_kwargs.items()))
+    compiled = model.compiled_form()  # 3D te and perturbation: one program for both
+
+    # order: the whole sweep sorted by cost (speed), chunks of consecutive speeds, each chunk
+    # dealt round-robin to the devices
+    order = _cost_order(speeds)
+    padded_idx = np.concatenate([order, np.full(total - speeds.size, order[-1])])
+    if n_dev > 1:
+        per = chunk // n_dev
+        # chunk c, device d, slot s <- sorted position (c * per + s) * n_dev + d
+        pos = np.arange(total).reshape(n_chunks * per, n_dev)  # row: interleaved group
+        layout = np.empty((n_chunks, n_dev, per), dtype=int)
+        for c in range(n_chunks):
+            for dv in range(n_dev):
+                layout[c, dv] = pos[c * per:(c + 1) * per, dv]
+        padded_idx = padded_idx[layout.reshape(-1)]
+        key = tuple(devices)
+        if key not in _SHARDED_CACHE:
+            _SHARDED_CACHE[key] = _make_sharded(devices)
+        fn = _SHARDED_CACHE[key]
+    else:
+        fn = _batched
+    return fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, sim_kwargs
+
+
+def lower_sweep(model, speeds_rad_s, chunk_size: int | None = None, devices=None,
+                **simulate_kwargs):
+    """The program that ``sweep(model, speeds_rad_s, chunk_size, devices=devices,
+    method="transient", **simulate_kwargs)`` will call, traced and lowered but not
+    compiled (a ``jax.stages.Lowered``): its ``compile()`` releases the GIL, so a thread
+    can compile the next formulation's program while another sweep traces, compiles and
+    integrates (the command line's te program during the reference sweep, tracing being
+    Python's and so done first). The executable reaches that later call through JAX's
+    compilation caches (in memory, and the persistent cache where one is set)."""
+    speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
+    fn, compiled, devices, n_dev, chunk, _, padded_idx, sim_kwargs = _plan(
+        model, speeds, chunk_size, devices, simulate_kwargs)
+    sel = padded_idx[:chunk]
+    w = (_global_speeds(np.asarray(speeds[sel]), devices) if n_dev > 1
+         else jnp.asarray(speeds[sel]))
+    return fn.lower(compiled, w, sim_kwargs)
 
 def memory_chunk(model, simulate_kwargs: dict | None = None,
                  budget_bytes: float | None = None) -> int:

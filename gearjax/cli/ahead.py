@@ -1,0 +1,60 @@
+"""The next formulation's sweep program compiled while the reference sweep runs.
+
+The command line sweeps its formulations one after the other, and on a CPU most of a short
+sweep is compilation (README main job: 15 of its 32 s XLA compile, 6 s tracing), which runs
+on one thread and releases the GIL. Built before the reference sweep starts, the 3D
+te/perturbation model's program compiles on a second thread while the reference program
+compiles and integrates; its sweep then finds the executable in JAX's compilation cache
+(measured 2026-11-25, 2 cores, 45 speeds: reference + te 31.0 s in sequence, 25.3-26.3 s
+so, the reference 3-4 s slower and the te sweep 11.4 -> 3.4 s)."""
+
+from __future__ import annotations
+
+import threading
+
+from ..dynamics.sweep import auto_method, lower_sweep
+
+
+def worth_compiling_ahead(args, forms, form: str, model) -> str | None:
+    """The formulation whose program to compile while ``form`` (just built as ``model``)
+    sweeps: the first te/perturbation formulation after the reference one, for a 3D
+    independent transient sweep of one process; None otherwise, or with
+    ``GEARJAX_COMPILE_AHEAD=0``."""
+    import os
+
+    import jax
+
+    from ..models.base import LINEAR_FORMULATIONS
+
+    if (os.environ.get("GEARJAX_COMPILE_AHEAD", "1") in ("0", "false", "False")
+            or form != "reference" or args.model != "3d" or args.direction != "independent"
+            or jax.process_count() > 1):
+        return None
+    if args.method not in ("transient", "auto") or (
+            args.method == "auto" and auto_method(model) != "transient"):
+        return None
+    later = [f for f in forms[forms.index(form) + 1:] if f in LINEAR_FORMULATIONS]
+    return later[0] if later else None
+
+
+def compile_ahead(model, speeds, **sweep_kwargs) -> threading.Thread:
+    """Trace ``sweep(model, speeds, **sweep_kwargs)``'s program here (Python: it would
+    hold the GIL against the reference sweep's own tracing) and compile it on a thread
+    (the arguments exactly those of the later call). A failure is left for that call to
+    report. Not a daemon thread: an interrupted command exits once the compilation ends
+    (seconds), as XLA aborts the process if it is torn down under a running compile."""
+    try:
+        lowered = lower_sweep(model, speeds, **sweep_kwargs)
+    except Exception:  # the sweep itself raises it, with the command line's message
+        lowered = None
+
+    def run():
+        try:
+            lowered.compile()
+        except Exception:  # as above
+            pass
+
+    thread = threading.Thread(target=run if lowered is not None else None,
+                              name="gearjax-compile-ahead")
+    thread.start()
+    return thread
