@@ -2,11 +2,13 @@
 
 The command line sweeps its formulations one after the other, and on a CPU most of a short
 sweep is compilation (README main job: 15 of its 32 s XLA compile, 6 s tracing), which runs
-on one thread and releases the GIL. Built before the reference sweep starts, the 3D
-te/perturbation model's program compiles on a second thread while the reference program
-compiles and integrates; its sweep then finds the executable in JAX's compilation cache
-(measured 2026-11-25, 2 cores, 45 speeds: reference + te 31.0 s in sequence, 25.3-26.3 s
-so, the reference 3-4 s slower and the te sweep 11.4 -> 3.4 s)."""
+on one thread and releases the GIL. Built and traced before the reference sweep starts,
+the 3D te/perturbation model's program compiles on a second thread while the reference
+program compiles and integrates; its sweep then finds the executable in JAX's in-memory
+compilation cache (README main job, 2 cores, empty caches, measured alternately
+2026-11-25: the command 30.6-32.5 s against 34.4-35.1 s without, the reference sweep ~2 s
+slower and the te one ~8 s quicker; tracing on the thread as well gained only half as
+much, the two traces contending for the GIL)."""
 
 from __future__ import annotations
 
