@@ -13,6 +13,7 @@ much, the two traces contending for the GIL)."""
 from __future__ import annotations
 
 import threading
+import time
 
 from ..dynamics.sweep import auto_method, lower_sweep
 
@@ -60,3 +61,17 @@ def compile_ahead(model, speeds, **sweep_kwargs) -> threading.Thread:
                               name="gearjax-compile-ahead")
     thread.start()
     return thread
+
+
+def build_and_compile_ahead(args, forms, form: str, model, build, todo_of, options, early):
+    """Where :func:`worth_compiling_ahead` names a formulation and both it and ``form``
+    have speeds to compute (``todo_of``): build its model (``build``), keep it in
+    ``early`` as ``{formulation: (model, build time in s)}`` and start compiling its sweep
+    (``options(model)``: the later call's keywords). Returns the thread, or None."""
+    nxt = worth_compiling_ahead(args, forms, form, model)
+    if nxt is None or not (todo_of(nxt).size and todo_of(form).size):
+        return None
+    t0 = time.perf_counter()
+    built = build(nxt)
+    early[nxt] = (built, time.perf_counter() - t0)
+    return compile_ahead(built, todo_of(nxt), **options(built))

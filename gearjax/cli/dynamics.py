@@ -59,7 +59,7 @@ from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv
 from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
-from .ahead import compile_ahead, worth_compiling_ahead
+from .ahead import build_and_compile_ahead
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
 from .scenario import (add_nlte_reaction, add_nlte_switches, linspace_option, nlte_options_of,
@@ -389,11 +389,10 @@ def cmd_sweep(args) -> int:
     interrupted = False
     try:
         def build(form):
-            return build_model(rig, mods, model=args.model, formulation=form,
-                               law=args.stiffness, damping_ratio=args.damping,
-                               encoder_position=args.encoders, **nlte,
-                               max_frequency_hz=cutoff_hz, nlte_reaction=reaction,
-                               te_table=te, moving_events=False)  # forward only
+            return build_model(rig, mods, model=args.model, formulation=form, law=args.stiffness,
+                               damping_ratio=args.damping, encoder_position=args.encoders, **nlte,
+                               max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te,
+                               moving_events=False)  # forward only
 
         def todo_of(form):
             return np.array([w for w in speeds if float(w) not in done.get(form, ())])
@@ -417,12 +416,8 @@ def cmd_sweep(args) -> int:
                 model = build(form)
             _check_modes(args, model, cutoff_hz)
             t_build = time.perf_counter() - t0
-            nxt = worth_compiling_ahead(args, forms, form, model)
-            if nxt is not None and todo_of(nxt).size and todo_of(form).size:
-                t1 = time.perf_counter()
-                built_ahead = build(nxt)
-                early[nxt] = (built_ahead, time.perf_counter() - t1)
-                ahead = compile_ahead(built_ahead, todo_of(nxt), **sweep_options(built_ahead))
+            ahead = ahead or build_and_compile_ahead(args, forms, form, model, build, todo_of,
+                                                     sweep_options, early)
             built = (f"the {linear.formulation} build" if shared else
                      f"{args.model} model built in {t_build:.1f} s")
             if args.model == "3d" and form in LINEAR_FORMULATIONS and not shared:
@@ -444,8 +439,7 @@ def cmd_sweep(args) -> int:
             elif todo.size:
                 # default: sweep's (CPU: 16-64 speeds per device; accelerators: memory)
                 if ahead is not None and form in LINEAR_FORMULATIONS:
-                    ahead.join()  # its program compiled: found in JAX's cache
-                    ahead = None
+                    ahead.join()  # its program compiled: found in JAX's cache (again: no-op)
                 res = sweep(model, todo, progress=not args.json, out_csv=csv_path,
                             method=args.method, orders_csv=orders_path, **sweep_options(model))
                 methods[form] = method_counts(res, args.method)
