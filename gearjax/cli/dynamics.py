@@ -62,6 +62,7 @@ from ..rigs.figures import predicted_critical_speeds
 from .ahead import build_and_compile_ahead
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
+from .signals import last_mesh_period_signals, write_order_tracks, write_signals
 from .scenario import (add_nlte_reaction, add_nlte_switches, linspace_option, nlte_options_of,
                        nlte_reaction_of)
 
@@ -71,7 +72,6 @@ FORMULATIONS = ("reference", "te", "perturbation")
 # undamped stability: |spectral radius - 1| below this is round-off of the monodromy matrix
 # (neutral), above it a parametric instability
 NEUTRAL_TOLERANCE = 1e-6
-_SAMPLES_PER_MESH_PERIOD = 128
 
 
 def modal_cutoff(args, rig, speeds_rad_s) -> tuple[float | None, str]:
@@ -445,7 +445,7 @@ def cmd_sweep(args) -> int:
                 methods[form] = method_counts(res, args.method)
             times[form] = (t_build, time.perf_counter() - t0)
             if sig_speeds and lead:
-                signals[form] = _signals(model, sig_speeds)
+                signals[form] = last_mesh_period_signals(model, sig_speeds)
     except KeyboardInterrupt:
         interrupted = True
     if not lead:
@@ -486,9 +486,9 @@ def cmd_sweep(args) -> int:
         plot = plot_response_curves if args.direction == "independent" else plot_branches
         plot(csv_path, fig_path, title=title)
         summary["response_curves_png"] = fig_path
-        summary.update(_write_order_tracks(orders_path, out, title))
+        summary.update(write_order_tracks(orders_path, out, title))
     if signals and not interrupted:
-        summary.update(_write_signals(signals, out, title))
+        summary.update(write_signals(signals, out, title))
     summary["total_time_s"] = time.perf_counter() - t_all
     if interrupted:
         summary["interrupted"] = True
@@ -505,64 +505,6 @@ def cmd_sweep(args) -> int:
         return 0
     _print_summary(rig, summary, out)
     return 0
-
-
-def _write_order_tracks(orders_path, out, title) -> dict:
-    """``order_tracks.png`` from ``orders.csv`` (mesh-order amplitudes in dB against speed)."""
-    from ..plotting import plot_order_tracks
-
-    if not os.path.exists(orders_path):
-        return {}
-    fig_path = os.path.join(out, "order_tracks.png")
-    plot_order_tracks(orders_path, fig_path, title=title)
-    return {"orders_csv": orders_path, "order_tracks_png": fig_path}
-
-
-def _signals(model, speeds):
-    """Signals over the last mesh period at each speed (mesh force, DTE, acceleration)."""
-    import equinox as eqx
-    import jax.numpy as jnp
-
-    from ..dynamics.simulate import simulate
-
-    # compiled once for all speeds (called op by op, simulate cost 17 s of CPU on the sdof
-    # model, 2.5x its compilation, and 4 s per further speed)
-    run = eqx.filter_jit(simulate)
-    out = []
-    for w in speeds:
-        r = run(model, jnp.asarray(float(w)), save_signals=True, n_measured_periods=2,
-                samples_per_mesh_period=_SAMPLES_PER_MESH_PERIOD)
-        sig = r.signals
-        th = np.asarray(sig.theta_rad)
-        tm = model.mesh_period_rad
-        keep = slice(th.size - _SAMPLES_PER_MESH_PERIOD, th.size)  # the last mesh period
-        acc = None if sig.accel_m_s2 is None else np.asarray(sig.accel_m_s2)[keep]
-        out.append({"speed_rad_s": float(w), "t_over_Tm": (th[keep] - th[keep][0]) / tm,
-                    "mesh_force_N": np.asarray(sig.mesh_force_N)[keep],
-                    "dte_m": np.asarray(sig.dte_m)[keep], "accel_m_s2": acc,
-                    "converged": bool(r.converged)})
-    return out
-
-
-def _write_signals(signals, out, title) -> dict:
-    import csv
-
-    path = os.path.join(out, "signals.csv")
-    with open(path, "w", newline="") as fh:
-        wr = csv.writer(fh)
-        wr.writerow(["formulation", "speed_rad_s", "t_over_mesh_period", "mesh_force_N", "dte_m",
-                     "accel_m_s2"])
-        for form, sigs in signals.items():
-            for s in sigs:
-                acc = s["accel_m_s2"] if s["accel_m_s2"] is not None else [None] * len(s["t_over_Tm"])
-                for t, f, d, a in zip(s["t_over_Tm"], s["mesh_force_N"], s["dte_m"], acc):
-                    wr.writerow([form, f"{s['speed_rad_s']:.6g}", f"{t:.6f}", f"{f:.8e}", f"{d:.8e}",
-                                 "" if a is None else f"{a:.8e}"])
-    from ..plotting import plot_mesh_force_signals
-
-    fig = os.path.join(out, "mesh_force_signals.png")
-    plot_mesh_force_signals(signals, fig, title=title)
-    return {"signals_csv": path, "mesh_force_signals_png": fig}
 
 
 def _listed(speeds, tags=None) -> str:
