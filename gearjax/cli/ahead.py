@@ -12,6 +12,7 @@ much, the two traces contending for the GIL)."""
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -23,8 +24,6 @@ def worth_compiling_ahead(args, forms, form: str, model) -> str | None:
     sweeps: the first te/perturbation formulation after the reference one, for a 3D
     independent transient sweep of one process; None otherwise, or with
     ``GEARJAX_COMPILE_AHEAD=0``."""
-    import os
-
     import jax
 
     from ..models.base import LINEAR_FORMULATIONS
@@ -40,16 +39,17 @@ def worth_compiling_ahead(args, forms, form: str, model) -> str | None:
     return later[0] if later else None
 
 
-def compile_ahead(model, speeds, **sweep_kwargs) -> threading.Thread:
+def compile_ahead(model, speeds, **sweep_kwargs) -> threading.Thread | None:
     """Trace ``sweep(model, speeds, **sweep_kwargs)``'s program here (Python: it would
     hold the GIL against the reference sweep's own tracing) and compile it on a thread
-    (the arguments exactly those of the later call). A failure is left for that call to
-    report. Not a daemon thread: an interrupted command exits once the compilation ends
-    (seconds), as XLA aborts the process if it is torn down under a running compile."""
+    (the arguments exactly those of the later call); None where it cannot be traced. A
+    failure is left for that call to report. Not a daemon thread: an interrupted command
+    exits once the compilation ends (seconds), as XLA aborts the process if it is torn
+    down under a running compile."""
     try:
         lowered = lower_sweep(model, speeds, **sweep_kwargs)
     except Exception:  # the sweep itself raises it, with the command line's message
-        lowered = None
+        return None
 
     def run():
         try:
@@ -57,8 +57,7 @@ def compile_ahead(model, speeds, **sweep_kwargs) -> threading.Thread:
         except Exception:  # as above
             pass
 
-    thread = threading.Thread(target=run if lowered is not None else None,
-                              name="gearjax-compile-ahead")
+    thread = threading.Thread(target=run, name="gearjax-compile-ahead")
     thread.start()
     return thread
 

@@ -337,7 +337,7 @@ def ringing_length(omega, omega_n, interval):
     return jnp.minimum(JUMP_WINDOW_FREE_PERIODS * free, JUMP_WINDOW_MAX_INTERVALS * interval)
 
 
-def n_jump_windows(clusters: JumpClusters, n_outputs: int = 1) -> int:
+def n_jump_windows(clusters: JumpClusters, n_outputs: int) -> int:
     """Windows after the jumps (static): ``MAX_JUMP_WINDOWS`` after the largest jumps and
     ``NEAR_EXTREME_WINDOWS`` per extremum of each of ``n_outputs`` outputs, all clusters
     where fewer."""

@@ -337,6 +337,7 @@ def lower_sweep(model, speeds_rad_s, chunk_size: int | None = None, devices=None
          else jnp.asarray(speeds[sel]))
     return fn.lower(compiled, w, sim_kwargs)
 
+
 def memory_chunk(model, simulate_kwargs: dict | None = None,
                  budget_bytes: float | None = None) -> int:
     """Most speeds per vmapped ``simulate`` call whose saved states fit in ``budget_bytes``
