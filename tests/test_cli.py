@@ -208,6 +208,12 @@ def test_one_cpu_device_per_core_unless_told(monkeypatch):
         monkeypatch.setenv("GEARJAX_HOST_DEVICES", bad)
         with pytest.raises(ValueError, match="GEARJAX_HOST_DEVICES"):
             cli.host_device_count()
+    # a jaxlib whose XLA:CPU crashed compiling the sharded 3D sweep: one device unless asked
+    monkeypatch.setattr(cli, "_jaxlib_minor", lambda: (0, 11))
+    monkeypatch.delenv("GEARJAX_HOST_DEVICES")
+    assert cli.host_device_count() == 1
+    monkeypatch.setenv("GEARJAX_HOST_DEVICES", "4")
+    assert cli.host_device_count() == 4
 
 
 def test_compile_ahead_only_where_a_linear_3d_sweep_follows_the_reference(monkeypatch):

@@ -228,7 +228,8 @@ def test_sharded_equals_unsharded():
     where contact holds) and, where the contact law
     separates the teeth (700 and 860 rad/s), to what the impacts make of that (1e-7 to
     4e-7 of the forces, n_steps within 2 %)."""
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4")
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4",
+               JAX_PLATFORMS="cpu")  # fake CPU devices, also where a GPU is the default
     out = subprocess.run([sys.executable, "-c", _SHARDED], env=env, capture_output=True,
                          text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
@@ -307,7 +308,8 @@ def test_multi_process_sweep_equals_single_device(tmp_path):
     processes, process 0 alone writes results.csv, and its rows are exactly the
     single-device sweep of the same model with the same per-device batch (one speed)."""
     port = str(_free_port())
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2",
+               JAX_PLATFORMS="cpu")  # fake CPU devices, also where a GPU is the default
     procs = [subprocess.Popen([sys.executable, "-c", _MULTI_PROCESS, str(i), port,
                                str(tmp_path / "out")], env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True) for i in range(2)]
