@@ -131,7 +131,7 @@ def test_compile_bound_sweeps_take_xla_legacy_emitters(monkeypatch):
     for argv, want in bound.items():
         assert cli.compile_bound(parse(list(argv))) is want, argv
     monkeypatch.delenv("GEARJAX_XLA_DEFAULTS", raising=False)
-    monkeypatch.setattr(cli, "_jaxlib_minor", lambda: cli._FUSION_FLAG_JAXLIB)
+    monkeypatch.setattr(cli, "jaxlib_minor", lambda: cli._FUSION_FLAG_JAXLIB)
     for flags, argv, want in (
             ("--xla_cpu_foo=1", ["sweep"], "--xla_cpu_foo=1 --xla_cpu_use_fusion_emitters=false"),
             ("", ["sweep", "--speeds", "20:900:1000"], ""),
@@ -144,7 +144,7 @@ def test_compile_bound_sweeps_take_xla_legacy_emitters(monkeypatch):
     cli._use_emitters(parse(["sweep"]))
     assert os.environ["XLA_FLAGS"] == ""
     monkeypatch.delenv("GEARJAX_XLA_DEFAULTS")
-    monkeypatch.setattr(cli, "_jaxlib_minor", lambda: (0, 11))  # not measured there
+    monkeypatch.setattr(cli, "jaxlib_minor", lambda: (0, 11))  # not measured there
     cli._use_emitters(parse(["sweep"]))
     assert os.environ["XLA_FLAGS"] == ""
     if importlib.import_module("importlib.metadata").version("jaxlib").startswith("0.10."):
@@ -209,7 +209,7 @@ def test_one_cpu_device_per_core_unless_told(monkeypatch):
         with pytest.raises(ValueError, match="GEARJAX_HOST_DEVICES"):
             cli.host_device_count()
     # a jaxlib whose XLA:CPU crashed compiling the sharded 3D sweep: one device unless asked
-    monkeypatch.setattr(cli, "_jaxlib_minor", lambda: (0, 11))
+    monkeypatch.setattr(cli, "jaxlib_minor", lambda: (0, 11))
     monkeypatch.delenv("GEARJAX_HOST_DEVICES")
     assert cli.host_device_count() == 1
     monkeypatch.setenv("GEARJAX_HOST_DEVICES", "4")

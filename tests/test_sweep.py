@@ -217,6 +217,23 @@ _SHARDED = textwrap.dedent(
 )
 
 
+def test_sharding_over_cpu_devices_warns_on_a_jaxlib_that_crashed_there(monkeypatch):
+    """jaxlib 0.11.2's XLA:CPU segfaulted compiling the 3D sweep sharded over CPU devices
+    (README, Known problems): such a sweep says so before it compiles; jaxlib 0.10, the
+    version measured sound, and a single device stay silent."""
+    import warnings
+
+    cpu = jax.devices("cpu")[0]
+    monkeypatch.setattr(sweep_mod, "jaxlib_minor", lambda: (0, 11))
+    with pytest.warns(RuntimeWarning, match="segfaulted"):
+        sweep_mod._warn_sharded_cpu([cpu, cpu])
+    monkeypatch.setattr(sweep_mod, "jaxlib_minor", lambda: (0, 10))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sweep_mod._warn_sharded_cpu([cpu, cpu])
+    assert sweep_mod.jaxlib_minor() >= (0, 4)  # the installed one is read
+
+
 def test_sharded_equals_unsharded():
     """Four fake CPU devices (shard_map over the speed axis, interleaved, padded to a
     multiple of the device count) give the single-device results, in order, to rounding.

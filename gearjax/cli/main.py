@@ -21,6 +21,8 @@ import math
 import os
 import sys
 
+from ..dynamics.sweep import jaxlib_minor
+
 import numpy as np
 
 __all__ = ["main"]
@@ -340,28 +342,22 @@ def _use_compilation_cache(own_process: bool) -> None:
 _DEVICE_FLAG = "--xla_force_host_platform_device_count"
 
 
-# Newest jaxlib whose XLA:CPU compiles the 3D sweep sharded over several CPU devices.
-# jaxlib 0.11.2 (the lent GPU machine's image, JAX_PLATFORMS=cpu, 2026-11-25) segfaults
-# inside backend_compile_and_load on the 3D te sweep over 2 or 16 CPU devices (te, 8
-# speeds; also with the persistent cache off), while the torsional sharded test passes
-# and one device runs the README main job (44 s on that 16-core machine).
-SHARDED_CPU_JAXLIB = (0, 10)
-
-
 def host_device_count() -> int:
     """CPU devices the command line asks XLA for: one per usable core (each runs its share
     of a sweep's speeds on its own thread: the main job's 45 speeds integrate ~2x faster on
     2 cores than in one vmapped batch, which XLA runs on one thread); 1 with
     ``GEARJAX_HOST_DEVICES=1``, or an explicit count there (ValueError for anything but a
-    whole number >= 1); 1 by default on a jaxlib newer than :data:`SHARDED_CPU_JAXLIB`
-    (see there). An ``XLA_FLAGS`` that already sets the count is left alone."""
+    whole number >= 1); 1 by default on a jaxlib newer than
+    :data:`gearjax.dynamics.sweep.SHARDED_CPU_JAXLIB` (see there). An ``XLA_FLAGS`` that already sets the count is left alone."""
     setting = os.environ.get("GEARJAX_HOST_DEVICES", "").strip()
     if setting:
         if not (setting.isdigit() and int(setting) >= 1):
             raise ValueError(f"GEARJAX_HOST_DEVICES={setting!r}: must be a whole number of "
                              "CPU devices >= 1 (1: no sharding)")
         return int(setting)
-    if _jaxlib_minor() > SHARDED_CPU_JAXLIB:
+    from ..dynamics.sweep import SHARDED_CPU_JAXLIB
+
+    if jaxlib_minor() > SHARDED_CPU_JAXLIB:
         return 1
     try:
         return max(1, len(os.sched_getaffinity(0)))
@@ -404,15 +400,6 @@ COMPILE_BOUND_3D_SPEEDS = 300
 COMPILE_BOUND_3D_DAMPING = 0.1
 
 
-def _jaxlib_minor() -> tuple:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return tuple(int(x) for x in version("jaxlib").split(".")[:2])
-    except (PackageNotFoundError, ValueError):
-        return ()
-
-
 def compile_bound(args) -> bool:
     """Whether ``gearjax`` ``args`` ask for a sweep whose compilation outweighs its
     integration (see the measurements above :data:`COMPILE_BOUND_3D_SPEEDS`)."""
@@ -443,7 +430,7 @@ def _use_emitters(args) -> None:
     them, and one 3D test then ran for more than 15 min instead of 21 s)."""
     flags = os.environ.get("XLA_FLAGS", "")
     if (_FUSION_FLAG in flags or os.environ.get("GEARJAX_XLA_DEFAULTS", "1") == "0"
-            or _jaxlib_minor() != _FUSION_FLAG_JAXLIB or not compile_bound(args)):
+            or jaxlib_minor() != _FUSION_FLAG_JAXLIB or not compile_bound(args)):
         return
     os.environ["XLA_FLAGS"] = f"{flags} {_FUSION_FLAG}=false".strip()
 

@@ -27,6 +27,7 @@ import math
 import os
 import sys
 import time
+import warnings
 from functools import partial
 
 import equinox as eqx
@@ -276,6 +277,35 @@ CHUNK_MEMORY_FRACTION = 0.4
 _BYTES_PER_ENTRY = 20 * 8
 
 
+# Newest jaxlib whose XLA:CPU compiled the 3D sweep sharded over several CPU devices.
+# jaxlib 0.11.2 (the lent H100 machine's image, JAX_PLATFORMS=cpu, 2026-11-25) segfaulted
+# inside backend_compile_and_load on the 3D te sweep over 2 and 16 CPU devices (8 speeds;
+# also with the persistent cache off), while one device ran the README main job and the
+# sdof sweep sharded over 4 fake devices passed (benchmarks/results/accelerator_h100.md).
+SHARDED_CPU_JAXLIB = (0, 10)
+
+
+def jaxlib_minor() -> tuple:
+    """``(major, minor)`` of the installed jaxlib, ``()`` where unknown (read from the
+    package metadata: no backend starts)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return tuple(int(x) for x in version("jaxlib").split(".")[:2])
+    except (PackageNotFoundError, ValueError):
+        return ()
+
+
+def _warn_sharded_cpu(devices) -> None:
+    """Say why a sweep sharded over CPU devices may crash, before XLA compiles it."""
+    if devices[0].platform == "cpu" and jaxlib_minor() > SHARDED_CPU_JAXLIB:
+        warnings.warn(
+            f"sweep over {len(devices)} CPU devices on jaxlib "
+            f"{'.'.join(map(str, jaxlib_minor()))}: jaxlib 0.11.2's XLA:CPU segfaulted "
+            "compiling the 3D sweep sharded over CPU devices (README, Known problems); "
+            "devices=None (one device) avoids it", RuntimeWarning, stacklevel=3)
+
+
 def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
     """How :func:`sweep`'s transient runs ``speeds``: the compiled function, the model it
     takes, the devices, the chunk and the speeds' padded, cost-sorted order."""
@@ -286,6 +316,8 @@ def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
     n_dev = 1 if devices is None else len(devices)
     if n_dev < 1:
         raise SimulationError("devices", devices, "need at least one device")
+    if n_dev > 1:
+        _warn_sharded_cpu(devices)
     if chunk_size is None:
         first = devices[0] if devices else jax.devices()[0]
         chunk_size = default_chunk_size(model, speeds.size, n_dev, simulate_kwargs,
