@@ -21,9 +21,9 @@ import math
 import os
 import sys
 
-from ..dynamics.sweep import jaxlib_minor
-
 import numpy as np
+
+from ..dynamics.sweep import SHARDED_CPU_JAXLIB, jaxlib_minor
 
 __all__ = ["main"]
 
@@ -348,15 +348,14 @@ def host_device_count() -> int:
     2 cores than in one vmapped batch, which XLA runs on one thread); 1 with
     ``GEARJAX_HOST_DEVICES=1``, or an explicit count there (ValueError for anything but a
     whole number >= 1); 1 by default on a jaxlib newer than
-    :data:`gearjax.dynamics.sweep.SHARDED_CPU_JAXLIB` (see there). An ``XLA_FLAGS`` that already sets the count is left alone."""
+    :data:`gearjax.dynamics.sweep.SHARDED_CPU_JAXLIB` (see there). An ``XLA_FLAGS`` that
+    already sets the count is left alone."""
     setting = os.environ.get("GEARJAX_HOST_DEVICES", "").strip()
     if setting:
         if not (setting.isdigit() and int(setting) >= 1):
             raise ValueError(f"GEARJAX_HOST_DEVICES={setting!r}: must be a whole number of "
                              "CPU devices >= 1 (1: no sharding)")
         return int(setting)
-    from ..dynamics.sweep import SHARDED_CPU_JAXLIB
-
     if jaxlib_minor() > SHARDED_CPU_JAXLIB:
         return 1
     try:
