@@ -12,7 +12,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import equinox as eqx
@@ -100,6 +99,7 @@ def te_model(spur):
     return _model(spur, "te")
 
 
+@pytest.mark.xdist_group("steady_te_sweep")
 def test_monodromy_matches_stability_and_unstable_is_flagged(te_model):
     """The shooting's Phi (linearised full vector field, augmented solve) has the Floquet
     spectral radius of gearjax.dynamics.stability (homogeneous equation, separate solve) where
@@ -206,30 +206,39 @@ def test_helical_sdof_agrees_with_long_transient(helical, formulation):
                                 np.array([193.3, 380.0, 660.0, 1100.0, 1500.0]), 260)
 
 
-def test_newton_into_free_flight_stops_at_once(te_model):
+@pytest.mark.xdist_group("steady_te_sweep")  # one worker compiles the 3-speed steady sweep
+def test_newton_into_free_flight_stops_at_once(te_model, monkeypatch):
     """At 381.1 and 394.1 rad/s (zeta 0.03, the contact-loss band) Newton's iterates leave
     the orbit's basin into states whose next period is wholly out of contact: the free
     rigid-body motion gives Phi the multiplier 1, so I - Phi is singular and the step
     infinite. That speed stops (ok False); under vmap its loop body still runs in lockstep
     with the others, and it used to integrate a period from the infinite iterate to
     max_steps (a 1,000-speed sweep over 10 min; 25 s now). Watched here: no period is
-    ever started from a non-finite state. The sweep continues those speeds by a transient,
-    which settles on a periodic orbit with contact loss."""
+    ever started from a non-finite state, in any lane (the watch is on each period's start,
+    ``steady._one_period``; a watch on every vector-field call cost ~6 s more).
+    The sweep continues those speeds by a transient, which settles on a periodic orbit
+    with contact loss."""
+    import gearjax.dynamics.steady as steady_mod
+
     starts = []
+    one_period = steady_mod._one_period
 
-    class Watched(TorsionalModel):
-        def vector_field(self, s, y, omega, contact: bool = True):
-            jax.debug.callback(lambda f: starts.append(np.asarray(f)), jnp.all(jnp.isfinite(y)))
-            return super().vector_field(s, y, omega, contact)
+    def watched(model, omega, y_start, *args):
+        jax.debug.callback(lambda f: starts.append(np.asarray(f)),
+                           jnp.all(jnp.isfinite(y_start)))
+        return one_period(model, omega, y_start, *args)
 
-    watched = Watched(**{f.name: getattr(te_model, f.name) for f in dataclasses.fields(te_model)})
+    monkeypatch.setattr(steady_mod, "_one_period", watched)
     speeds = np.array([300.0, 381.1, 394.1])
-    ps = eqx.filter_jit(eqx.filter_vmap(lambda w: periodic_state(watched, w, max_steps=20_000)))(
-        jnp.asarray(speeds))
+    run = eqx.filter_jit(eqx.filter_vmap(lambda w: periodic_state(te_model, w, max_steps=20_000)))
+    ps = run(jnp.asarray(speeds))
     np.testing.assert_array_equal(np.asarray(ps.ok), [True, False, False])
-    assert starts and all(np.all(f) for f in starts)
-    alone = periodic_state(te_model, 300.0)
-    np.testing.assert_allclose(ps.y0[0], alone.y0, rtol=1e-9, atol=1e-12)
+    # vmap calls the callback once per lane: every lane, stopped ones too, at every start
+    assert len(starts) >= 2 * speeds.size and len(starts) % speeds.size == 0
+    assert all(bool(f) for f in starts)
+    calm = run(jnp.full(speeds.size, speeds[0]))  # the same program, no lane in free flight
+    assert np.all(np.asarray(calm.ok))
+    np.testing.assert_allclose(ps.y0[0], calm.y0[0], rtol=1e-9, atol=1e-12)
     st = steady_sweep(te_model, speeds, progress=False)
     np.testing.assert_array_equal(st.continued, [False, True, True])
     np.testing.assert_array_equal(st.contact_loss, [False, True, True])
