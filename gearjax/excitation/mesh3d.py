@@ -48,6 +48,7 @@ from .tables import AngleMap, PeriodicHermiteTable
 
 __all__ = ["QuasiStaticMesh3D", "TableLayout", "scan_brackets", "jump_angles", "table_layout",
            "tabulate",
+           "table_values",
            "fourier_coefficients", "harmonic_response"]
 
 
@@ -270,9 +271,23 @@ def tabulate(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, origin: float, 
     -------
     (table, angle_map, structure_ok)
     """
+    vals, slopes, amap, ok = table_values(
+        qsm, knots, side, period=period, event_thetas=event_thetas, event_kinds=event_kinds,
+        event_cells=event_cells, table_codes=table_codes)
+    table = PeriodicHermiteTable(knots=knots, values=vals, slopes=slopes, cell_first=cell_first,
+                                 origin=origin, period=period, n_cells=n_cells,
+                                 max_extra=max_extra)
+    return table, amap, ok
+
+
+def table_values(qsm: QuasiStaticMesh3D, knots, side, *, period: float, event_thetas,
+                 event_kinds: tuple, event_cells: tuple, table_codes=None):
+    """:func:`tabulate` without the table's static layout: ``(values, slopes, angle_map,
+    structure_ok)``. ``event_thetas`` may be an array (traced), so that a build compiles
+    this once for every design of one event structure (:mod:`gearjax.models.geared3d_excitation`)."""
     delta = 1e-9 * period
     amap = None
-    if event_thetas:
+    if len(event_thetas):
         amap = AngleMap.through(event_thetas,
                                 qsm.event_angles(event_thetas, event_kinds, event_cells), period)
 
@@ -289,15 +304,12 @@ def tabulate(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, origin: float, 
             return v - sd * delta * d / amap(t)[1], d
 
     vals, slopes = jax.vmap(one)(knots, side)
-    table = PeriodicHermiteTable(knots=knots, values=vals, slopes=slopes, cell_first=cell_first,
-                                 origin=origin, period=period, n_cells=n_cells,
-                                 max_extra=max_extra)
     ok = jnp.asarray(True)
     if table_codes is not None:
         at = (jax.vmap(amap)(knots)[0] if amap is not None else knots) + side * delta
         codes = jax.vmap(lambda t: qsm.state_code(t, True))(at)
         ok = jnp.all(codes == table_codes)
-    return table, amap, ok
+    return vals, slopes, amap, ok
 
 
 def fourier_coefficients(f, origin: float, period: float, n_samples: int, n_h: int, theta0=0.0):

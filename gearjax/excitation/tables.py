@@ -118,9 +118,9 @@ class AngleMap(eqx.Module):
     def through(cls, s_j, theta_j, period: float) -> "AngleMap":
         """The map sending the sorted build angles ``s_j`` (in [0, period)) to
         ``theta_j``."""
-        s_j = np.asarray(s_j, dtype=float)
-        d = theta_j - jnp.asarray(s_j)
-        nodes = jnp.asarray(np.concatenate([[s_j[-1] - period], s_j, [s_j[0] + period]]))
+        s_j = jnp.asarray(s_j, dtype=float)  # traced where the build angles are data
+        d = theta_j - s_j
+        nodes = jnp.concatenate([s_j[-1:] - period, s_j, s_j[:1] + period])
         return cls(nodes=nodes, deltas=jnp.concatenate([d[-1:], d, d[:1]]), period=period)
 
     def __call__(self, s):
