@@ -256,9 +256,11 @@ def table_layout(qsm: QuasiStaticMesh3D, theta, period: float, jumps,
 
 def tabulate(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, origin: float, period: float,
              n_cells: int, max_extra: int, event_thetas: tuple, event_kinds: tuple,
-             event_cells: tuple, table_codes=None):
+             event_cells: tuple, table_codes=None, values=None):
     """The excitation table ``(d, k, NLTE)`` of this design, the angle map and the
     structure flag (traceable: call inside ``jit`` to differentiate in the design).
+    ``values``: what computes them (default :func:`table_values`; the build passes its
+    compiled one, :func:`gearjax.models.geared3d_excitation.tabulate_jit`).
 
     The table holds ``q(phi(s))`` in the simulation angle ``s`` at the build knots (the
     knots bracketing a jump evaluated on their own side, ``side`` -1/+1), slopes by
@@ -271,7 +273,7 @@ def tabulate(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, origin: float, 
     -------
     (table, angle_map, structure_ok)
     """
-    vals, slopes, amap, ok = table_values(
+    vals, slopes, amap, ok = (values or table_values)(
         qsm, knots, side, period=period, event_thetas=event_thetas, event_kinds=event_kinds,
         event_cells=event_cells, table_codes=table_codes)
     table = PeriodicHermiteTable(knots=knots, values=vals, slopes=slopes, cell_first=cell_first,

@@ -38,8 +38,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..excitation.events import distinct_angles
-from ..excitation.mesh3d import QuasiStaticMesh3D, jump_angles, table_layout, table_values
-from ..excitation.tables import PeriodicHermiteTable
+from ..excitation.mesh3d import (QuasiStaticMesh3D, jump_angles, table_layout, table_values,
+                                 tabulate)
 from ..excitation.te_file import TETable, excitation_table
 
 __all__ = ["own_table_fields", "te_file_fields", "file_mean_stiffness", "tabulate_jit"]
@@ -47,20 +47,15 @@ __all__ = ["own_table_fields", "te_file_fields", "file_mean_stiffness", "tabulat
 _table_values_jit = eqx.filter_jit(table_values)
 
 
-def tabulate_jit(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, origin: float,
-                 period: float, n_cells: int, max_extra: int, event_thetas: tuple,
-                 event_kinds: tuple, event_cells: tuple, table_codes=None):
-    """:func:`gearjax.excitation.mesh3d.tabulate` at build time, compiled once per model
-    shape and event structure: the build's event angles go in as an array and the table's
-    origin (both move with the design) stays outside the program. As static values they
-    made every design compile its own (~3 s of each 3D te rebuild, measured 2026-11-25)."""
-    vals, slopes, amap, ok = _table_values_jit(
-        qsm, knots, side, period=period, event_thetas=jnp.asarray(event_thetas, dtype=float),
-        event_kinds=event_kinds, event_cells=event_cells, table_codes=table_codes)
-    table = PeriodicHermiteTable(knots=knots, values=vals, slopes=slopes, cell_first=cell_first,
-                                 origin=origin, period=period, n_cells=n_cells,
-                                 max_extra=max_extra)
-    return table, amap, ok
+def tabulate_jit(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, event_thetas: tuple,
+                 **layout):
+    """:func:`gearjax.excitation.mesh3d.tabulate` at build time, its values compiled once
+    per model shape and event structure: the build's event angles go in as an array and
+    the table's origin (both move with the design) stays outside the program. As static
+    values they made every design compile its own (~3 s of each 3D te rebuild, measured
+    2026-11-25)."""
+    return tabulate(qsm, knots, side, cell_first, values=_table_values_jit,
+                    event_thetas=jnp.asarray(event_thetas, dtype=float), **layout)
 
 
 def _no_table() -> dict:
