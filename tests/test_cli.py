@@ -239,3 +239,51 @@ def test_compile_ahead_only_where_a_linear_3d_sweep_follows_the_reference(monkey
     assert pick(main_job, method="harmonic") is None
     monkeypatch.setenv("GEARJAX_COMPILE_AHEAD", "0")
     assert pick(main_job) is None
+
+
+def test_reference_program_compiles_while_the_te_model_is_built(monkeypatch):
+    """gearjax.cli.ahead: the reference program is traced and set compiling before the te
+    model is built (the build's Python then runs beside XLA's compile), the te program
+    after it; each sweep waits for its own program only, and the reference's tracing
+    counts as its time."""
+    from argparse import Namespace
+
+    from gearjax.cli import ahead as ahead_mod
+
+    order = []
+
+    class Thread:  # stands for a compiling thread: records what waited on it
+        def __init__(self, name):
+            self.name = name
+
+        def join(self):
+            order.append(("join", self.name))
+
+    def compile_ahead(model, speeds, **kw):
+        order.append(("compile", model))
+        return Thread(model)
+
+    def build(form):
+        order.append(("build", form))
+        return form
+
+    monkeypatch.setattr(ahead_mod, "compile_ahead", compile_ahead)
+    args = Namespace(model="3d", direction="independent", method="auto")
+    forms = ["reference", "te", "perturbation"]
+    early = {}
+    got = ahead_mod.build_and_compile_ahead(args, forms, "reference", "reference", build,
+                                            lambda f: np.ones(3), lambda m: {}, early)
+    assert order == [("compile", "reference"), ("build", "te"), ("compile", "te")]
+    assert got.own.name == "reference" and got.nxt.name == "te" and got.own_trace_s >= 0.0
+    assert early["te"][0] == "te"
+    del order[:]
+    got.join(mine=True, linear=False)  # the reference sweep
+    got.join(mine=False, linear=True)  # te, then perturbation (a no-op join again)
+    assert order == [("join", "reference"), ("join", "te")]
+    # nothing ahead: an empty Ahead, whose join waits for nothing
+    none = ahead_mod.build_and_compile_ahead(Namespace(**{**vars(args), "model": "torsional"}),
+                                             forms, "reference", "reference", build,
+                                             lambda f: np.ones(3), lambda m: {}, {})
+    assert none == ahead_mod.Ahead()
+    none.join(mine=True, linear=True)
+    assert order == [("join", "reference"), ("join", "te")]

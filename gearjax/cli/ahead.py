@@ -1,20 +1,29 @@
-"""The next formulation's sweep program compiled while the reference sweep runs.
+"""The reference sweep's program, and the next formulation's, compiled on threads.
 
 The command line sweeps its formulations one after the other, and on a CPU most of a short
 sweep is compilation (README main job: 15 of its 32 s XLA compile, 6 s tracing), which runs
-on one thread and releases the GIL. Built and traced before the reference sweep starts,
-the 3D te/perturbation model's program compiles on a second thread while the reference
-program compiles and integrates; its sweep then finds the executable in JAX's in-memory
-compilation cache (README main job, 2 cores, empty caches, measured alternately
-2026-11-25: the command 30.6-32.5 s against 34.4-35.1 s without, the reference sweep ~2 s
-slower and the te one ~8 s quicker; tracing on the thread as well gained only half as
-much, the two traces contending for the GIL)."""
+on one thread and releases the GIL; tracing and the 3D model builds are Python and hold it.
+So before the reference sweep of a 3D te/perturbation sweep starts, the reference program is
+traced and compiles on a thread while the te/perturbation model is built and its program
+traced (Python, on the main thread), then that program compiles on a second thread while
+the reference one finishes compiling and integrates; each sweep finds its executable in
+JAX's in-memory compilation cache. README main job, 2 cores, empty caches, measured
+alternately:
+
+* 2026-11-25, the te program ahead only: the command 30.6-32.5 s against 34.4-35.1 s
+  without (the reference sweep ~2 s slower and the te one ~8 s quicker; tracing on the
+  thread as well gained only half as much, the two traces contending for the GIL);
+* 2026-11-25, the reference program too: 29.7-32.6 s (mean 30.9 s, 4 runs) against
+  32.0-34.0 s (mean 32.9 s), results.csv identical. Building the te model on a thread
+  during the reference trace gained nothing (13.5 s against 13.1 s to both programs
+  traced): the builds' compilations are short and their Python holds the GIL."""
 
 from __future__ import annotations
 
 import os
 import threading
 import time
+from typing import NamedTuple
 
 from ..dynamics.sweep import auto_method, lower_sweep
 
@@ -62,15 +71,38 @@ def compile_ahead(model, speeds, **sweep_kwargs) -> threading.Thread | None:
     return thread
 
 
-def build_and_compile_ahead(args, forms, form: str, model, build, todo_of, options, early):
+class Ahead(NamedTuple):
+    """What :func:`build_and_compile_ahead` started: the threads compiling the current
+    formulation's program (``own``) and the next one's (``nxt``), each None where none
+    runs, and the seconds spent tracing ``own`` (the current formulation's time)."""
+
+    own: threading.Thread | None = None
+    nxt: threading.Thread | None = None
+    own_trace_s: float = 0.0
+
+    def join(self, mine: bool, linear: bool) -> None:
+        """Before a sweep: wait for its program, compiled on a thread, so that the sweep
+        finds it in JAX's cache instead of compiling it a second time (``mine``: the
+        sweep of the formulation that started this; ``linear``: a te/perturbation one)."""
+        for thread, wait in ((self.own, mine), (self.nxt, linear)):
+            if thread is not None and wait:
+                thread.join()
+
+
+def build_and_compile_ahead(args, forms, form: str, model, build, todo_of, options,
+                            early) -> Ahead:
     """Where :func:`worth_compiling_ahead` names a formulation and both it and ``form``
-    have speeds to compute (``todo_of``): build its model (``build``), keep it in
+    have speeds to compute (``todo_of``): trace ``form``'s own sweep (``model``) and compile
+    it on a thread, build the named formulation's model (``build``) meanwhile, keep it in
     ``early`` as ``{formulation: (model, build time in s)}`` and start compiling its sweep
-    (``options(model)``: the later call's keywords). Returns the thread, or None."""
+    (``options(model)``: the later calls' keywords). Else an empty :class:`Ahead`."""
     nxt = worth_compiling_ahead(args, forms, form, model)
     if nxt is None or not (todo_of(nxt).size and todo_of(form).size):
-        return None
+        return Ahead()
+    t0 = time.perf_counter()
+    own = compile_ahead(model, todo_of(form), **options(model))
+    traced = time.perf_counter() - t0
     t0 = time.perf_counter()
     built = build(nxt)
     early[nxt] = (built, time.perf_counter() - t0)
-    return compile_ahead(built, todo_of(nxt), **options(built))
+    return Ahead(own, compile_ahead(built, todo_of(nxt), **options(built)), traced)

@@ -59,7 +59,7 @@ from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv
 from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
-from .ahead import build_and_compile_ahead
+from .ahead import Ahead, build_and_compile_ahead
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
 from .signals import last_mesh_period_signals, write_order_tracks, write_signals
@@ -403,7 +403,7 @@ def cmd_sweep(args) -> int:
                         **tolerances)
 
         linear = None  # a 3D te/perturbation model: the other one shares its build
-        early, ahead = {}, None  # a model built ahead, its program compiling (gearjax.cli.ahead)
+        early, ahead = {}, Ahead()  # programs compiling on threads, a model built ahead
         for form in forms:
             t0 = time.perf_counter()
             shared = linear is not None and form in LINEAR_FORMULATIONS
@@ -416,8 +416,12 @@ def cmd_sweep(args) -> int:
                 model = build(form)
             _check_modes(args, model, cutoff_hz)
             t_build = time.perf_counter() - t0
-            ahead = ahead or build_and_compile_ahead(args, forms, form, model, build, todo_of,
-                                                     sweep_options, early)
+            if ahead.own is None and ahead.nxt is None:
+                ahead = build_and_compile_ahead(args, forms, form, model, build, todo_of,
+                                                sweep_options, early)
+                traced = ahead.own_trace_s  # this formulation's tracing, done ahead
+            else:
+                traced = 0.0
             built = (f"the {linear.formulation} build" if shared else
                      f"{args.model} model built in {t_build:.1f} s")
             if args.model == "3d" and form in LINEAR_FORMULATIONS and not shared:
@@ -438,12 +442,11 @@ def cmd_sweep(args) -> int:
                                               progress=not args.json)
             elif todo.size:
                 # default: sweep's (CPU: 16-64 speeds per device; accelerators: memory)
-                if ahead is not None and form in LINEAR_FORMULATIONS:
-                    ahead.join()  # its program compiled: found in JAX's cache (again: no-op)
+                ahead.join(mine=form == "reference", linear=form in LINEAR_FORMULATIONS)
                 res = sweep(model, todo, progress=not args.json, out_csv=csv_path,
                             method=args.method, orders_csv=orders_path, **sweep_options(model))
                 methods[form] = method_counts(res, args.method)
-            times[form] = (t_build, time.perf_counter() - t0)
+            times[form] = (t_build, time.perf_counter() - t0 + traced)
             if sig_speeds and lead:
                 signals[form] = last_mesh_period_signals(model, sig_speeds)
     except KeyboardInterrupt:
