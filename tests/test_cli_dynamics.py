@@ -274,6 +274,33 @@ def test_cli_passes_the_cutoff_to_the_3d_model(monkeypatch, tmp_path, argv, expe
         assert seen["max_frequency_hz"] == value
 
 
+@pytest.mark.parametrize("argv, top_speed, warned", [
+    # the mesh frequency of the spur rig's 26-tooth pinion at 900 rad/s: 3724 Hz
+    (["sweep", "--speeds", "20:900:3", "--max-frequency", "3000"], 900.0, True),
+    (["sweep", "--speeds", "20:900:3", "--max-frequency", "3800"], 900.0, False),
+    (["sweep", "--speeds", "20:900:3"], 900.0, False),  # the default rule
+    (["sweep", "--speeds", "20:900:3", "--max-frequency", "0"], 900.0, False),  # all modes
+    (["stability", "--speeds", "100:800:2", "--max-frequency", "3000"], 800.0, True),  # 3310 Hz
+    (["stability", "--speeds", "100:700:2", "--max-frequency", "3000"], 700.0, False),  # 2897 Hz
+])
+def test_a_cutoff_below_the_mesh_frequency_is_warned(monkeypatch, tmp_path, capsys, argv,
+                                                     top_speed, warned):
+    """A 3D ``--max-frequency`` below the mesh frequency of the highest speed makes the
+    modes the mesh excites answer quasi-statically: the command says so before it
+    builds anything, naming that frequency and the default cut-off."""
+    import gearjax.cli.dynamics as cd
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cd, "build_model", lambda *a, **k: (_ for _ in ()).throw(_Built()))
+    with pytest.raises(_Built):
+        main(argv + ["--model", "3d", "--json"])
+    err = capsys.readouterr().err
+    f_mesh = 26 * top_speed / (2 * math.pi)
+    assert ("below the mesh frequency" in err) == warned
+    if warned:
+        assert f"({f_mesh:.0f} Hz)" in err and f"{4.5 * f_mesh:.0f} Hz" in err
+
+
 @pytest.mark.slow
 def test_3d_sweep_reports_its_cutoff(capsys, tmp_path):
     """A one-speed 3D sweep (te, 400 rad/s: 4.5 f_m = 7.45 kHz) reports its cut-off in the

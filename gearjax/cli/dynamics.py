@@ -272,6 +272,26 @@ def _check_cutoff(args, rig, cutoff_hz) -> None:
                          "cut-off above it, or 0 for all modes")
 
 
+def cutoff_warning(args, rig, cutoff_hz, speeds_rad_s) -> str | None:
+    """A warning where ``--max-frequency`` lies below the mesh frequency of the highest
+    speed, ``f_m = z1 Omega_max / (2 pi)`` (Hz): the modes that the mesh fundamental
+    excites there then answer quasi-statically (static corrections), so the response
+    curves are not those of the structure (``benchmarks/results/cutoff.md``: a cut-off
+    at 1 f_m already moved the peak dynamic factor by up to 8e-3 against all modes).
+    None for the default cut-off, all modes or the torsional model."""
+    if args.model != "3d" or not cutoff_hz or args.max_frequency is None:
+        return None
+    w = float(np.max(speeds_rad_s))
+    f_m = rig.pair.z1 * w / (2 * math.pi)
+    if cutoff_hz >= f_m:
+        return None
+    return (f"--max-frequency={args.max_frequency:g} Hz lies below the mesh frequency at "
+            f"{w:g} rad/s ({f_m:.0f} Hz): the modes it excites answer quasi-statically in this "
+            f"reduced model, so the dynamic response is not the structure's; the default for "
+            f"these speeds is {default_max_frequency_hz(w, rig.pair.z1):.0f} Hz (leave "
+            f"--max-frequency out)")
+
+
 def _check_modes(args, model, cutoff_hz) -> None:
     """Refuse a 3D cut-off that keeps no vibration mode (before any speed is computed)."""
     if args.model == "3d" and int(model.n_modes) == 0:
@@ -342,6 +362,9 @@ def cmd_sweep(args) -> int:
     cutoff_hz, cutoff_source = (modal_cutoff(args, rig, np.concatenate([speeds, sig_speeds]))
                                 if args.model == "3d" else (None, None))
     _check_cutoff(args, rig, cutoff_hz)
+    warning = cutoff_warning(args, rig, cutoff_hz, speeds)
+    if warning and lead:
+        print(f"gearjax sweep: warning: {warning}", file=sys.stderr, flush=True)
     record = {
         "case": case, "rig": rig.name, "model": args.model, "stiffness_law": args.stiffness,
         **scen.summary(), "damping": args.damping,
@@ -378,6 +401,7 @@ def cmd_sweep(args) -> int:
         "rtol": args.rtol, "devices": device_count(devices),
         "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
         "formulations": {},
+        **({"warnings": [warning]} if warning else {}),
     }
     if done:
         summary["resumed"] = {f: len(v) for f, v in done.items()}
@@ -528,6 +552,8 @@ def _print_summary(rig, summary, out):
         fc = summary["max_frequency_hz"]
         print(f"  modes {'below %.0f Hz' % fc if fc else 'all'} ({summary['max_frequency_source']})"
               f": {summary['n_modes']} modes")
+        for w in summary.get("warnings", ()):
+            print(f"  warning: {w}")
     print(f"  predicted main tooth critical speed {pred['critical_speed_rad_s']:.0f} rad/s (peak of "
           f"the mesh receptance; mode with most mesh energy: {pred['mode_frequency_hz']:.0f} Hz, "
           f"{100 * pred['mesh_energy_share']:.0f} %, i.e. {pred['mode_critical_speed_rad_s']:.0f} rad/s)")
@@ -579,6 +605,9 @@ def cmd_stability(args) -> int:
     te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
     cutoff_hz, cutoff_source = modal_cutoff(args, rig, speeds) if args.model == "3d" else (None, None)
     _check_cutoff(args, rig, cutoff_hz)
+    warning = cutoff_warning(args, rig, cutoff_hz, speeds)
+    if warning:
+        print(f"gearjax stability: warning: {warning}", file=sys.stderr, flush=True)
     model = build_model(rig, mods, model=args.model, formulation=args.formulation,
                         law=args.stiffness, damping_ratio=args.damping,
                         encoder_position=args.encoders,
@@ -619,6 +648,7 @@ def cmd_stability(args) -> int:
                      "state": str(st), **({"proof": "small-gain bound"} if p else {})}
                     for w, r, b, st, p in zip(speeds, rho, bound, state, proven)],
         "unstable_speeds_rad_s": [float(w) for w, st in zip(speeds, state) if st == "unstable"],
+        **({"warnings": [warning]} if warning else {}),
     }
     if args.json:
         print(json.dumps(out, indent=2))
