@@ -201,6 +201,38 @@ def test_objective_rebuilds_before_integrating_another_structure(mesh_iso, monke
     assert integrated == [True, True] and obj.n_builds == 2
 
 
+def test_objective_returns_to_an_earlier_structure_without_a_rebuild(mesh_iso, monkeypatch):
+    """An optimiser's path that leaves a structure and comes back finds the model it built
+    there (each build compiles the objective's programs again, ~24 s). Independent
+    reading: a model built afresh at the returning design has the same event sequence as
+    that earlier model. A failed integration still retries on a model built at the design."""
+    from gearjax.design import objectives
+
+    x0, x1 = np.array([13.3e-6, 0.2]), np.array([13.3e-6, 0.21])
+    back = x0 * (1 + 1e-6)
+    obj = DynamicObjective(mesh_iso, ReliefSpace(), [700.0], "peak-force", formulation="te")
+    handed, ok = [], [True]
+
+    def watched(model, x, speeds, static):  # the integrator, replaced: what it is handed
+        handed.append(model)
+        one = jnp.ones(3)
+        return one, (one, one[:, None], jnp.asarray(ok[-1]))
+
+    monkeypatch.setattr(objectives, "_dyn_values", watched)
+    obj(x0, grad=False)
+    obj(x1, grad=False)
+    m0, m1 = handed
+    assert obj.n_builds == 2 and m1.jump_kinds != m0.jump_kinds
+    obj(back, grad=False)
+    assert handed[-1] is m0 and obj.n_builds == 2  # no third build
+    assert obj.build(back).jump_kinds == m0.jump_kinds  # the same structure, built afresh
+    obj(x1, grad=False)
+    assert handed[-1] is m1 and obj.n_builds == 3  # (the check's build above counted)
+    ok.append(False)  # a failed integration: once more on a model built at the design
+    obj(x0, grad=False)
+    assert handed[-2] is m0 and handed[-1] is not m0 and obj.n_builds == 4
+
+
 def test_sweeps_refuse_a_model_mapped_to_another_structure(mesh_iso):
     """The forward solvers take a model as built: one mapped by ``with_modifications`` to
     a design of other switching events is refused with a clear error before compiling,

@@ -27,6 +27,7 @@ DYNAMIC_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp")
 DESIGN_MODELS = ("torsional", "3d")
 DESIGN_METHODS = ("auto", "transient", "steady")  # "auto": the transient (DynamicObjective)
 DEFAULT_SHARPNESS = 200.0
+MODELS_KEPT = 8  # earlier models of other structures a DynamicObjective may return to
 DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (module docstring)
 
 
@@ -302,6 +303,7 @@ class DynamicObjective:
         self._x_ref_m = self.static_force_N / (float(mesh.mean_stiffness()) * cos_bb)
         self.scale = self._scales()[DYNAMIC_OBJECTIVES.index(kind)]
         self.model = None
+        self._earlier: list = []  # models of other structures, newest first (_model_for)
         self.n_builds = 0
         self.build_time_s = 0.0
         self._static = (space, tuple(float(v) for v in self._scales()), self.sharpness,
@@ -349,7 +351,7 @@ class DynamicObjective:
         k = self._index
         speeds = jnp.asarray(self.speeds)
         for attempt in range(2):
-            model = self._model_for(x)
+            model = self._model_for(x, fresh=attempt == 1)
             xj = jnp.asarray(x)
             if grad:
                 g, (sm, (ex, per, ok)) = _dyn_vjac(model, xj, speeds, self._static, self.adjoint)
@@ -362,17 +364,30 @@ class DynamicObjective:
             self.model = None  # a failed integration: once more on a model built at x
         return Evaluation(x, float(sm[k]), float(ex[k]), g, np.asarray(per)[k], bool(ok))
 
-    def _model_for(self, x):
+    def _model_for(self, x, fresh: bool = False):
         """The current model if its discrete structure holds at ``x`` (switching events
-        of the same kinds on the same cells), else a model built at ``x``. Checked before
-        integrating: the mapped model of another structure has an angle map that does not
-        fit ``x``, and its integration can crawl to the step limit instead of failing
-        (sdof reference, zeta 0.03, 8 speeds, built at (25.8 um, 0.26), asked for
-        (26.7 um, 0.53): no value in 10 min, when a model built there gives value and
-        gradient in 18 s with the compile)."""
-        if self.model is not None and not bool(_structure_holds(self.model, jnp.asarray(x),
-                                                                self.space)):
+        of the same kinds on the same cells), else an earlier model whose structure holds
+        there (the last :data:`MODELS_KEPT` of other structures), else (or with ``fresh``)
+        a model built at ``x``. Checked before integrating: the mapped model of another
+        structure has an angle map that does not fit ``x``, and its integration can crawl
+        to the step limit instead of failing (sdof reference, zeta 0.03, 8 speeds, built at (25.8 um, 0.26),
+        asked for (26.7 um, 0.53): no value in 10 min, when a model built there gives
+        value and gradient in 18 s with the compile).
+
+        Why earlier models are kept: every build compiles the objective's programs again
+        (its event angles are static), ~24 s on the 2-core CPU, and an optimiser's path
+        comes back to a structure it has left. ``gearjax optimise`` with its defaults (4
+        starts, sdof te, 660-900 rad/s) built 8 models in 5 min; 2 of them had the
+        structure of an earlier one."""
+        xj = jnp.asarray(x)
+        if self.model is not None and not bool(_structure_holds(self.model, xj, self.space)):
+            self._earlier = [self.model] + self._earlier[:MODELS_KEPT - 1]
             self.model = None
+        if self.model is None and not fresh:
+            for i, m in enumerate(self._earlier):
+                if bool(_structure_holds(m, xj, self.space)):
+                    self.model = self._earlier.pop(i)
+                    break
         if self.model is None:
             self.model = self.build(x)
         return self.model
