@@ -112,9 +112,10 @@ def test_sweep_bad_speeds(capsys):
 
 
 def test_compile_bound_sweeps_take_xla_legacy_emitters(monkeypatch):
-    """The README main job and other compile-bound sweeps ask XLA for its legacy CPU
-    emitters (gearjax.cli.main, measured there); a long 3D sweep, a long excitation period,
-    other commands, a caller's own choice and GEARJAX_XLA_DEFAULTS=0 keep XLA's default.
+    """The README main job, other compile-bound sweeps and the torsional optimiser ask XLA
+    for its legacy CPU emitters (gearjax.cli.main, measured there); a long 3D sweep, a long
+    excitation period, the 3D optimiser, other commands, a caller's own choice and
+    GEARJAX_XLA_DEFAULTS=0 keep XLA's default.
     The flag must be one this jaxlib knows: XLA aborts the process on an unknown flag."""
     import importlib
     import subprocess
@@ -127,7 +128,8 @@ def test_compile_bound_sweeps_take_xla_legacy_emitters(monkeypatch):
              ("sweep", "--speeds", "20:900:301"): False, ("sweep", "--pitch-errors"): False,
              ("sweep", "--eccentricity", "1e-5"): False, ("sweep", "--damping", "0.03"): False,
              ("sweep", "--model", "torsional", "--damping", "0.03"): True, ("paper",): False,
-             ("optimise",): False}
+             ("optimise",): True, ("optimise", "--model", "3d"): False,
+             ("harris-map",): False}
     for argv, want in bound.items():
         assert cli.compile_bound(parse(list(argv))) is want, argv
     monkeypatch.delenv("GEARJAX_XLA_DEFAULTS", raising=False)
