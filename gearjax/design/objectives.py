@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..dynamics.batching import over_speeds
 from ..errors import DesignError
 from ..gears.mesh import Mesh
 from ..gears.quasistatic import quasi_static, static_mesh_force
@@ -422,7 +423,7 @@ class DynamicObjective:
         return np.asarray(sm), np.asarray(ex), None
 
     def grid(self, xs, reference_x=None) -> tuple[np.ndarray, np.ndarray]:
-        """(smooth, exact) at every row of ``xs`` in one vmapped call, with a *frozen*
+        """(smooth, exact) at every row of ``xs`` in one compiled call, with a *frozen*
         model built at ``reference_x`` (default: the middle row): switching angles of other
         designs are resolved to the table spacing (1/n_table of a mesh period), which is
         what a forward map needs (no derivatives)."""
@@ -443,11 +444,11 @@ def _dyn_values_impl(model, x, speeds, static, adjoint=None):
     if method == "steady":
         from ..dynamics.steady import steady_state
 
-        res = jax.vmap(lambda w: steady_state(m, w, **kw).result)(speeds)
+        res = over_speeds(lambda w: steady_state(m, w, **kw).result, speeds)
     else:
         if adjoint is not None:
             kw["adjoint"] = adjoint
-        res = jax.vmap(lambda w: simulate(m, w, **kw))(speeds)
+        res = over_speeds(lambda w: simulate(m, w, **kw), speeds)
     per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])
     sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
     ok = m.structure_ok & jnp.all(res.solver_ok)
@@ -472,7 +473,7 @@ def _dyn_vjac(model, x, speeds, static, adjoint):
 
 @eqx.filter_jit
 def _dyn_grid(model, xs, speeds, static):
-    return jax.vmap(lambda x: _dyn_values_impl(model, x, speeds, static))(xs)
+    return over_speeds(lambda x: _dyn_values_impl(model, x, speeds, static), xs)
 
 
 def make_objective(kind: str, mesh: Mesh, space: ReliefSpace, *, speeds_rad_s=None,

@@ -73,6 +73,7 @@ import numpy as np
 from ..errors import SimulationError
 from ..excitation.events import distinct_angles
 from ..models.base import LINEAR_FORMULATIONS, AbstractGearModel
+from .batching import over_speeds
 from .krylov import gmres
 from .metrics import JumpClusters, jump_clusters, output_grid, refined_extrema, ringing_length
 from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
@@ -519,16 +520,11 @@ def harmonic_steady_states(model, speeds_rad_s, n_harmonics: int = 256,
                            **kwargs) -> HarmonicResult:
     """:func:`harmonic_steady_state` at each of ``speeds_rad_s`` (a 1-D array; the
     result has a leading speed axis). Jittable. On the CPU backend the speeds are mapped
-    one after the other (``jax.lax.map``), elsewhere vmapped: jaxlib 0.10.2's CPU LAPACK
-    kernels (eig, solve, qr) split a batch over the intra-op thread pool and wait for it
-    from inside that pool, so two batched kernels running at once deadlock a 2-worker
-    pool (reproduced: two vmapped ``jnp.linalg.solve`` in one program hang; unbatched
-    they do not), and vmapping :func:`harmonic_steady_state` on CPU would batch them."""
+    one after the other, elsewhere vmapped (:mod:`gearjax.dynamics.batching`): vmapped on
+    a CPU, its LAPACK kernels would be batched, and two batched kernels at once deadlock
+    jaxlib 0.10.2's 2-worker intra-op pool."""
     one = lambda w: harmonic_steady_state(model, w, n_harmonics, **kwargs)  # noqa: E731
-    speeds = jnp.asarray(speeds_rad_s, dtype=float)
-    if jax.default_backend() == "cpu":
-        return jax.lax.map(one, speeds)
-    return jax.vmap(one)(speeds)
+    return over_speeds(one, jnp.asarray(speeds_rad_s, dtype=float))
 
 
 @eqx.filter_jit
@@ -539,8 +535,7 @@ def _bound_batch(model, speeds):
         b = small_gain_bound(lam, (q.T @ split.w) * (qinv @ split.p), split.c_radius)
         return jnp.where(split.rank_one_error <= _SPLIT_TOL, b, jnp.inf)
 
-    cpu = jax.default_backend() == "cpu"  # no batched LAPACK: harmonic_steady_states
-    return jax.lax.map(one, speeds) if cpu else jax.vmap(one)(speeds)
+    return over_speeds(one, speeds)  # no batched LAPACK on a CPU: harmonic_steady_states
 
 
 def small_gain_bounds(model, speeds_rad_s) -> np.ndarray:

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import SimulationError, check_float64
 from ..models.base import AbstractGearModel
+from .batching import over_speeds
 
 __all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "check_speeds",
            "STABILITY_METHODS"]
@@ -103,11 +104,12 @@ def _rho(model, speeds, kwargs):
         phi = monodromy(model, w, **dict(kwargs))
         return jnp.max(jnp.abs(jnp.linalg.eigvals(phi)))
 
-    return jax.vmap(one)(speeds)
+    return over_speeds(one, speeds)
 
 
 def spectral_radius(model, speeds_rad_s, **kwargs) -> np.ndarray:
-    """Spectral radius ``max |mu|`` of the monodromy matrix at each speed (vmapped, one
+    """Spectral radius ``max |mu|`` of the monodromy matrix at each speed (mapped or
+    vmapped by :func:`gearjax.dynamics.batching.over_speeds`, one
     compilation per model structure and number of speeds).
 
     ``rho < 1``: asymptotically stable steady response; ``rho > 1``: parametric instability

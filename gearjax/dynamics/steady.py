@@ -73,6 +73,7 @@ import numpy as np
 
 from ..linalg import solve as dense_solve
 from . import code_memory, watchdog
+from .batching import over_speeds
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import SimulationError, SimulationResult, jump_controller, simulate
 from .stability import check_speeds
@@ -330,7 +331,7 @@ def _steady_batch(model, speeds, kwargs):
         r = out.result
         return tuple(getattr(r, f) for f in METRIC_FIELDS) + (out.periodic.spectral_radius,
                                                                out.periodic.y0)
-    return jax.vmap(one)(speeds)
+    return over_speeds(one, speeds)
 
 
 @eqx.filter_jit
@@ -338,14 +339,15 @@ def _continue_batch(model, speeds, y0s, kwargs):
     def one(w, y0):
         r = simulate(model, w, y0=y0, **dict(kwargs))
         return tuple(getattr(r, f) for f in METRIC_FIELDS)
-    return jax.vmap(one)(speeds, y0s)
+    return over_speeds(one, speeds, y0s)
 
 
 def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress: bool = True,
                  continuation: bool = True, continuation_kwargs: dict | None = None,
                  **steady_kwargs) -> SteadySweepResult:
-    """Steady state over pinion speeds by shooting (vmapped, one compilation per chunk
-    shape), returning the :class:`~gearjax.dynamics.results.SweepResult` fields of
+    """Steady state over pinion speeds by shooting (one compilation per chunk shape; the
+    speeds of a chunk mapped on a CPU, vmapped elsewhere: :mod:`gearjax.dynamics.batching`),
+    returning the :class:`~gearjax.dynamics.results.SweepResult` fields of
     :func:`gearjax.dynamics.sweep.sweep` with the same meaning.
 
     Every formulation: at every speed where the periodic orbit shows contact loss, is
@@ -358,10 +360,11 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     one). Inside a parametric instability zone of the linear te equation the transient
     grows until the teeth separate and the contact law bounds it.
 
-    ``chunk_size``: speeds per vmapped call; default such that a chunk holds about 80 000
+    ``chunk_size``: speeds per call; default such that a chunk holds about 80 000
     monodromy entries (sdof: all speeds; the 3D rig with 182 states: 2 speeds), because
-    large batched monodromy solves are memory-bound (3D rig, 100 speeds in one chunk: over
-    20 min against 2.6 s per speed in chunks of 2).
+    large batched monodromy solves are memory-bound (3D rig, 100 speeds in one vmapped
+    chunk: over 20 min against 2.6 s per speed in chunks of 2); on a CPU, where the speeds
+    are mapped, it sets how often progress is printed.
 
     ``transient_periods`` is 0 for shooting speeds and the transient used for continued
     ones; ``n_steps`` counts shooting and measuring steps.

@@ -1,4 +1,6 @@
-"""Speed sweeps: one jitted, vmapped :func:`gearjax.dynamics.simulate.simulate` per chunk of speeds.
+"""Speed sweeps: one jitted :func:`gearjax.dynamics.simulate.simulate` per chunk of speeds,
+its speeds one after the other on a CPU and vmapped on an accelerator
+(:mod:`gearjax.dynamics.batching`).
 
 * The speeds are the only batched input, so a new set of speeds (same chunk size) never
   recompiles: the model's array data and the speeds are traced, only its static structure
@@ -7,8 +9,8 @@
 * Progress is printed per chunk to stderr; rows are appended to ``out_csv`` as chunks
   complete (a header is written when the file is new or empty).
 * With several JAX devices the batch is split across them with ``jax.shard_map`` over a
-  1-D device mesh (each device runs its own vmapped, lockstep integration; no cross-device
-  synchronisation inside the solver loop). Speeds are padded to a multiple of
+  1-D device mesh (each device runs its own share of the chunk, mapped or vmapped as above;
+  no cross-device synchronisation inside the solver loop). Speeds are padded to a multiple of
   ``chunk_size`` (itself a multiple of the device count) and *interleaved*: the speeds are
   sorted by estimated cost (low speeds cost more per period) and dealt round-robin, so every
   device gets a similar mix, then the results are put back in the caller's order.
@@ -37,23 +39,38 @@ import numpy as np
 
 from ..errors import check_float64
 from . import code_memory, watchdog
+from .batching import over_speeds, sequential_on
 from .results import (CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, append_rows,
                       empty_metrics)
 from .simulate import SimulationError, SimulationResult, simulate
 
 __all__ = ["sweep", "SweepResult", "CSV_COLUMNS"]
 
+
+def _over_speeds(model, speeds, sim_kwargs, sequential: bool):
+    """The metrics of ``simulate`` at every speed of ``speeds``, mapped or vmapped
+    (:func:`gearjax.dynamics.batching.over_speeds`)."""
+    return over_speeds(lambda w: _metrics_only(simulate(model, w, **dict(sim_kwargs))), speeds,
+                       sequential=sequential)
+
+
 @partial(eqx.filter_jit, donate="none")
 def _batched(model, speeds, sim_kwargs):
-    return eqx.filter_vmap(lambda w: _metrics_only(simulate(model, w, **dict(sim_kwargs))))(speeds)
+    return _over_speeds(model, speeds, sim_kwargs, sequential=False)
+
+
+@partial(eqx.filter_jit, donate="none")
+def _sequential(model, speeds, sim_kwargs):
+    return _over_speeds(model, speeds, sim_kwargs, sequential=True)
 
 
 def _metrics_only(res: SimulationResult):
     return tuple(getattr(res, f) for f in METRIC_FIELDS)
 
 
-def _make_sharded(devices):
-    """A jitted function running ``_batched``'s body under shard_map over ``devices``."""
+def _make_sharded(devices, sequential: bool):
+    """A jitted function running ``_batched``'s (or ``_sequential``'s) body under
+    shard_map over ``devices``."""
     from jax.sharding import Mesh as DeviceMesh
     from jax.sharding import PartitionSpec as P
 
@@ -64,8 +81,7 @@ def _make_sharded(devices):
         dyn, static = eqx.partition(model, eqx.is_array)
 
         def body(dyn_, w):
-            m = eqx.combine(dyn_, static)
-            return eqx.filter_vmap(lambda s: _metrics_only(simulate(m, s, **dict(sim_kwargs))))(w)
+            return _over_speeds(eqx.combine(dyn_, static), w, sim_kwargs, sequential)
 
         f = jax.shard_map(
             body, mesh=dmesh, in_specs=(P(), P("speed")), out_specs=P("speed"), check_vma=False
@@ -107,7 +123,7 @@ def sweep(
     orders_csv: str | os.PathLike | None = None,
     **simulate_kwargs,
 ) -> SweepResult:
-    """Steady-state response over pinion speeds (one compiled, vmapped call per chunk).
+    """Steady-state response over pinion speeds (one compiled call per chunk).
 
     Parameters
     ----------
@@ -318,8 +334,9 @@ def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
         raise SimulationError("devices", devices, "need at least one device")
     if n_dev > 1:
         _warn_sharded_cpu(devices)
+    first = devices[0] if devices else jax.devices()[0]
+    sequential = sequential_on(first.platform)
     if chunk_size is None:
-        first = devices[0] if devices else jax.devices()[0]
         chunk_size = default_chunk_size(model, speeds.size, n_dev, simulate_kwargs,
                                         first.platform, device_memory_bytes(first))
     if int(chunk_size) != chunk_size or chunk_size < 1:
@@ -343,12 +360,12 @@ def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
             for dv in range(n_dev):
                 layout[c, dv] = pos[c * per:(c + 1) * per, dv]
         padded_idx = padded_idx[layout.reshape(-1)]
-        key = tuple(devices)
+        key = (tuple(devices), sequential)
         if key not in _SHARDED_CACHE:
-            _SHARDED_CACHE[key] = _make_sharded(devices)
+            _SHARDED_CACHE[key] = _make_sharded(devices, sequential)
         fn = _SHARDED_CACHE[key]
     else:
-        fn = _batched
+        fn = _sequential if sequential else _batched
     return fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, sim_kwargs
 
 
