@@ -173,8 +173,8 @@ def test_sweep_programs_reach_the_persistent_compilation_cache(tmp_path):
     run = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-800:]
     stored = sorted(p.name for p in (tmp_path / "cache").iterdir())
-    # the sweep's program: _sequential on one CPU device (tests/conftest.py), run sharded
-    assert any(n.startswith(("jit__sequential-", "jit_run-")) for n in stored), stored
+    # the sweep's program: _batched (sdof) on one CPU device (tests/conftest.py), run sharded
+    assert any(n.startswith(("jit__batched-", "jit_run-")) for n in stored), stored
 
 
 def test_one_cpu_device_per_core_unless_told(monkeypatch):

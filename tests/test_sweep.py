@@ -190,20 +190,23 @@ def test_bad_input(model):
         sweep(model, [100.0], chunk_size=0, progress=False)
 
 
-def test_vmapped_batch_equals_the_mapped_one(model, monkeypatch):
-    """On a CPU a chunk's speeds run one after the other (``jax.lax.map``); accelerators
-    vmap them (:mod:`gearjax.dynamics.batching`). That vmapped program, forced on the CPU,
-    gives the mapped results, in the caller's order, to the integration tolerance (vmapped
-    arithmetic rounds differently and the adaptive steps follow, as in
-    ``test_sharded_equals_unsharded``): rtol 1e-7 of the forces and 5e-7 of the DTE
-    peak-to-peak where contact holds, 1e-5 where the contact law separates the teeth."""
+def test_mapped_batch_equals_the_vmapped_one(model, monkeypatch):
+    """A chunk's speeds run one after the other (``jax.lax.map``) on a CPU for 3D models,
+    vmapped for the sdof model and on accelerators (:mod:`gearjax.dynamics.batching`).
+    Both programs, forced on the sdof model, give the same results in the caller's order
+    to the integration tolerance (vmapped arithmetic rounds differently and the adaptive
+    steps follow, as in ``test_sharded_equals_unsharded``): rtol 1e-7 of the forces and
+    5e-7 of the DTE peak-to-peak where contact holds, 1e-5 where the contact law separates
+    the teeth."""
     speeds = [700.0, 90.0, 1200.0, 310.0, 520.0, 860.0, 150.0]
     sw = np.asarray(speeds)
-    assert sweep_mod._plan(model, sw, 4, None, OPTS)[0] is sweep_mod._sequential
-    a = sweep(model, speeds, chunk_size=4, progress=False, **OPTS)
-    monkeypatch.setattr(sweep_mod, "sequential_on", lambda platform: False)
-    assert sweep_mod._plan(model, sw, 4, None, OPTS)[0] is sweep_mod._batched
-    b = sweep(model, speeds, chunk_size=4, progress=False, **OPTS)
+    assert sweep_mod._plan(model, sw, 4, None, OPTS)[0] is sweep_mod._batched  # 2 states
+    res = {}
+    for mapped, fn in ((True, sweep_mod._sequential), (False, sweep_mod._batched)):
+        monkeypatch.setattr(sweep_mod, "sequential_on", lambda platform, n, m=mapped: m)
+        assert sweep_mod._plan(model, sw, 4, None, OPTS)[0] is fn
+        res[mapped] = sweep(model, speeds, chunk_size=4, progress=False, **OPTS)
+    a, b = res[True], res[False]
     assert a.speed_rad_s.tolist() == b.speed_rad_s.tolist() == speeds
     for f in ("converged", "contact_loss", "solver_ok"):
         assert np.array_equal(getattr(a, f), getattr(b, f)), f

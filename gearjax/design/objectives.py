@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..dynamics.batching import over_speeds
+from ..dynamics.batching import over_speeds, sequential_for
 from ..errors import DesignError
 from ..gears.mesh import Mesh
 from ..gears.quasistatic import quasi_static, static_mesh_force
@@ -444,11 +444,12 @@ def _dyn_values_impl(model, x, speeds, static, adjoint=None):
     if method == "steady":
         from ..dynamics.steady import steady_state
 
-        res = over_speeds(lambda w: steady_state(m, w, **kw).result, speeds)
+        res = over_speeds(lambda w: steady_state(m, w, **kw).result, speeds,
+                          sequential=sequential_for(m))
     else:
         if adjoint is not None:
             kw["adjoint"] = adjoint
-        res = over_speeds(lambda w: simulate(m, w, **kw), speeds)
+        res = over_speeds(lambda w: simulate(m, w, **kw), speeds, sequential=sequential_for(m))
     per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])
     sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
     ok = m.structure_ok & jnp.all(res.solver_ok)
@@ -473,7 +474,8 @@ def _dyn_vjac(model, x, speeds, static, adjoint):
 
 @eqx.filter_jit
 def _dyn_grid(model, xs, speeds, static):
-    return over_speeds(lambda x: _dyn_values_impl(model, x, speeds, static), xs)
+    return over_speeds(lambda x: _dyn_values_impl(model, x, speeds, static), xs,
+                       sequential=sequential_for(model))
 
 
 def make_objective(kind: str, mesh: Mesh, space: ReliefSpace, *, speeds_rad_s=None,

@@ -1,47 +1,64 @@
-"""How one program runs a solver at many speeds (or designs): one after the other on a CPU
-(``jax.lax.map``), vmapped on an accelerator.
+"""How one program runs a solver at many speeds (or designs): one after the other
+(``jax.lax.map``) or vmapped (in lockstep).
 
 Every batched solve of :mod:`gearjax.dynamics` and :mod:`gearjax.design` goes through
-:func:`over_speeds`, so the choice is made in one place. Why the CPU maps:
+:func:`over_speeds`; :func:`sequential_on` decides, from the device's platform and the
+model's state size:
 
 * A vmapped adaptive integration advances in lockstep: every speed of a batch takes as
   many steps as its slowest one, and a ``lax.cond`` under ``vmap`` becomes a ``select``
-  that evaluates both branches. On XLA:CPU a batch gains nothing in return: the 3D model's
-  292 states are too few for wider kernels to pay, and one program runs on one thread.
-  Measured 2026-11-25/27 on the 2-core VM (one device, 24 speeds of the README main job's
-  models, compile apart): te 20-480 rad/s 1.10 s mapped against 3.38 s vmapped, te
-  300-480 rad/s 0.92 against 1.65 s, reference 20-480 rad/s 0.96 against 2.65 s; the
-  compile 7.7-12.1 s against 10.7-15.4 s. The README main job went 31.4 -> 19.6 s.
+  that evaluates both branches. On XLA:CPU a batch of a large model gains nothing in
+  return (one thread; 292 states are too few for wider kernels to pay), while a tiny
+  model's step is loop overhead that a batch shares. Measured 2026-11-27 on the 2-core VM
+  (``benchmarks/bench_batching.py``, one device, te, 24 speeds 20-480 rad/s, run after the
+  compile): the 3D rig at 38 / 90 / 148 / 292 states 2.7x / 2.9x / 3.4x / 6.0x quicker
+  mapped, each compiled 1-2.3 s sooner; the sdof model (2 states) 1.5-2.1x quicker
+  vmapped (5.5x at 126 speeds a chunk, 2000 speeds 100-1500 rad/s). The README main job
+  went 31 -> 20 s.
+* On an accelerator one kernel serves every speed of a batch, which is what pays there
+  (``benchmarks/results/accelerator_h100.md``).
 * jaxlib 0.10.2's CPU LAPACK kernels (eig, solve, qr) split a batch over the intra-op
   thread pool and wait for it from inside that pool, so two batched kernels running at
   once deadlock a 2-worker pool (reproduced: two vmapped ``jnp.linalg.solve`` in one
-  program hang; unbatched they do not). Mapped, no LAPACK kernel is batched.
-
-On an accelerator one kernel serves every speed of a batch, which is what pays there
-(``benchmarks/results/accelerator_h100.md``).
+  program hang; unbatched they do not). Solvers that call LAPACK per speed (the frequency
+  domain) map on every CPU: :func:`on_cpu`.
 """
 
 from __future__ import annotations
 
 import jax
 
-__all__ = ["sequential_on", "over_speeds"]
+__all__ = ["MAPPED_MIN_STATES", "sequential_on", "sequential_for", "on_cpu", "over_speeds"]
+
+# Smallest state (first-order unknowns) whose speeds a CPU runs one after the other; the
+# sdof model (2) is vmapped, every 3D model (38 states and up) mapped (module docstring).
+MAPPED_MIN_STATES = 16
 
 
-def sequential_on(platform: str) -> bool:
-    """Whether a batch runs one element after the other on a device of ``platform``
-    (``"cpu"``, ``"gpu"``, ``"tpu"``, ...): on a CPU (module docstring)."""
-    return platform == "cpu"
+def sequential_on(platform: str, state_size: int) -> bool:
+    """Whether a batch of a model with ``state_size`` states runs one speed after the other
+    on a device of ``platform`` (``"cpu"``, ``"gpu"``, ``"tpu"``, ...): on a CPU, from
+    :data:`MAPPED_MIN_STATES` states (module docstring)."""
+    return platform == "cpu" and int(state_size) >= MAPPED_MIN_STATES
 
 
-def over_speeds(one, *xs, sequential: bool | None = None):
+def sequential_for(model) -> bool:
+    """:func:`sequential_on` JAX's default backend (read when traced) for ``model``'s
+    state size."""
+    return sequential_on(jax.default_backend(), model.state_size)
+
+
+def on_cpu() -> bool:
+    """Whether JAX's default backend is the CPU (read when traced): where a solver that
+    calls LAPACK per speed maps its speeds whatever the model's size (module docstring)."""
+    return jax.default_backend() == "cpu"
+
+
+def over_speeds(one, *xs, sequential: bool):
     """``one`` at every element of the leading axis of ``xs`` (arrays, or pytrees of
     arrays, of one length), results stacked on a leading axis: ``jax.lax.map`` where
-    ``sequential`` (default: :func:`sequential_on` JAX's default backend, read when
-    traced), else ``jax.vmap``. Jittable and differentiable either way (``jacfwd`` and
-    ``jacrev`` through a map are those of a scan)."""
-    if sequential is None:
-        sequential = sequential_on(jax.default_backend())
+    ``sequential``, else ``jax.vmap``. Jittable and differentiable either way (``jacfwd``
+    and ``jacrev`` through a map are those of a scan)."""
     if sequential:
         return jax.lax.map(lambda a: one(*a), xs)
     return jax.vmap(one)(*xs)

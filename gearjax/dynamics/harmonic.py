@@ -73,7 +73,7 @@ import numpy as np
 from ..errors import SimulationError
 from ..excitation.events import distinct_angles
 from ..models.base import LINEAR_FORMULATIONS, AbstractGearModel
-from .batching import over_speeds
+from .batching import on_cpu, over_speeds
 from .krylov import gmres
 from .metrics import JumpClusters, jump_clusters, output_grid, refined_extrema, ringing_length
 from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
@@ -524,7 +524,7 @@ def harmonic_steady_states(model, speeds_rad_s, n_harmonics: int = 256,
     a CPU, its LAPACK kernels would be batched, and two batched kernels at once deadlock
     jaxlib 0.10.2's 2-worker intra-op pool."""
     one = lambda w: harmonic_steady_state(model, w, n_harmonics, **kwargs)  # noqa: E731
-    return over_speeds(one, jnp.asarray(speeds_rad_s, dtype=float))
+    return over_speeds(one, jnp.asarray(speeds_rad_s, dtype=float), sequential=on_cpu())
 
 
 @eqx.filter_jit
@@ -535,7 +535,7 @@ def _bound_batch(model, speeds):
         b = small_gain_bound(lam, (q.T @ split.w) * (qinv @ split.p), split.c_radius)
         return jnp.where(split.rank_one_error <= _SPLIT_TOL, b, jnp.inf)
 
-    return over_speeds(one, speeds)  # no batched LAPACK on a CPU: harmonic_steady_states
+    return over_speeds(one, speeds, sequential=on_cpu())  # no batched LAPACK on a CPU
 
 
 def small_gain_bounds(model, speeds_rad_s) -> np.ndarray:

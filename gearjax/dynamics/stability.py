@@ -33,7 +33,7 @@ import numpy as np
 
 from ..errors import SimulationError, check_float64
 from ..models.base import AbstractGearModel
-from .batching import over_speeds
+from .batching import over_speeds, sequential_for
 
 __all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "check_speeds",
            "STABILITY_METHODS"]
@@ -104,7 +104,7 @@ def _rho(model, speeds, kwargs):
         phi = monodromy(model, w, **dict(kwargs))
         return jnp.max(jnp.abs(jnp.linalg.eigvals(phi)))
 
-    return over_speeds(one, speeds)
+    return over_speeds(one, speeds, sequential=sequential_for(model))
 
 
 def spectral_radius(model, speeds_rad_s, **kwargs) -> np.ndarray:

@@ -73,7 +73,7 @@ import numpy as np
 
 from ..linalg import solve as dense_solve
 from . import code_memory, watchdog
-from .batching import over_speeds
+from .batching import over_speeds, sequential_for
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import SimulationError, SimulationResult, jump_controller, simulate
 from .stability import check_speeds
@@ -331,7 +331,7 @@ def _steady_batch(model, speeds, kwargs):
         r = out.result
         return tuple(getattr(r, f) for f in METRIC_FIELDS) + (out.periodic.spectral_radius,
                                                                out.periodic.y0)
-    return over_speeds(one, speeds)
+    return over_speeds(one, speeds, sequential=sequential_for(model))
 
 
 @eqx.filter_jit
@@ -339,7 +339,7 @@ def _continue_batch(model, speeds, y0s, kwargs):
     def one(w, y0):
         r = simulate(model, w, y0=y0, **dict(kwargs))
         return tuple(getattr(r, f) for f in METRIC_FIELDS)
-    return over_speeds(one, speeds, y0s)
+    return over_speeds(one, speeds, y0s, sequential=sequential_for(model))
 
 
 def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress: bool = True,

@@ -335,7 +335,7 @@ def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
     if n_dev > 1:
         _warn_sharded_cpu(devices)
     first = devices[0] if devices else jax.devices()[0]
-    sequential = sequential_on(first.platform)
+    sequential = sequential_on(first.platform, model.state_size)
     if chunk_size is None:
         chunk_size = default_chunk_size(model, speeds.size, n_dev, simulate_kwargs,
                                         first.platform, device_memory_bytes(first))
