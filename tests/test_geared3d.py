@@ -384,6 +384,10 @@ def test_clear_errors(torsional_setup):
         Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, damping_ratio=1.5)
     with pytest.raises(ModelError, match="mesh_vectors"):
         Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, mesh_vectors="avg")
+    # below the lowest natural frequency: refused at the build, not by an empty argmax
+    # inside the first sweep
+    with pytest.raises(ModelError, match="max_frequency_hz=0.001: keeps no vibration mode"):
+        Geared3DModel.build(s, mesh, mods, fixed_dofs=fixed, max_frequency_hz=1e-3)
     grounded = s.with_stiffness(np.diag(np.r_[np.zeros(5), 1e5, np.zeros(6)]), "pinion_ground", (0,))
     with pytest.raises(ModelError, match="free in torsion"):
         Geared3DModel.build(grounded, mesh, mods, fixed_dofs=fixed)

@@ -292,14 +292,6 @@ def cutoff_warning(args, rig, cutoff_hz, speeds_rad_s) -> str | None:
             f"--max-frequency out)")
 
 
-def _check_modes(args, model, cutoff_hz) -> None:
-    """Refuse a 3D cut-off that keeps no vibration mode (before any speed is computed)."""
-    if args.model == "3d" and int(model.n_modes) == 0:
-        raise ValueError(f"--max-frequency={args.max_frequency!r}: keeps no vibration mode "
-                         f"(none below {cutoff_hz:g} Hz); raise the cut-off above the lowest "
-                         "natural frequency (gearjax info lists them) or give 0 for all modes")
-
-
 def _check_te_file(args, forms) -> None:
     """--te-file drives the te/perturbation formulations only (Section 6.2)."""
     if not args.te_file:
@@ -438,7 +430,6 @@ def cmd_sweep(args) -> int:
                 t0 -= t_pre  # its build's time, before the reference sweep
             else:
                 model = build(form)
-            _check_modes(args, model, cutoff_hz)
             t_build = time.perf_counter() - t0
             if ahead.own is None and ahead.nxt is None:
                 ahead = build_and_compile_ahead(args, forms, form, model, build, todo_of,
@@ -614,7 +605,6 @@ def cmd_stability(args) -> int:
                         **nlte_options_of(args),
                         max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te,
                         moving_events=False)
-    _check_modes(args, model, cutoff_hz)
     method = args.method
     if method == "auto":  # the monodromy costs n columns: cheap for the sdof model only
         method = "steady" if model.state_size <= HARMONIC_FLOQUET_MAX_STATES else "harmonic"

@@ -181,6 +181,11 @@ def build_geared3d(
     # modal basis of (M, K_bar), projected vectors
     E = gs.inertial_vector() if nlte_terms and nlte_inertia else np.zeros(F0.shape)
     red = gs.modal(k_m, E, max_frequency_hz, zeta)
+    if red.n_modes == 0:  # static corrections alone: no dynamics, no natural frequency
+        raise ModelError("max_frequency_hz", max_frequency_hz,
+                         "keeps no vibration mode of (M, K_bar), only static corrections; "
+                         "give a cut-off above the lowest natural frequency, or None for all "
+                         "modes")
     omega_r, v_r, q0, c_v_r = red.omega_r, red.v_r, red.q0, red.c_v_r
     part = v_r**2 / np.where(omega_r > 0, omega_r, np.inf) ** 2
     part = part / part.sum()
