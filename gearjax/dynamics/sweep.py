@@ -1,6 +1,6 @@
 """Speed sweeps: one jitted :func:`gearjax.dynamics.simulate.simulate` per chunk of speeds,
-its speeds one after the other on a CPU and vmapped on an accelerator
-(:mod:`gearjax.dynamics.batching`).
+its speeds one after the other (a 3D model on a CPU) or vmapped (the sdof model on a CPU,
+every model on an accelerator): :mod:`gearjax.dynamics.batching`.
 
 * The speeds are the only batched input, so a new set of speeds (same chunk size) never
   recompiles: the model's array data and the speeds are traced, only its static structure
@@ -426,7 +426,10 @@ def memory_chunk(model, simulate_kwargs: dict | None = None,
 # 128: 7.8 s, 16: 7.9 s, 1000: 10.7 s. Vmapped speeds advance in lockstep (a wide chunk
 # waits for its slowest speed) and a chunk's solver stages must stay in the core's cache
 # (16 speeds x 266 states x 8 bytes x the 13 stages of Dopri8: ~0.5 MB, the L2 of these
-# cores); a chunk also pays a fixed dispatch cost, hence the lower bound.
+# cores); a chunk also pays a fixed dispatch cost, hence the lower bound. These chunks were
+# vmapped; since e88f60e a 3D model's speeds are mapped on a CPU (gearjax.dynamics.batching),
+# where the chunk only sets how often rows are written (te, 1000 speeds, 2026-11-27: 28 s in
+# all at 16 and at 64 speeds per device, results identical).
 CPU_CHUNK_STATE_ENTRIES = 4096
 CPU_CHUNK_SPEEDS = (16, 64)
 
