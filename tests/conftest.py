@@ -19,28 +19,22 @@ os.environ.setdefault("GEARJAX_HOST_DEVICES", "1")
 
 
 def _legacy_emitters_for_tests():
-    """XLA's legacy CPU emitters for the whole session, set before any JAX backend starts
-    and inherited through the environment by the workers, notebook kernels and CLI
-    subprocesses (so every executable in the shared cache below is keyed and compiled
-    alike; a flag set in a running process would not apply, yet would key its executables
-    as if it had: ``gearjax.cli.main._use_emitters``). The suite is compile-bound, and the
-    legacy emitters compile faster, as for the command line's compile-bound sweeps
-    (:data:`gearjax.cli.main._FUSION_FLAG`). Measured on the 2-core VM, 2026-11-27, same
-    code, ``-n 2``: the default suite 10 min 58 s -> 7 min 46 s (test time summed over
-    the workers 1,290 s -> 909 s). jaxlib 0.10 only (the version it was measured on; XLA
-    aborts on a flag it does not know). A caller's ``XLA_FLAGS`` naming the flag wins:
-    ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=true`` runs the suite with XLA's default
-    emitters, as library calls run."""
-    from importlib.metadata import PackageNotFoundError, version
+    """XLA's legacy CPU emitters for the whole session, by the command line's own rule
+    (:func:`gearjax.cli.main.use_legacy_emitters`: jaxlib 0.10 only, a caller's
+    ``XLA_FLAGS`` naming the flag wins, ``GEARJAX_XLA_DEFAULTS=0`` keeps XLA's defaults).
+    Set before any JAX backend starts (importing the command line starts none, as its own
+    ``main()`` relies on) and inherited through the environment by the workers, notebook
+    kernels and CLI subprocesses, so every executable in the shared cache below is keyed
+    and compiled alike (a flag set in a running process would not apply, yet would key
+    its executables as if it had: ``gearjax.cli.main._use_emitters``). The suite is
+    compile-bound, and the legacy emitters compile faster, as for the command line's
+    compile-bound sweeps. Measured on the 2-core VM, 2026-11-27, same code, ``-n 2``: the
+    default suite 10 min 58 s -> 7 min 46 s (test time summed over the workers 1,290 s ->
+    909 s). ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=true`` runs the suite with XLA's
+    default emitters, as library calls run."""
+    from gearjax.cli.main import use_legacy_emitters
 
-    flag = "--xla_cpu_use_fusion_emitters"
-    flags = os.environ.get("XLA_FLAGS", "")
-    try:
-        jaxlib_010 = version("jaxlib").startswith("0.10.")
-    except PackageNotFoundError:
-        jaxlib_010 = False
-    if jaxlib_010 and flag not in flags and os.environ.get("GEARJAX_XLA_DEFAULTS", "1") != "0":
-        os.environ["XLA_FLAGS"] = f"{flags} {flag}=false".strip()
+    use_legacy_emitters()
 
 
 _legacy_emitters_for_tests()

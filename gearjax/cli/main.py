@@ -25,7 +25,7 @@ import numpy as np
 
 from ..dynamics.sweep import SHARDED_CPU_JAXLIB, jaxlib_minor
 
-__all__ = ["main"]
+__all__ = ["main", "use_legacy_emitters"]
 
 
 def _stiffness_laws():
@@ -433,9 +433,20 @@ def _use_emitters(args) -> None:
     persistent-cache keys read ``XLA_FLAGS``, so that process's executables would be
     stored and found under the legacy emitters' keys (the test suite's shared cache mixed
     them, and one 3D test then ran for more than 15 min instead of 21 s)."""
+    if compile_bound(args):
+        use_legacy_emitters()
+
+
+def use_legacy_emitters() -> None:
+    """Add ``--xla_cpu_use_fusion_emitters=false`` to ``XLA_FLAGS`` (XLA's legacy CPU
+    emitters, which compile faster: the measurements above :data:`COMPILE_BOUND_3D_SPEEDS`)
+    unless ``XLA_FLAGS`` already names the flag, ``GEARJAX_XLA_DEFAULTS=0``, or jaxlib is
+    not 0.10. Call it before JAX starts a backend, in a process whose programs are all
+    compile-bound: the command line's compile-bound commands (:func:`_use_emitters`) and
+    the test session (``tests/conftest.py``)."""
     flags = os.environ.get("XLA_FLAGS", "")
     if (_FUSION_FLAG in flags or os.environ.get("GEARJAX_XLA_DEFAULTS", "1") == "0"
-            or jaxlib_minor() != _FUSION_FLAG_JAXLIB or not compile_bound(args)):
+            or jaxlib_minor() != _FUSION_FLAG_JAXLIB):
         return
     os.environ["XLA_FLAGS"] = f"{flags} {_FUSION_FLAG}=false".strip()
 
