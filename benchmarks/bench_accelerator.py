@@ -24,7 +24,7 @@ import os
 import time
 
 # equinox's runtime checks as NaN, as the command line sets them
-# (gearjax.cli.main._use_cacheable_checks): the default raises through a host callback,
+# (gearjax.runtime.use_cacheable_checks): the default raises through a host callback,
 # a device-to-host round trip on an accelerator
 os.environ.setdefault("EQX_ON_ERROR", "nan")
 
@@ -97,7 +97,7 @@ def main(argv=None) -> int:
                 row["skipped"] = "memory estimate over the device's limit"
             else:
                 t0 = time.perf_counter()
-                res = sweep(model, speeds, chunk_size=chunk, progress=False, **opts)
+                res = sweep(model, speeds, chunk_size=chunk, **opts)
                 row["run_s"] = time.perf_counter() - t0
                 df = np.asarray(res.dynamic_factor)
                 row["unconverged"] = int(np.sum(~np.asarray(res.converged)))

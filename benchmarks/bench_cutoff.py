@@ -64,7 +64,7 @@ def build(max_frequency_hz):
 
 def solve(model, speed):
     t0 = time.perf_counter()
-    st = steady_sweep(model, [speed], progress=False)
+    st = steady_sweep(model, [speed])
     dt = time.perf_counter() - t0
     return (float(st.dynamic_factor[0]), float(st.dte_ptp_m[0]), bool(st.converged[0]),
             float(st.spectral_radius[0]), dt)

@@ -119,13 +119,13 @@ def main():
             model = TorsionalModel.build(mesh, table1_relief("short"), formulation=form,
                                          damping_ratio=zeta)
             f_s = float(model.static_force_N)
-            tr, tr_c, tr_r = _timed(lambda: sweep(model, speeds, progress=False), args.repeat)
+            tr, tr_c, tr_r = _timed(lambda: sweep(model, speeds), args.repeat)
             hb, hb_c, hb_r = _timed(lambda: harmonic_sweep(model, speeds, rtol=args.rtol,
                                                            floquet=False), args.repeat)
             hf, hf_c, hf_r = _timed(lambda: harmonic_sweep(model, speeds, rtol=args.rtol,
                                                            floquet=True), args.repeat)
             sh, sh_c, sh_r = _timed(lambda: steady_sweep(
-                model, speeds, progress=False, rtol=1e-10, atol=1e-12, measure_rtol=1e-10,
+                model, speeds, rtol=1e-10, atol=1e-12, measure_rtol=1e-10,
                 measure_atol=1e-12), 1)
             ref = sh.max_mesh_force_N
             err = lambda r: np.max(np.abs(r.max_mesh_force_N - ref)) / f_s  # noqa: E731
@@ -172,8 +172,8 @@ def three_d(speeds, args, subset=(2, 22, 42)):
                                                        floquet=False), 1)
         hs, _, hs_r = _timed(lambda: harmonic_sweep(model, sub, rtol=args.rtol,
                                                     floquet=False), 1)
-        tr, tr_c, tr_r = _timed(lambda: sweep(model, sub, progress=False), 1)
-        sh = steady_sweep(model, sub, progress=False, rtol=1e-10, atol=1e-12,
+        tr, tr_c, tr_r = _timed(lambda: sweep(model, sub), 1)
+        sh = steady_sweep(model, sub, rtol=1e-10, atol=1e-12,
                           measure_rtol=1e-10, measure_atol=1e-12)
         idx = np.asarray(subset)
         e_hb = np.max(np.abs(hb.max_mesh_force_N[idx] - sh.max_mesh_force_N)) / f_s

@@ -113,7 +113,7 @@ def main():
             sweep_mod._batched.lower(model, w, kw).compile()
             comp = time.perf_counter() - t0
             t0 = time.perf_counter()
-            tr = sweep(model, speeds, progress=False, **dict(kw))
+            tr = sweep(model, speeds, **dict(kw))
             # lower().compile() does not fill jit's cache: the call compiles again; run time =
             # call - compile (the first-call time is printed too)
             first_tr = time.perf_counter() - t0
@@ -124,7 +124,7 @@ def main():
                 f"steps/speed median {np.median(tr.n_steps):.0f}, transient periods "
                 f"{tr.transient_periods.min():.0f}-{tr.transient_periods.max():.0f}")
     t0 = time.perf_counter()
-    st = steady_sweep(model, speeds, progress=False)
+    st = steady_sweep(model, speeds)
     first = time.perf_counter() - t0
     t0 = time.perf_counter()
     jax.block_until_ready(steady_mod._steady_batch(model, jnp.asarray(speeds), ()))  # cached
@@ -136,7 +136,7 @@ def main():
 
     idx = np.unique(np.round(np.linspace(0, speeds.size - 1, args.check)).astype(int))
     t0 = time.perf_counter()
-    ref = steady_sweep(model, speeds[idx], progress=False, rtol=1e-10, atol=1e-12,
+    ref = steady_sweep(model, speeds[idx], rtol=1e-10, atol=1e-12,
                        measure_rtol=1e-10, measure_atol=1e-12)
     say(f"reference (shooting rtol 1e-10) at {speeds[idx].round(1).tolist()} rad/s in "
         f"{time.perf_counter() - t0:.1f} s")

@@ -162,15 +162,15 @@ def sweep_table(args):
         compiled = sweep_mod._batched.lower(model, w, kwargs).compile()
         compile_s = time.perf_counter() - t0
         del compiled
-        sweep(model, speeds, progress=False)  # warm the cache of the jitted function
-        run_s, res = _median_time(lambda: sweep(model, speeds, progress=False))
+        sweep(model, speeds)  # warm the cache of the jitted function
+        run_s, res = _median_time(lambda: sweep(model, speeds))
         rows = [(1, compile_s, run_s, res)]
         if args.host_devices > 1:
             devs = jax.devices()[: args.host_devices]
             t0 = time.perf_counter()
-            sweep(model, speeds, progress=False, devices=devs)
+            sweep(model, speeds, devices=devs)
             first = time.perf_counter() - t0
-            run2, res2 = _median_time(lambda: sweep(model, speeds, progress=False, devices=devs))
+            run2, res2 = _median_time(lambda: sweep(model, speeds, devices=devs))
             rows.append((len(devs), first - run2, run2, res2))
         # SciPy on a subset, scaled to all speeds
         sub = np.linspace(0, len(speeds) - 1, args.scipy_subset).round().astype(int)

@@ -142,7 +142,7 @@ def run_simulate(model, speeds, solver, rtol, atol, **kw):
 
 def run_steady(model, speeds, rtol):
     def f():
-        return steady_sweep(model, speeds, progress=False, rtol=rtol, atol=rtol / 100,
+        return steady_sweep(model, speeds, rtol=rtol, atol=rtol / 100,
                             measure_rtol=rtol, measure_atol=rtol / 100)
     res, run, comp = timed(f)
     return res.max_mesh_force_N, res.dte_ptp_m, run, comp
@@ -498,13 +498,13 @@ def scaling(args):
         sp = np.linspace(100.0, 1400.0, n)
         if n <= 100:
             _, rh, ch = timed(lambda: harmonic_sweep(model, sp, floquet=False), repeats=1)
-            _, rs, cs = timed(lambda: steady_sweep(model, sp, progress=False), repeats=1)
-            _, rt, ct = timed(lambda: sweep(model, sp, progress=False), repeats=1)
+            _, rs, cs = timed(lambda: steady_sweep(model, sp), repeats=1)
+            _, rt, ct = timed(lambda: sweep(model, sp), repeats=1)
             say(f"| {n} | {rh:.3f} | {ch:.1f} | {rs:.3f} | {cs:.1f} | {rt:.3f} | {ct:.1f} | {rt / n:.2e} |")
         else:
             rh = once(lambda: harmonic_sweep(model, sp, floquet=False))
-            rs = once(lambda: steady_sweep(model, sp, progress=False))
-            rt = once(lambda: sweep(model, sp, progress=False))
+            rs = once(lambda: steady_sweep(model, sp))
+            rt = once(lambda: sweep(model, sp))
             say(f"| {n} | {rh:.1f} +c | - | {rs:.1f} +c | - | {rt:.1f} +c | - | {rt / n:.2e} |")
     say(f"peak RSS so far: {rss_mb():.0f} MB")
     harmonics_scaling(model)
@@ -517,7 +517,7 @@ def scaling(args):
         m = TorsionalModel.build(Mesh.build(baud_velex_pair(True), cells_per_line=cpl),
                                  table1_relief("short"), formulation="reference",
                                  damping_ratio=ZETA)
-        _, rt, ct = timed(lambda: sweep(m, sp, progress=False), repeats=1)
+        _, rt, ct = timed(lambda: sweep(m, sp), repeats=1)
         say(f"| {cpl} | {m.mesh.n_cells if hasattr(m.mesh, 'n_cells') else '-'} | {rt:.3f} | {ct:.1f} |")
     say(f"peak RSS so far: {rss_mb():.0f} MB")
 
@@ -535,8 +535,8 @@ def scaling(args):
             max_frequency_hz=None, mesh_vectors="mean")))
     for name, m in cases:
         n_state = int(2 * m.n_reduced) if hasattr(m, "n_reduced") else 2
-        _, rs, cs = timed(lambda: steady_sweep(m, [900.0], progress=False), repeats=1)
-        _, rt, ct = timed(lambda: sweep(m, [900.0], progress=False), repeats=1)
+        _, rs, cs = timed(lambda: steady_sweep(m, [900.0]), repeats=1)
+        _, rt, ct = timed(lambda: sweep(m, [900.0]), repeats=1)
         say(f"| {name} | {n_state} | {rs:.3f} | {cs:.1f} | {rt:.3f} | {ct:.1f} |")
     say(f"peak RSS: {rss_mb():.0f} MB")
 

@@ -18,8 +18,9 @@ contact line, default tolerances) so that hundreds fit in a few minutes; ``--tes
 uses the slow test's setting instead (``tests/test_design.py::test_3d_dynamic_objective_
 gradients``: 3 kHz, 10 cells, tolerances 1e-11).
 
-gearjax sets XLA CPU flags on import (``gearjax/__init__.py``, issue 16); run with
-``GEARJAX_XLA_DEFAULTS=0`` in the environment to soak XLA's defaults instead.
+The child sets XLA's CPU workarounds as the command line does
+(:func:`gearjax.runtime.configure`, issue 16); run with ``GEARJAX_XLA_DEFAULTS=0`` in the
+environment to soak XLA's defaults instead.
 
 Examples::
 
@@ -47,6 +48,10 @@ KINDS = ("steady", "value", "jacfwd")
 # --------------------------------------------------------------------------- child
 def child(args) -> int:
     import equinox as eqx
+    import gearjax as gj
+
+    gj.runtime.configure()  # XLA's CPU workarounds, as the command line sets them
+
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -54,7 +59,6 @@ def child(args) -> int:
     if args.async_dispatch is not None:
         jax.config.update("jax_cpu_enable_async_dispatch", args.async_dispatch == "on")
 
-    import gearjax as gj
     from gearjax.design import DynamicObjective, ReliefSpace
     from gearjax.gears.mesh import Mesh
 
@@ -198,8 +202,8 @@ def _soak(args, env, times, hangs, proc_box) -> None:
                 if args.verbose:
                     print(f"{msg['i']:5d} {msg['kind']:7s} {msg['time_s']:8.3f} s", flush=True)
             elif msg["event"] == "start":
-                print(f"child pid {msg['pid']}, jax {msg['jax']}, XLA_FLAGS (after importing "
-                      f"gearjax) {msg.get('xla_flags', env.get('XLA_FLAGS', ''))!r}", flush=True)
+                print(f"child pid {msg['pid']}, jax {msg['jax']}, XLA_FLAGS (after "
+                      f"gearjax.runtime.configure) {msg.get('xla_flags', env.get('XLA_FLAGS', ''))!r}", flush=True)
 
 
 def _report(args, times, hangs, done, t_all, n_children) -> int:

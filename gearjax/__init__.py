@@ -3,35 +3,14 @@
 Implements Velex & Ajmi, "On the modelling of excitations in geared systems by
 transmission errors" (J. Sound Vib.): mesh model, quasi-static and no-load transmission
 errors, and the dynamic formulations Eqs. (14), (42), (48a). SI units throughout
-(m, N, kg, s, rad). Float64 is enabled on import.
+(m, N, kg, s, rad).
 
-XLA CPU flags set on import (before jax's backend starts; set ``GEARJAX_XLA_DEFAULTS=0``
-to keep XLA's defaults, or name a flag in ``XLA_FLAGS`` to choose its value yourself):
-``--xla_cpu_experimental_ynn_fusion_type=`` and ``--xla_cpu_multi_thread_eigen=false``.
-jax 0.10.2 runs f64 dots as YNNPACK fusions that block an intra-op pool worker while
-fanning out into the same pool; repeated 3D steady-state evaluations hung there
-(issue 16; ``benchmarks/results/soak_3d.md``). They only matter on the CPU backend. The
-hang later caught with a native stack was another one, which these flags do not prevent:
-jaxlib's batched LAPACK kernels waiting on the pool they run on (:mod:`gearjax.linalg`).
+Importing gearjax enables float64 (``jax_enable_x64``), which its solvers require, and
+does nothing else to the process: XLA flags, devices, caches and progress printing are
+the host layer's (:mod:`gearjax.runtime`; :func:`gearjax.runtime.configure`).
 """
 
-import os as _os
-
-_CPU_FLAGS = ("--xla_cpu_experimental_ynn_fusion_type=", "--xla_cpu_multi_thread_eigen=false")
-
-
-def _set_cpu_flags():
-    flags = _os.environ.get("XLA_FLAGS", "")
-    if _os.environ.get("GEARJAX_XLA_DEFAULTS", "1") == "0":
-        return
-    add = [f for f in _CPU_FLAGS if f.split("=")[0] not in flags]
-    if add:
-        _os.environ["XLA_FLAGS"] = " ".join([flags, *add]).strip()
-
-
-_set_cpu_flags()
-
-import jax  # noqa: E402
+import jax
 
 jax.config.update("jax_enable_x64", True)
 
@@ -71,5 +50,9 @@ from .dynamics.continuation import continuation_sweep as continuation_sweep
 
 from .dynamics.simulate import simulate as simulate
 from .dynamics.sweep import sweep as sweep
+from .dynamics.progress import AbstractProgressMeter as AbstractProgressMeter
+from .dynamics.progress import NoProgressMeter as NoProgressMeter
+from . import runtime as runtime
+from .runtime.progress import TextProgressMeter as TextProgressMeter
 
 __version__ = "0.1.0"

@@ -13,31 +13,28 @@ import tempfile
 os.environ.setdefault("EQX_ON_ERROR", "nan")
 # the command line's subprocesses on one CPU device, like the library calls of the tests:
 # their programs then share the compilation cache below (one device per core is the
-# command line's default, gearjax.cli.main.host_device_count; the sharded sweep itself is
+# command line's default, gearjax.runtime.host_device_count; the sharded sweep itself is
 # tested in test_sweep.py with four fake devices)
 os.environ.setdefault("GEARJAX_HOST_DEVICES", "1")
 
 
-def _legacy_emitters_for_tests():
-    """XLA's legacy CPU emitters for the whole session, by the command line's own rule
-    (:func:`gearjax.cli.main.use_legacy_emitters`: jaxlib 0.10 only, a caller's
-    ``XLA_FLAGS`` naming the flag wins, ``GEARJAX_XLA_DEFAULTS=0`` keeps XLA's defaults).
-    Set before any JAX backend starts (importing the command line starts none, as its own
-    ``main()`` relies on) and inherited through the environment by the workers, notebook
-    kernels and CLI subprocesses, so every executable in the shared cache below is keyed
-    and compiled alike (a flag set in a running process would not apply, yet would key
-    its executables as if it had: ``gearjax.cli.main._use_emitters``). The suite is
-    compile-bound, and the legacy emitters compile faster, as for the command line's
-    compile-bound sweeps. Measured on the 2-core VM, 2026-11-27, same code, ``-n 2``: the
-    default suite 10 min 58 s -> 7 min 46 s (test time summed over the workers 1,290 s ->
-    909 s). ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=true`` runs the suite with XLA's
+def _configure_the_test_process():
+    """The host process as the command line configures its compile-bound commands, by the
+    public runtime layer (:func:`gearjax.runtime.configure`): XLA's CPU workarounds and its
+    legacy CPU emitters (jaxlib 0.10 only; a caller's ``XLA_FLAGS`` naming a flag wins,
+    ``GEARJAX_XLA_DEFAULTS=0`` keeps XLA's defaults). Set before any JAX backend starts
+    (importing gearjax starts none) and inherited through the environment by the workers,
+    notebook kernels and CLI subprocesses, so every executable in the shared cache below is
+    keyed and compiled alike (a flag set in a running process would not apply, yet would
+    key its executables as if it had). The suite is compile-bound, and the legacy emitters
+    compile faster; ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=true`` runs it with XLA's
     default emitters, as library calls run."""
-    from gearjax.cli.main import use_legacy_emitters
+    from gearjax import runtime
 
-    use_legacy_emitters()
+    runtime.configure(legacy_emitters=True)
 
 
-_legacy_emitters_for_tests()
+_configure_the_test_process()
 
 import jax  # noqa: E402
 
@@ -91,13 +88,13 @@ _compile_for_tests()
 
 import pytest  # noqa: E402
 
-from gearjax.dynamics import code_memory  # noqa: E402
+from gearjax.runtime import code_memory  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
 def _release_compiled_code():
     """After every test, drop JAX's compiled programs once this worker holds more than half
-    of the kernel's memory-map cap (:mod:`gearjax.dynamics.code_memory`). Without it the
+    of the kernel's memory-map cap (:mod:`gearjax.runtime.code_memory`). Without it the
     long-lived workers crept up to the cap (58,600 and 64,600 of 65,530 maps measured in
     one run) and a worker that crossed it segfaulted inside XLA's compile or
     ``executable.serialize()`` (about one suite run in three, CI and local, until

@@ -132,25 +132,34 @@ def test_compile_bound_sweeps_take_xla_legacy_emitters(monkeypatch):
              ("harris-map",): False}
     for argv, want in bound.items():
         assert cli.compile_bound(parse(list(argv))) is want, argv
+    xla = importlib.import_module("gearjax.runtime.xla")
     monkeypatch.delenv("GEARJAX_XLA_DEFAULTS", raising=False)
-    monkeypatch.setattr(cli, "jaxlib_minor", lambda: cli._FUSION_FLAG_JAXLIB)
+    monkeypatch.setenv("GEARJAX_COMPILATION_CACHE", "0")  # the flags alone
+    monkeypatch.setattr(xla, "jaxlib_minor", lambda: xla.FUSION_FLAG_JAXLIB)
+    workarounds = " ".join(xla.CPU_WORKAROUND_FLAGS)
     for flags, argv, want in (
-            ("--xla_cpu_foo=1", ["sweep"], "--xla_cpu_foo=1 --xla_cpu_use_fusion_emitters=false"),
-            ("", ["sweep", "--speeds", "20:900:1000"], ""),
-            ("--xla_cpu_use_fusion_emitters=true", ["sweep"], "--xla_cpu_use_fusion_emitters=true")):
+            ("--xla_cpu_foo=1", ["sweep"],
+             f"--xla_cpu_foo=1 {workarounds} --xla_cpu_use_fusion_emitters=false"),
+            ("", ["sweep", "--speeds", "20:900:1000"], workarounds),
+            ("--xla_cpu_use_fusion_emitters=true", ["sweep"],
+             f"--xla_cpu_use_fusion_emitters=true {workarounds}")):
         monkeypatch.setenv("XLA_FLAGS", flags)
-        cli._use_emitters(parse(argv))
+        cli.configure_process(parse(argv), own_process=True)
         assert os.environ["XLA_FLAGS"] == want
+    # a caller's process (main(argv) in-process) never gets the emitters
+    monkeypatch.setenv("XLA_FLAGS", "")
+    cli.configure_process(parse(["sweep"]), own_process=False)
+    assert os.environ["XLA_FLAGS"] == workarounds
     monkeypatch.setenv("XLA_FLAGS", "")
     monkeypatch.setenv("GEARJAX_XLA_DEFAULTS", "0")
-    cli._use_emitters(parse(["sweep"]))
+    cli.configure_process(parse(["sweep"]), own_process=True)
     assert os.environ["XLA_FLAGS"] == ""
     monkeypatch.delenv("GEARJAX_XLA_DEFAULTS")
-    monkeypatch.setattr(cli, "jaxlib_minor", lambda: (0, 11))  # not measured there
-    cli._use_emitters(parse(["sweep"]))
+    monkeypatch.setattr(xla, "jaxlib_minor", lambda: (0, 11))  # not measured there
+    assert xla.use_legacy_emitters() == []
     assert os.environ["XLA_FLAGS"] == ""
     if importlib.import_module("importlib.metadata").version("jaxlib").startswith("0.10."):
-        env = dict(os.environ, XLA_FLAGS=f"{cli._FUSION_FLAG}=false", JAX_PLATFORMS="cpu")
+        env = dict(os.environ, XLA_FLAGS=f"{xla.FUSION_FLAG}=false", JAX_PLATFORMS="cpu")
         run = subprocess.run([sys.executable, "-c", "import jax.numpy as j; print(j.ones(2).sum())"],
                              env=env, capture_output=True, text=True, timeout=120)
         assert run.returncode == 0 and "2.0" in run.stdout, run.stderr[-500:]
@@ -158,7 +167,7 @@ def test_compile_bound_sweeps_take_xla_legacy_emitters(monkeypatch):
 
 def test_sweep_programs_reach_the_persistent_compilation_cache(tmp_path):
     """The command line's sweep program has no host callback (equinox's checks as NaN,
-    gearjax.cli.main._use_cacheable_checks), so JAX stores it in the persistent cache and
+    gearjax.runtime.use_cacheable_checks), so JAX stores it in the persistent cache and
     a second run loads it instead of compiling (README main job: 29 -> 18 s). With
     ``EQX_ON_ERROR=raise`` (equinox's default) nothing of it is stored."""
     import subprocess
@@ -187,35 +196,42 @@ def test_one_cpu_device_per_core_unless_told(monkeypatch):
     import importlib
 
     cli = importlib.import_module("gearjax.cli.main")  # the package exports main()
+    xla = importlib.import_module("gearjax.runtime.xla")
+    parse = cli._parser().parse_args
+    workarounds = " ".join(xla.CPU_WORKAROUND_FLAGS)
 
     monkeypatch.delenv("GEARJAX_HOST_DEVICES", raising=False)
+    monkeypatch.delenv("GEARJAX_XLA_DEFAULTS", raising=False)
+    monkeypatch.setenv("GEARJAX_COMPILATION_CACHE", "0")  # the flags alone
     monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_foo=1")
     cores = len(os.sched_getaffinity(0))
-    assert cli.host_device_count() == cores
-    cli._use_host_devices("optimise")  # no sweep to shard: XLA's own device count
-    assert os.environ["XLA_FLAGS"] == "--xla_cpu_foo=1"
-    cli._use_host_devices("sweep")
-    expected = "--xla_cpu_foo=1" + (f" --xla_force_host_platform_device_count={cores}"
-                                    if cores > 1 else "")
+    assert xla.host_device_count() == cores
+    cli.configure_process(parse(["optimise"]), own_process=False)  # no sweep to shard
+    assert os.environ["XLA_FLAGS"] == f"--xla_cpu_foo=1 {workarounds}"
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_foo=1")
+    cli.configure_process(parse(["sweep"]), own_process=False)
+    expected = f"--xla_cpu_foo=1 {workarounds}" + (
+        f" --xla_force_host_platform_device_count={cores}" if cores > 1 else "")
     assert os.environ["XLA_FLAGS"] == expected
     monkeypatch.setenv("GEARJAX_HOST_DEVICES", "3")
-    monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=5")
-    assert cli.host_device_count() == 3
-    cli._use_host_devices("paper")  # an explicit count stays
-    assert os.environ["XLA_FLAGS"] == "--xla_force_host_platform_device_count=5"
-    monkeypatch.setenv("XLA_FLAGS", "")
-    cli._use_host_devices("sweep")
-    assert os.environ["XLA_FLAGS"] == "--xla_force_host_platform_device_count=3"
+    monkeypatch.setenv("XLA_FLAGS", f"--xla_force_host_platform_device_count=5 {workarounds}")
+    assert xla.host_device_count() == 3
+    cli.configure_process(parse(["paper"]), own_process=False)  # an explicit count stays
+    assert os.environ["XLA_FLAGS"] == f"--xla_force_host_platform_device_count=5 {workarounds}"
+    monkeypatch.setenv("XLA_FLAGS", workarounds)
+    cli.configure_process(parse(["sweep"]), own_process=False)
+    assert os.environ["XLA_FLAGS"] == f"{workarounds} --xla_force_host_platform_device_count=3"
     for bad in ("two", "0", "-1"):  # a clear error naming the variable, not a silent 1
         monkeypatch.setenv("GEARJAX_HOST_DEVICES", bad)
         with pytest.raises(ValueError, match="GEARJAX_HOST_DEVICES"):
-            cli.host_device_count()
+            xla.host_device_count()
+        assert main(["sweep", "--speeds", "100:200:2"]) == 2  # one line, exit 2
     # a jaxlib whose XLA:CPU crashed compiling the sharded 3D sweep: one device unless asked
-    monkeypatch.setattr(cli, "jaxlib_minor", lambda: (0, 11))
+    monkeypatch.setattr(xla, "jaxlib_minor", lambda: (0, 11))
     monkeypatch.delenv("GEARJAX_HOST_DEVICES")
-    assert cli.host_device_count() == 1
+    assert xla.host_device_count() == 1
     monkeypatch.setenv("GEARJAX_HOST_DEVICES", "4")
-    assert cli.host_device_count() == 4
+    assert xla.host_device_count() == 4
 
 
 def test_compile_ahead_only_where_a_linear_3d_sweep_follows_the_reference(monkeypatch):

@@ -1,4 +1,4 @@
-"""Release of compiled code before the kernel's memory-map cap (gearjax.dynamics.code_memory).
+"""Release of compiled code before the kernel's memory-map cap (gearjax.runtime.code_memory).
 
 The crash itself (a compile at ``vm.max_map_count`` segfaults in jaxlib 0.10.2) needs a
 lowered sysctl to reproduce in reasonable time, i.e. root; these tests check what the
@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gearjax.dynamics import code_memory
+from gearjax.runtime import code_memory
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="counts /proc/self/maps")
 
@@ -54,10 +54,12 @@ def test_release_gives_the_maps_back_and_functions_still_work():
 def test_optimise_releases_between_iterations(monkeypatch):
     """An optimisation whose objective compiles a new program at every evaluation (as a
     dynamic objective does after each structure change, when it rebuilds its model) stays
-    below the cap: :func:`gearjax.design.optimise` releases before every evaluation, not
+    below the cap: :func:`gearjax.design.optimise` given the command line's meter
+    (:class:`gearjax.runtime.HostProgressMeter`) releases before every evaluation, not
     only before its first (the slow CLI optimise test's worker crashed at the cap)."""
     from gearjax.design import ReliefSpace, optimise
     from gearjax.design.objectives import Evaluation
+    from gearjax.runtime import HostProgressMeter
 
     class Recompiling:
         space = ReliefSpace()
@@ -79,7 +81,8 @@ def test_optimise_releases_between_iterations(monkeypatch):
     monkeypatch.setattr(code_memory, "max_map_count", lambda: cap)
     seen = []
     res = optimise(Recompiling(), x0, max_iter=20, patience=10**6, step_tol=0.0,
-                   callback=lambda h: seen.append(code_memory.map_count()))
+                   callback=lambda h: seen.append(code_memory.map_count()),
+                   progress=HostProgressMeter())  # the command line's meter
     assert res.iterations == 20 and len(Recompiling.programs) == 3 + 21
     # measured ~15 maps per evaluation (the program and its gradient's), i.e. ~start + 310
     # at the end without the releases; with them the count never passes the threshold by

@@ -143,7 +143,7 @@ def test_section_631_sdof_no_tension_and_te_close_to_reference(spur):
     peaks = {}
     for f in ("reference", "te", "perturbation"):
         m = TorsionalModel.build(spur, table1_relief("short"), formulation=f, damping_ratio=0.03)
-        res = sweep(m, speeds, progress=False)
+        res = sweep(m, speeds)
         f_s = float(m.static_force_N)
         assert np.all(np.asarray(res.solver_ok)), f
         assert np.min(res.min_mesh_force_N) >= -1e-6 * f_s, f

@@ -105,7 +105,7 @@ def test_one_orbit_far_from_resonance_agrees_with_the_sweep(model):
     speeds = np.array([300.0, 340.0])
     up = continuation_sweep(model, speeds, "up")
     down = continuation_sweep(model, speeds, "down")
-    ref = sweep(model, speeds, progress=False)
+    ref = sweep(model, speeds)
     # same orbit (to the Newton tolerance 1e-10), metrics measured by simulate at rtol 1e-7
     np.testing.assert_allclose(up.max_mesh_force_N, down.max_mesh_force_N, rtol=1e-6)
     # the transient's own accuracy (rtol 1e-7, decay 1e-6 of the transient)

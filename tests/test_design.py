@@ -245,11 +245,11 @@ def test_sweeps_refuse_a_model_mapped_to_another_structure(mesh_iso):
     m0 = _build(mesh_iso, 13.3e-6, 0.2)
     m1 = m0.with_modifications(ToothModifications.tip_relief(13.3e-6, 0.21))
     assert not bool(m1.structure_ok) and bool(m0.structure_ok)
-    for run in (lambda m: sweep(m, [700.0], progress=False),
-                lambda m: sweep(m, [700.0], method="harmonic", progress=False),
-                lambda m: steady_sweep(m, [700.0], progress=False),
+    for run in (lambda m: sweep(m, [700.0]),
+                lambda m: sweep(m, [700.0], method="harmonic"),
+                lambda m: steady_sweep(m, [700.0]),
                 lambda m: harmonic_sweep(m, [700.0]),
-                lambda m: continuation_sweep(m, [700.0, 710.0], progress=False)):
+                lambda m: continuation_sweep(m, [700.0, 710.0])):
         with pytest.raises(ModelError, match="switching events"):
             run(m1)
 
@@ -586,7 +586,7 @@ def test_dynamic_optimum_beats_table1(mesh_iso):
     peak = {}
     designs = {"short": (13.3e-6, 0.2), "long": (13.3e-6, 0.5), **starts, "opt": tuple(best.x)}
     for name, x in designs.items():
-        res = sweep(_build(mesh_iso, *x, formulation="perturbation"), dense, progress=False)
+        res = sweep(_build(mesh_iso, *x, formulation="perturbation"), dense)
         peak[name] = float(np.max(res.dynamic_factor))
     assert peak["opt"] < peak["short"] and peak["opt"] < peak["long"], peak
     # start0 alone already beats both Table 1 reliefs and multi_start returns the best
@@ -711,7 +711,7 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
         shoot = DynamicObjective(mesh, ReliefSpace(), [300.0], model="3d", rig=RIG,
                                  method="steady", rtol=r)
         with pytest.raises(KeyboardInterrupt):
-            sweep(built, [300.0], method="steady", progress=False, **tolerance_options(r))
+            sweep(built, [300.0], method="steady", **tolerance_options(r))
         assert {k: v for k, v in seen.items() if k not in ("chunk_size", "progress",
                 "continuation_kwargs")} == shoot.sim_kwargs
         assert shoot.sim_kwargs.get("rtol") == shoot_rtol

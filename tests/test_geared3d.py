@@ -420,7 +420,7 @@ def test_pinion_eccentricity_terms(torsional_setup):
 def test_sweep_vmaps_the_3d_model(rig_te):
     from gearjax.dynamics.sweep import sweep
 
-    r = sweep(rig_te, np.array([250.0, 500.0]), progress=False, n_transient_periods=10,
+    r = sweep(rig_te, np.array([250.0, 500.0]), n_transient_periods=10,
               n_measured_periods=2)
     assert np.all(r.solver_ok) and np.all(np.isfinite(r.accel_ptp_m_s2))
     one = simulate(rig_te, 500.0, n_transient_periods=10, n_measured_periods=2)
@@ -645,7 +645,7 @@ def test_perturbation_runs_in_the_te_program(rig_te, monkeypatch):
                                         - rig_te.vector_field(s, y, 500.0)))) > 1e-6
     counted = eqx.debug.assert_max_traces(_simulate, max_traces=1)
     monkeypatch.setattr(sweep_mod, "simulate", counted)
-    kw = dict(n_transient_periods=1, n_measured_periods=2, progress=False)
+    kw = dict(n_transient_periods=1, n_measured_periods=2)
     a = sweep_mod.sweep(rig_te, [300.0], **kw)
     b = sweep_mod.sweep(pert, [300.0], **kw)
     assert b.formulation == "perturbation" and a.dynamic_factor[0] != b.dynamic_factor[0]

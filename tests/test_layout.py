@@ -18,7 +18,10 @@ PKG = Path(__file__).resolve().parents[1] / "gearjax"
 # layers from the top of the data flow down to the command line; a module may import its
 # own layer and the layers before it, never a later one
 LAYERS = ("errors", "linalg", "gears", "structure", "excitation", "models", "dynamics", "rigs",
-          "design", "plotting", "cli")
+          "design", "runtime", "plotting", "cli")
+# the layers that may act on the host process (print, read the environment, start threads,
+# clear JAX's caches, set another package's state); the physics below them never does
+HOST_LAYERS = ("runtime", "plotting", "cli")
 MAX_LINES = 700
 
 
@@ -148,3 +151,68 @@ def test_no_monolith():
     long = {m: len(p.read_text().splitlines()) for m, p in _modules().items()}
     long = {m: n for m, n in long.items() if n > MAX_LINES}
     assert not long, f"modules over {MAX_LINES} lines (split by concept): {long}"
+
+
+# what acts on the process: printing, the environment, threads, JAX's caches, another
+# package's private state, ending the process
+_SIDE_EFFECTS = {
+    "print": lambda n: isinstance(n, ast.Call) and isinstance(n.func, ast.Name)
+    and n.func.id == "print",
+    "os.environ / os.getenv": lambda n: isinstance(n, ast.Attribute) and n.attr in (
+        "environ", "getenv", "putenv") and ast.unparse(n.value) == "os",
+    "threading": lambda n: isinstance(n, (ast.Import, ast.ImportFrom)) and any(
+        a.name.split(".")[0] == "threading" for a in n.names) or (
+        isinstance(n, ast.ImportFrom) and (n.module or "").split(".")[0] == "threading"),
+    "clear_caches": lambda n: isinstance(n, ast.Attribute) and n.attr == "clear_caches",
+    "equinox._errors": lambda n: isinstance(n, ast.ImportFrom) and (
+        n.module == "equinox._errors" or (n.module == "equinox"
+                                          and any(a.name == "_errors" for a in n.names))),
+    "os._exit / sys.exit": lambda n: isinstance(n, ast.Attribute) and ast.unparse(n) in (
+        "os._exit", "sys.exit"),
+}
+
+
+def test_library_has_no_side_effects():
+    """Below the host layers (:data:`HOST_LAYERS`) no module prints, reads or writes the
+    environment, starts threads, clears JAX's caches, touches equinox's private state or
+    ends the process (issue 47): those belong to :mod:`gearjax.runtime` and the command
+    line; the library reports progress through the meter it is given."""
+    bad = []
+    for mod, path in _modules().items():
+        parts = mod.split(".")
+        if len(parts) > 1 and parts[1] in HOST_LAYERS:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            for what, hit in _SIDE_EFFECTS.items():
+                if hit(node):
+                    bad.append(f"{mod}:{node.lineno} {what}")
+    assert not bad, "side effects below the host layers:\n" + "\n".join(sorted(set(bad)))
+
+
+def test_the_side_effect_check_sees_them():
+    """The check above finds each kind it names (it could otherwise pass on nothing)."""
+    src = ("import os, sys, threading\nfrom equinox import _errors\nprint(1)\n"
+           "os.environ.get('X')\njax.clear_caches()\nos._exit(3)\n")
+    found = {what for node in ast.walk(ast.parse(src))
+             for what, hit in _SIDE_EFFECTS.items() if hit(node)}
+    assert found == set(_SIDE_EFFECTS)
+
+
+def test_importing_gearjax_leaves_the_process_alone():
+    """``import gearjax`` changes no environment variable (XLA_FLAGS included) and starts
+    no thread: the host layer acts only when called (:func:`gearjax.runtime.configure`)."""
+    import subprocess
+    import sys
+
+    code = ("import os, threading; env = dict(os.environ); n = threading.active_count(); "
+            "import gearjax; assert dict(os.environ) == env, "
+            "{k for k in set(env) | set(os.environ) if env.get(k) != os.environ.get(k)}; "
+            "assert threading.active_count() == n; "
+            "import jax; assert jax.config.jax_enable_x64")
+    for flags in (None, "", "--xla_cpu_foo=1"):
+        env = {k: v for k, v in __import__("os").environ.items() if k != "XLA_FLAGS"}
+        if flags is not None:
+            env["XLA_FLAGS"] = flags
+        run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                             text=True, timeout=120)
+        assert run.returncode == 0, run.stderr[-1500:]

@@ -108,7 +108,7 @@ def test_peak_mesh_force_is_exact_at_every_speed(square_wave):
     model, pair, k1, k2 = square_wave
     f_s = static_mesh_force(pair, TORQUE)
     speeds = np.array([100.0, 226.0, 353.0, 600.0, 800.0, 1200.0])
-    res = steady_sweep(model, speeds, progress=False)
+    res = steady_sweep(model, speeds)
     inert = tuple(np.asarray(model.inertias_kg_m2))
     for i, w in enumerate(speeds):
         f_max, f_min = exact_force_extrema(pair, k1, k2, inert, w, f_s)
@@ -169,7 +169,7 @@ def test_rtol_option_tightens_the_transient_to_the_closed_form(square_wave):
     speeds = np.array([226.0, 600.0])
     opts = tolerance_options(1e-10)
     assert opts["convergence_tol"] == pytest.approx(1e-5)
-    res = sweep(model, speeds, progress=False, method="transient", **opts)
+    res = sweep(model, speeds, method="transient", **opts)
     assert np.all(res.converged) and np.all(np.asarray(res.convergence) <= 1e-5)
     inert = tuple(np.asarray(model.inertias_kg_m2))
     for i, w in enumerate(speeds):

@@ -118,7 +118,7 @@ def test_sdof_perturbation_orders_against_closed_form_receptance():
                                  formulation="perturbation", damping_ratio=0.1)
     assert model.nlte_terms
     speeds = np.array([300.0, 397.0])
-    res = sweep(model, speeds, progress=False)
+    res = sweep(model, speeds)
     assert np.all(res.converged) and res.dte_orders_m.shape == (2, 5)
     for i, omega in enumerate(speeds):
         dte, force, f_min, k_m = _closed_form_orders(model, omega, 0.1)
@@ -160,7 +160,7 @@ def test_pure_sine_te_file_orders_against_closed_form_receptance():
     stiff = k0 * cb**2
     c = 2 * 0.1 * math.sqrt(stiff * m_eq)
     speeds = np.array([300.0, 0.9 * math.sqrt(stiff / m_eq) / z1])
-    res = sweep(model, speeds, progress=False)
+    res = sweep(model, speeds)
     assert np.all(res.converged) and not np.any(res.contact_loss)
     for i, omega in enumerate(speeds):
         w = z1 * omega

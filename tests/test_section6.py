@@ -62,7 +62,7 @@ def test_claim_5_encoder_positions_do_not_change_forces():
     for enc in (1, 2, 3):
         m = build_model(rig, mods, model="3d", formulation="te", damping_ratio=0.1,
                         encoder_position=enc, max_frequency_hz=6000.0)
-        res[enc] = sweep(m, np.array([840.0]), progress=False)  # near the critical speed
+        res[enc] = sweep(m, np.array([840.0]))  # near the critical speed
         w_x0[enc] = float(m.w_x0)
     assert auto_method(m) == "transient"  # what `gearjax sweep` picks for the 3D te model
     # position 3 (coupling hubs) sees a different static twist; 2 (free ends) the same as 1
@@ -80,7 +80,7 @@ def test_critical_speed_peak_at_mode_prediction():
     m = build_model(rig, rig.modifications("short"), model="3d", formulation="te",
                     damping_ratio=0.1, max_frequency_hz=6000.0)
     speeds = np.linspace(700.0, 1000.0, 16)
-    r = sweep(m, speeds, progress=False)
+    r = sweep(m, speeds)
     peak = speeds[int(np.argmax(r.dynamic_factor))]
     pred = predicted_critical_speeds(m)["critical_speed_rad_s"]
     assert abs(peak - pred) / pred < 0.04

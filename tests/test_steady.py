@@ -109,7 +109,7 @@ def test_monodromy_matches_stability_and_unstable_is_flagged(te_model):
     report it: it continues that speed by a transient, which grows until the teeth
     separate and the contact law bounds it (contact_loss, min force exactly 0)."""
     speeds = np.array([300.0, 1000.0, 1500.0])  # (380, 753: the teeth separate)
-    st = steady_sweep(te_model, speeds, progress=False)
+    st = steady_sweep(te_model, speeds)
     rho_ref = spectral_radius(te_model, speeds)
     np.testing.assert_allclose(st.spectral_radius, rho_ref, rtol=1e-6)
     assert rho_ref[-1] > 1.0 and np.all(rho_ref[:2] < 1.0)
@@ -125,7 +125,7 @@ def _agrees_with_long_transient(model, speeds, n_transient):
     long = eqx.filter_jit(eqx.filter_vmap(
         lambda m, w: simulate(m, w, n_transient_periods=n_transient, n_measured_periods=2,
                               rtol=1e-10, atol=1e-12), in_axes=(None, 0)))(model, jnp.asarray(speeds))
-    st = steady_sweep(model, speeds, progress=False, measure_rtol=1e-10, measure_atol=1e-12)
+    st = steady_sweep(model, speeds, measure_rtol=1e-10, measure_atol=1e-12)
     assert isinstance(st, SweepResult)
     cl = np.asarray(long.contact_loss)
     for name in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m"):
@@ -181,7 +181,7 @@ def test_helical_te_agrees_with_long_transient(helical):
     rho = math.exp(-0.03 * w_n * model.period_rad / w)
     n = 120
     assert rho**n < 1e-9
-    st = steady_sweep(model, [w], progress=False, measure_rtol=1e-10, measure_atol=1e-12)
+    st = steady_sweep(model, [w], measure_rtol=1e-10, measure_atol=1e-12)
     assert st.spectral_radius[0] == pytest.approx(rho, rel=1e-8)
     long = eqx.filter_jit(lambda m, w: simulate(m, w, n_transient_periods=n,
                                                 n_measured_periods=2, rtol=1e-10,
@@ -239,7 +239,7 @@ def test_newton_into_free_flight_stops_at_once(te_model, monkeypatch):
     calm = run(jnp.full(speeds.size, speeds[0]))  # the same program, no lane in free flight
     assert np.all(np.asarray(calm.ok))
     np.testing.assert_allclose(ps.y0[0], calm.y0[0], rtol=1e-9, atol=1e-12)
-    st = steady_sweep(te_model, speeds, progress=False)
+    st = steady_sweep(te_model, speeds)
     np.testing.assert_array_equal(st.continued, [False, True, True])
     np.testing.assert_array_equal(st.contact_loss, [False, True, True])
     assert np.all(st.converged) and np.all(st.min_mesh_force_N[1:] == 0.0)
@@ -248,9 +248,9 @@ def test_newton_into_free_flight_stops_at_once(te_model, monkeypatch):
 def test_clear_errors(te_model):
     model = te_model
     with pytest.raises(SimulationError):
-        steady_sweep(model, [], progress=False)
+        steady_sweep(model, [])
     with pytest.raises(SimulationError):
-        steady_sweep(model, [-1.0], progress=False)
+        steady_sweep(model, [-1.0])
     with pytest.raises(SimulationError):
         steady_state(model, 300.0, n_measured_periods=1)
 
@@ -286,7 +286,7 @@ def test_3d_te_agrees_with_long_transient(helical, n_transient):
                                                   n_measured_periods=2, rtol=1e-10,
                                                   atol=1e-12))
     long = run(model, jnp.asarray(w), n_transient)
-    st = steady_sweep(model, [w], progress=False, measure_rtol=1e-10, measure_atol=1e-12)
+    st = steady_sweep(model, [w], measure_rtol=1e-10, measure_atol=1e-12)
     assert st.converged[0] and bool(long.solver_ok) and st.spectral_radius[0] < 1
     # the Floquet radius is the decay of the slowest mode over one period
     assert abs(st.spectral_radius[0] / math.exp(-zeta * w_min * t_period) - 1) < 1e-3

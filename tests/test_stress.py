@@ -59,7 +59,7 @@ def test_speeds_from_quasi_static_to_three_times_critical(spur):
     model = _model(spur)
     w_c = float(model.natural_frequency_rad_s()) / spur.pair.z1
     speeds = np.array([1.0, 10.0, 0.5 * w_c, w_c, 2.0 * w_c, 3.0 * w_c])
-    st = steady_sweep(model, speeds, progress=False)
+    st = steady_sweep(model, speeds)
     _no_silent_nan(st)
     assert np.all(st.solver_ok)
     # the kinks of TE_S make the quasi-static error O(Omega / omega_n) (velocity jumps
@@ -83,7 +83,7 @@ def test_quasi_static_speed_by_transient_agrees_with_shooting(spur):
     res = eqx.filter_jit(lambda m, w: simulate(m, w, max_steps=20_000))(model, jnp.asarray(1.0))
     _no_silent_nan(jax.tree.map(lambda a: np.asarray(a)[None], res))
     assert bool(res.solver_ok) and bool(res.converged)
-    st = steady_sweep(model, np.array([1.0]), progress=False)
+    st = steady_sweep(model, np.array([1.0]))
     assert bool(st.converged[0])
     assert float(res.dynamic_factor) - 1 > 100 * 1e-6  # the bound below is not vacuous
     # measured difference 2.2e-10 (DF 1.000399824); bound: rtol 1e-7 of the state (x /
@@ -138,8 +138,8 @@ def test_very_light_and_very_heavy_discs(spur, scale):
     model = _model(spur, scale_inertia=scale)
     w_c = float(model.natural_frequency_rad_s()) / spur.pair.z1
     speeds = np.array([0.05 * w_c, 0.2 * w_c]) if scale < 1 else np.array([5 * w_c, 20 * w_c])
-    st = steady_sweep(model, speeds, progress=False)
-    tr = sweep(model, speeds, progress=False, n_transient_periods=None)
+    st = steady_sweep(model, speeds)
+    tr = sweep(model, speeds, n_transient_periods=None)
     _no_silent_nan(st)
     _no_silent_nan(tr)
     assert np.all(st.converged) and not np.any(st.contact_loss)
@@ -154,7 +154,7 @@ def test_very_light_and_very_heavy_discs(spur, scale):
         # the shooting's 1.5215) ...
         np.testing.assert_array_equal(tr.converged, [True, False])
         # ... and converged with the cap raised above 1466 periods
-        long = sweep(model, speeds[1:], progress=False, max_transient_mesh_periods=2000)
+        long = sweep(model, speeds[1:], max_transient_mesh_periods=2000)
         assert long.converged[0]
         df_tr[1] = long.dynamic_factor[0]
         # the limit: measured DF 1.520611 (limit), 1.534925 and 1.521477 (shooting at 5 and
@@ -184,8 +184,8 @@ def test_contact_loss_is_flagged_and_continued(spur):
     model = _model(spur, "reference", torque=25.0, mods=table1_relief("long"))
     w_c = float(model.natural_frequency_rad_s()) / spur.pair.z1
     speeds = np.array([0.95 * w_c])
-    st = steady_sweep(model, speeds, progress=False)
-    tr = sweep(model, speeds, progress=False)
+    st = steady_sweep(model, speeds)
+    tr = sweep(model, speeds)
     _no_silent_nan(st)
     assert st.contact_loss[0] and tr.contact_loss[0] and st.continued[0]
     assert st.min_mesh_force_N[0] == 0.0  # total separation: no negative contact force
@@ -240,7 +240,7 @@ def test_extreme_tip_reliefs(spur):
 
     mods = ToothModifications.tip_relief(1e-3, (0.6, 1.0))
     for form in ("te", "reference"):
-        st = steady_sweep(_model(spur, form, mods=mods), [200.0, 700.0], progress=False)
+        st = steady_sweep(_model(spur, form, mods=mods), [200.0, 700.0])
         _no_silent_nan(st)
         assert np.all(st.solver_ok) and np.all(st.contact_loss)
         if form == "reference":
@@ -304,7 +304,7 @@ def test_energy_drift_over_10000_mesh_periods():
     # undamped: the transient result is not a steady state, and says so
     res = eqx.filter_jit(lambda m, w: simulate(m, w))(osc, w)
     assert bool(res.solver_ok) and not bool(res.converged)
-    st = steady_sweep(osc, [float(w)], progress=False)
+    st = steady_sweep(osc, [float(w)])
     assert st.spectral_radius[0] == pytest.approx(1.0, abs=1e-6) and not st.converged[0]
 
 
@@ -324,8 +324,8 @@ def test_float32_is_refused_at_once():
     model = _model(Mesh.build(baud_velex_pair(False)))
     calls = {
         "simulate": lambda: simulate(model, 400.0),
-        "sweep": lambda: sweep(model, [400.0], progress=False),
-        "steady_sweep": lambda: steady_sweep(model, [400.0], progress=False),
+        "sweep": lambda: sweep(model, [400.0]),
+        "steady_sweep": lambda: steady_sweep(model, [400.0]),
         "continuation_sweep": lambda: continuation_sweep(model, [400.0, 410.0]),
         "harmonic_sweep": lambda: harmonic_sweep(model, [400.0]),
         "spectral_radius": lambda: spectral_radius(model, [400.0]),
@@ -375,8 +375,8 @@ def test_very_stiff_and_soft_bearings_3d(k_bearing):
                                    damping_ratio=0.1, max_frequency_hz=6000.0)
     assert np.all(np.isfinite(np.asarray(model.omega_r)))
     speeds = np.array([300.0, 900.0])
-    st = steady_sweep(model, speeds, progress=False)
-    tr = sweep(model, speeds, progress=False)
+    st = steady_sweep(model, speeds)
+    tr = sweep(model, speeds)
     _no_silent_nan(st)
     _no_silent_nan(tr)
     both = st.converged & tr.converged
@@ -430,7 +430,7 @@ def test_stiff_bearings_converge_to_rigid_limit_3d():
     def steady(rig, **kw):
         model = build_model(rig, rig.modifications("short"), formulation="te",
                                        damping_ratio=0.1, max_frequency_hz=6000.0, **kw)
-        st = steady_sweep(model, [900.0], progress=False)
+        st = steady_sweep(model, [900.0])
         _no_silent_nan(st)
         assert st.converged[0]
         return st.dynamic_factor[0], st.dte_ptp_m[0]

@@ -24,6 +24,7 @@ from gearjax.dynamics.simulate import SimulationError, simulate
 from gearjax.dynamics.sweep import CSV_COLUMNS, sweep
 from gearjax.dynamics.results import append_rows
 from gearjax.errors import GearjaxError
+from gearjax.runtime import TextProgressMeter
 
 OPTS = dict(n_transient_periods=12, n_measured_periods=2)
 
@@ -39,11 +40,11 @@ def test_repeated_sweeps_trace_once(model, monkeypatch):
     counted = eqx.debug.assert_max_traces(simulate, max_traces=1)
     monkeypatch.setattr(sweep_mod, "simulate", counted)
     a = sweep(model, [900.0, 100.0, 300.0, 500.0, 700.0, 200.0, 400.0], chunk_size=4,
-              progress=False, **OPTS)
-    b = sweep(model, [150.0, 250.0, 350.0], chunk_size=4, progress=False, **OPTS)
+              **OPTS)
+    b = sweep(model, [150.0, 250.0, 350.0], chunk_size=4, **OPTS)
     damped = TorsionalModel.build(model.mesh, model.mods, formulation="perturbation",
                                   damping_ratio=0.08)
-    c = sweep(damped, [150.0, 250.0, 350.0], chunk_size=4, progress=False, **OPTS)
+    c = sweep(damped, [150.0, 250.0, 350.0], chunk_size=4, **OPTS)
     assert eqx.debug.get_num_traces(counted) <= 1
     assert a.speed_rad_s.tolist() == [900.0, 100.0, 300.0, 500.0, 700.0, 200.0, 400.0]
     assert np.all(c.dynamic_factor < b.dynamic_factor)  # more damping, same speeds
@@ -80,7 +81,7 @@ def test_lowered_sweep_program_is_the_one_the_sweep_runs(model, monkeypatch):
         on[0] = True
         lower_sweep(model, speeds, chunk_size=5, **OPTS).compile()
         own, compiles[:] = max(compiles), []
-        res = sweep(model, speeds, chunk_size=5, progress=False, **OPTS)
+        res = sweep(model, speeds, chunk_size=5, **OPTS)
         on[0] = False
     finally:
         on[0] = False
@@ -145,7 +146,7 @@ def test_csv_rows_and_progress(model, tmp_path, capsys):
     out = tmp_path / "sweep.csv"
     speeds = [120.0, 640.0, 330.0, 880.0, 450.0]
     # chunk_size 4 and OPTS as in test_repeated_sweeps_trace_once: the same compiled chunk
-    res = sweep(model, speeds, chunk_size=4, out_csv=out, **OPTS)
+    res = sweep(model, speeds, chunk_size=4, out_csv=out, progress=TextProgressMeter(), **OPTS)
     err = capsys.readouterr().err
     assert "chunk 1/2" in err and "chunk 2/2" in err and "5/5 done" in err
     # the progress line counts the unconverged speeds so far, as it counts those done
@@ -164,7 +165,7 @@ def test_csv_rows_and_progress(model, tmp_path, capsys):
         assert r["contact_loss"] == str(bool(res.contact_loss[i]))
         assert r["converged"] == str(bool(res.converged[i]))
     # a second sweep appends rows (header written once)
-    sweep(model, [500.0], chunk_size=4, out_csv=out, progress=False, **OPTS)
+    sweep(model, [500.0], chunk_size=4, out_csv=out, **OPTS)
     with open(out) as fh:
         lines = fh.read().splitlines()
     assert len(lines) == 1 + 5 + 1 and lines.count(",".join(CSV_COLUMNS)) == 1
@@ -181,13 +182,13 @@ def test_csv_rows_and_progress(model, tmp_path, capsys):
 
 def test_bad_input(model):
     with pytest.raises(SimulationError, match="speeds_rad_s"):
-        sweep(model, [100.0, 0.0], progress=False)
+        sweep(model, [100.0, 0.0])
     with pytest.raises(SimulationError, match="speeds_rad_s"):
-        sweep(model, [], progress=False)
+        sweep(model, [])
     with pytest.raises(SimulationError, match="speeds_rad_s"):
-        sweep(model, [100.0, float("nan")], progress=False)
+        sweep(model, [100.0, float("nan")])
     with pytest.raises(SimulationError, match="chunk_size=0"):
-        sweep(model, [100.0], chunk_size=0, progress=False)
+        sweep(model, [100.0], chunk_size=0)
 
 
 def test_mapped_batch_equals_the_vmapped_one(model, monkeypatch):
@@ -205,7 +206,7 @@ def test_mapped_batch_equals_the_vmapped_one(model, monkeypatch):
     for mapped, fn in ((True, sweep_mod._sequential), (False, sweep_mod._batched)):
         monkeypatch.setattr(sweep_mod, "sequential_on", lambda platform, n, m=mapped: m)
         assert sweep_mod._plan(model, sw, 4, None, OPTS)[0] is fn
-        res[mapped] = sweep(model, speeds, chunk_size=4, progress=False, **OPTS)
+        res[mapped] = sweep(model, speeds, chunk_size=4, **OPTS)
     a, b = res[True], res[False]
     assert a.speed_rad_s.tolist() == b.speed_rad_s.tolist() == speeds
     for f in ("converged", "contact_loss", "solver_ok"):
@@ -231,7 +232,7 @@ _SHARDED = textwrap.dedent(
     m = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
                              formulation="perturbation")
     speeds = [700.0, 90.0, 1200.0, 310.0, 520.0, 860.0, 150.0]
-    kw = dict(n_transient_periods=12, n_measured_periods=2, progress=False)
+    kw = dict(n_transient_periods=12, n_measured_periods=2)
     # the same batch per call on one device as on each of the 4 (chunk 5 -> 8 over 4
     # devices: 2 speeds each); even so the shard_map program rounds differently (see the
     # test's docstring for how far the two agree)
@@ -252,15 +253,17 @@ def test_sharding_over_cpu_devices_warns_on_a_jaxlib_that_crashed_there(monkeypa
     version measured sound, and a single device stay silent."""
     import warnings
 
+    from gearjax.runtime import xla
+
     cpu = jax.devices("cpu")[0]
-    monkeypatch.setattr(sweep_mod, "jaxlib_minor", lambda: (0, 11))
+    monkeypatch.setattr(xla, "jaxlib_minor", lambda: (0, 11))
     with pytest.warns(RuntimeWarning, match="segfaulted"):
-        sweep_mod._warn_sharded_cpu([cpu, cpu])
-    monkeypatch.setattr(sweep_mod, "jaxlib_minor", lambda: (0, 10))
+        xla.warn_sharded_cpu([cpu, cpu])
+    monkeypatch.setattr(xla, "jaxlib_minor", lambda: (0, 10))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        sweep_mod._warn_sharded_cpu([cpu, cpu])
-    assert sweep_mod.jaxlib_minor() >= (0, 4)  # the installed one is read
+        xla.warn_sharded_cpu([cpu, cpu])
+    assert xla.jaxlib_minor() >= (0, 4)  # the installed one is read
 
 
 def test_sharded_equals_unsharded():
@@ -328,7 +331,7 @@ _MULTI_PROCESS = textwrap.dedent(
         # other batch sizes agree only to the solver tolerance (vectorised arithmetic
         # rounds differently and the adaptive steps follow: 4e-9 in the force here)
         ref = sweep(m, [100.0 + 200.0 * i for i in range(7)], devices=jax.local_devices()[:1],
-                    chunk_size=1, progress=False)
+                    chunk_size=1)
         with open(os.path.join(out, "results.csv")) as fh:
             rows = list(csv.DictReader(fh))
         print(json.dumps({"rows": rows, "ref_speed": ref.speed_rad_s.tolist(),
@@ -368,7 +371,7 @@ def test_multi_process_sweep_equals_single_device(tmp_path):
     # and no progress
     gloo = lambda ln: "[Gloo]" in ln or "peer ranks" in ln or not ln.strip()  # noqa: E731
     assert [ln for ln in outs[1][0].splitlines() if not gloo(ln)] == []
-    assert "[gearjax.dynamics.sweep]" not in outs[1][1]
+    assert "[gearjax]" not in outs[1][1]
     data = json.loads(outs[0][0].strip().splitlines()[-1])
     rows = sorted(data["rows"], key=lambda r: float(r["speed_rad_s"]))
     assert [float(r["speed_rad_s"]) for r in rows] == data["ref_speed"]
@@ -393,13 +396,13 @@ def test_3d_slow_mode_transient_is_right_or_flagged():
                                      formulation="te", damping_ratio=0.1,
                                      max_frequency_hz=6000.0)
     speeds = np.array([700.0, 840.0])
-    ref = steady_sweep(model, speeds, progress=False, rtol=1e-10, atol=1e-12)
+    ref = steady_sweep(model, speeds, rtol=1e-10, atol=1e-12)
     assert np.all(ref.converged)
-    auto = sweep(model, speeds, progress=False)
+    auto = sweep(model, speeds)
     assert np.all(auto.converged)
     np.testing.assert_allclose(auto.dynamic_factor, ref.dynamic_factor, rtol=0, atol=1e-4)
     np.testing.assert_allclose(auto.dte_ptp_m, ref.dte_ptp_m, rtol=1e-4)
-    plain = sweep(model, speeds, progress=False, start="initial")
+    plain = sweep(model, speeds, start="initial")
     err = np.abs(plain.dynamic_factor - ref.dynamic_factor)
     assert np.all((err <= 1e-4) | ~plain.converged), (err, plain.convergence)
 
@@ -412,14 +415,14 @@ def test_method_steady_matches_steady_sweep(tmp_path):
                                  formulation="te", damping_ratio=0.03)
     speeds = np.array([500.0, 300.0])
     out = tmp_path / "r.csv"
-    a = sweep(model, speeds, progress=False, method="steady", out_csv=out)
-    b = steady_sweep(model, speeds, progress=False)
+    a = sweep(model, speeds, method="steady", out_csv=out)
+    b = steady_sweep(model, speeds)
     np.testing.assert_array_equal(a.dynamic_factor, b.dynamic_factor)
     np.testing.assert_array_equal(a.mesh_force_orders_N, b.mesh_force_orders_N)
     rows = out.read_text().strip().splitlines()
     assert len(rows) == 3 and rows[0].startswith("speed_rad_s")
     with pytest.raises(SimulationError):
-        sweep(model, speeds, progress=False, method="fast")
+        sweep(model, speeds, method="fast")
 
 
 @pytest.mark.slow  # 35 s; --method harmonic is not the default (the solver itself: test_harmonic)
@@ -438,8 +441,8 @@ def test_method_harmonic_keeps_the_linear_orbit_only_where_it_is_the_models(tmp_
                                  formulation="te", damping_ratio=0.1)
     speeds = np.array([600.0, 850.0])  # the CLI's below: one compilation serves both
     out = tmp_path / "r.csv"
-    h = sweep(model, speeds, progress=False, method="harmonic", out_csv=out)
-    t = sweep(model, speeds, progress=False, method="transient")
+    h = sweep(model, speeds, method="harmonic", out_csv=out)
+    t = sweep(model, speeds, method="transient")
     assert isinstance(h, MethodSweepResult)
     lost = t.contact_loss
     assert lost.any() and not lost.all()  # both branches of the method are exercised
@@ -463,7 +466,7 @@ def test_method_harmonic_keeps_the_linear_orbit_only_where_it_is_the_models(tmp_
     ref = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
                                formulation="reference")
     with pytest.raises(SimulationError, match="formulation"):
-        sweep(ref, speeds, progress=False, method="harmonic")
+        sweep(ref, speeds, method="harmonic")
     assert main(["sweep", "--model", "torsional", "--formulations", "te", "--speeds",
                  "600:850:2", "--method", "harmonic", "--out", str(tmp_path / "cli"),
                  "--json"]) == 0

@@ -261,7 +261,7 @@ def test_3d_pure_sine_te_file_against_the_closed_form_modal_receptance():
     assert not model.nlte_terms and float(model.k_m) == pytest.approx(k0, rel=1e-12)
     assert float(model.c_wv) * k0 * model.cos_bb == pytest.approx(1.0, rel=1e-9)  # Eq. (35)
     speeds = np.array([300.0, 860.0])  # 860 rad/s: the main job's tooth critical speed
-    res = sweep(model, speeds, progress=False)
+    res = sweep(model, speeds)
     assert np.all(res.converged) and not np.any(res.contact_loss)
     for i, omega in enumerate(speeds):
         dte, force = _modal_order1(model, omega, k0, a)

@@ -1,4 +1,4 @@
-"""Stall watchdog (gearjax.dynamics.watchdog, issue 16): a computation without progress
+"""Stall watchdog (gearjax.runtime.watchdog, issue 16): a computation without progress
 ends the process with one clear line and the stall exit code, never a silent hang.
 
 Each case runs in a subprocess (the watchdog ends its process with os._exit) with a
@@ -12,7 +12,7 @@ import sys
 import textwrap
 import time
 
-from gearjax.dynamics.watchdog import STALL_EXIT_CODE
+from gearjax.runtime.watchdog import STALL_EXIT_CODE
 
 
 def _run(code: str, timeout: float = 120.0):
@@ -25,7 +25,7 @@ def _run(code: str, timeout: float = 120.0):
 def test_stall_in_python_ends_with_message_and_hook():
     p, _ = _run("""
         import time
-        from gearjax.dynamics import watchdog
+        from gearjax.runtime import watchdog
         with watchdog.stall_guard(1.0, what="fake sweep"):
             watchdog.add_stall_hook(lambda: "results so far are in out/results.csv")
             watchdog.progress("chunk 1/3")
@@ -46,7 +46,7 @@ def test_stall_inside_xla_execution():
     never returns in time: the watchdog still ends the process promptly."""
     p, wall = _run("""
         import time, jax, jax.numpy as jnp
-        from gearjax.dynamics import watchdog
+        from gearjax.runtime import watchdog
         def slow(x):
             time.sleep(60)
             return x
@@ -62,7 +62,7 @@ def test_stall_inside_xla_execution():
 def test_progress_keeps_it_alive_and_zero_disables():
     p, _ = _run("""
         import time
-        from gearjax.dynamics import watchdog
+        from gearjax.runtime import watchdog
         with watchdog.stall_guard(1.0, what="steady work"):
             for i in range(6):
                 time.sleep(0.4)
@@ -97,7 +97,7 @@ def test_cli_stall_timeout(tmp_path):
 
 _GIL_HANG = """
     import re
-    from gearjax.dynamics import watchdog
+    from gearjax.runtime import watchdog
     with watchdog.stall_guard(1.0, what="GIL-holding hang", backstop={backstop},
                               backstop_grace_s=1.0):
         watchdog.progress("chunk 1/2")
@@ -128,7 +128,7 @@ def test_stall_message_reaches_the_process_stderr_under_capture():
     process (a slow test once ended its pytest worker this way without a word)."""
     p, _ = _run("""
         import io, sys, time
-        from gearjax.dynamics import watchdog
+        from gearjax.runtime import watchdog
         sys.stderr = io.StringIO()
         with watchdog.stall_guard(1.0, what="captured optimise"):
             watchdog.progress("optimiser step 3")

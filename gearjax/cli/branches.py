@@ -65,14 +65,14 @@ def _peak(branch) -> float:
     return float(f.max()) if f.size else float("nan")
 
 
-def run_branches(model, speeds, direction: str, csv_path: str, progress: bool) -> dict:
+def run_branches(model, speeds, direction: str, csv_path: str, progress) -> dict:
     """Run the ``up``/``down`` (or both) continuation sweeps of ``model`` over ``speeds``,
     append their rows to ``csv_path`` (sorted by speed per direction) and return the
     formulation's summary entries: per direction the jumps (:func:`branch_jumps`, threshold
     :data:`JUMP_THRESHOLD`), restarts and unstable orbits found, and for ``both`` the
     hysteresis band (:func:`hysteresis_band`). ``jump_up_rad_s`` / ``jump_down_rad_s``:
     the ``[from, to]`` speed pairs (rad/s, in sweep order) of the jumps to a higher / lower
-    max mesh force, over both sweeps."""
+    max mesh force, over both sweeps. ``progress``: the continuation's meter."""
     dirs = ("up", "down") if direction == "both" else (direction,)
     speeds = np.sort(np.asarray(speeds, dtype=float))
     branches = {d: continuation_sweep(model, speeds, d, progress=progress) for d in dirs}

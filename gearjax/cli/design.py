@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from ..dynamics import watchdog
+from ..runtime import HostProgressMeter, watchdog
 from ..design.objectives import DESIGN_METHODS, DynamicObjective, method_tolerances
 from ..errors import DesignError
 from .scenario import add_nlte_reaction, linspace_option, nlte_reaction_of
@@ -202,9 +202,8 @@ def _cmd_optimise(args) -> int:
 
     at = {"start": 0, "builds": n_builds()}
 
-    def _step(record):  # one optimiser step done: feed the stall watchdog, tell the user
+    def _step(record):  # one optimiser step done: tell the user
         steps.append(time.monotonic())
-        watchdog.progress(f"optimiser step {len(steps) - 1}")
         at["start"] += record["iteration"] == 0
         if args.json:  # stdout is the JSON; progress as sweep gives it: not with --json
             return
@@ -217,7 +216,8 @@ def _cmd_optimise(args) -> int:
               f"{steps[-1] - steps[-2]:.1f} s{rebuilt}", file=sys.stderr, flush=True)
 
     best, runs = multi_start(obj, starts, max_iter=args.max_iter,
-                             learning_rate=args.learning_rate, callback=_step)
+                             learning_rate=args.learning_rate, callback=_step,
+                             progress=HostProgressMeter())  # watchdog, map cap
     # the value a forward sweep of the optimum gives: the objective's model was built at
     # a start and mapped to each design (gearjax.design.DynamicObjective.rebuilt)
     rebuilt = obj.rebuilt(best.x).exact if isinstance(obj, DynamicObjective) else None

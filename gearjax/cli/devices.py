@@ -1,6 +1,6 @@
 """Which devices a command-line sweep runs on: the processes of a ``jax.distributed`` run
 (``--distributed``) and the devices of one process that a transient sweep shares its
-speeds over (:func:`gearjax.cli.main.host_device_count` CPU devices, or several GPUs)."""
+speeds over (:func:`gearjax.runtime.host_device_count` CPU devices, or several GPUs)."""
 
 from __future__ import annotations
 
@@ -10,14 +10,20 @@ __all__ = ["init_distributed", "sweep_devices", "device_count"]
 def sweep_devices(method: str):
     """Devices of one process that a transient sweep shares its speeds over: ``"all"``
     where the default backend has several (the CPU devices of
-    :func:`gearjax.cli.main.host_device_count`, or several GPUs), else None; None for the
-    frequency-domain and steady-state methods (one device). Several processes
+    :func:`gearjax.runtime.host_device_count`, or several GPUs), else None; None for the
+    frequency-domain and steady-state methods (one device); warns where sharding over CPU
+    devices is known to crash (:func:`gearjax.runtime.xla.warn_sharded_cpu`). Several processes
     (``--distributed``) share every device by themselves."""
     import jax
 
+    from ..runtime.xla import warn_sharded_cpu
+
     if method not in ("auto", "transient") or jax.process_count() > 1:
         return None
-    return "all" if jax.device_count() > 1 else None
+    if jax.device_count() == 1:
+        return None
+    warn_sharded_cpu(jax.devices())
+    return "all"
 
 
 def device_count(devices) -> int:

@@ -51,7 +51,8 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
     CUTOFF_MESH_HARMONICS,
     default_max_frequency_hz,
 )
-from ..dynamics import watchdog
+from ..runtime import watchdog
+from ..runtime.progress import command_meter
 from ..models.base import LINEAR_FORMULATIONS
 from ..dynamics.stability import STABILITY_METHODS
 from ..dynamics.sweep import HARMONIC_FLOQUET_MAX_STATES, METHODS, tolerance_options
@@ -398,7 +399,7 @@ def cmd_sweep(args) -> int:
     if done:
         summary["resumed"] = {f: len(v) for f, v in done.items()}
     times, signals, methods, branches = {}, {}, {}, {}
-    if lead:  # a stall (gearjax.dynamics.watchdog) ends the process: say where the rows are
+    if lead:  # a stall (gearjax.runtime.watchdog) ends the process: say where the rows are
         watchdog.add_stall_hook(lambda: f"the speeds finished so far are in {csv_path}; continue "
                                         "with the same command and --resume")
     t_all = time.perf_counter()
@@ -454,11 +455,11 @@ def cmd_sweep(args) -> int:
             t0 = time.perf_counter()
             if todo.size and args.direction != "independent":
                 branches[form] = run_branches(model, todo, args.direction, csv_path,
-                                              progress=not args.json)
+                                              progress=command_meter(not args.json))
             elif todo.size:
                 # default: sweep's (CPU: 16-64 speeds per device; accelerators: memory)
                 ahead.join(mine=form == "reference", linear=form in LINEAR_FORMULATIONS)
-                res = sweep(model, todo, progress=not args.json, out_csv=csv_path,
+                res = sweep(model, todo, progress=command_meter(not args.json), out_csv=csv_path,
                             method=args.method, orders_csv=orders_path, **sweep_options(model))
                 methods[form] = method_counts(res, args.method)
             times[form] = (t_build, time.perf_counter() - t0 + traced)

@@ -23,9 +23,7 @@ import sys
 
 import numpy as np
 
-from ..dynamics.sweep import SHARDED_CPU_JAXLIB, jaxlib_minor
-
-__all__ = ["main", "use_legacy_emitters"]
+__all__ = ["main", "compile_bound", "configure_process"]
 
 
 def _stiffness_laws():
@@ -79,7 +77,7 @@ def _parser() -> argparse.ArgumentParser:
     qs.add_argument("--plot", metavar="FILE", help="write a PNG of TE_S, NLTE and load sharing")
     for name in _EXTENSIONS:
         importlib.import_module(name).register(sub, _add_rig, _add_scenario)
-    for name, default in _STALL_TIMEOUTS.items():
+    for name, default in _stall_timeouts().items():
         if name in sub.choices:
             what = ("one vmapped call: default 0 (off); a value is a time limit"
                     if name in ("stability", "harris-map")
@@ -92,13 +90,21 @@ def _parser() -> argparse.ArgumentParser:
     return ap
 
 
-# Default --stall-timeout (s) of the long commands (gearjax.dynamics.watchdog): sweep and
+# Default --stall-timeout (s) of the long commands (gearjax.runtime.watchdog): sweep and
 # optimise report progress per chunk / step; stability and harris-map are one vmapped call
 # each, whose length depends on the model and grid, so their watchdog is opt-in.
-# GEARJAX_STALL_TIMEOUT (seconds) replaces the 600 s default (e.g. 0 in a test suite that
-# calls main() in-process, which a stall would end).
-_WATCHED_S = float(os.environ.get("GEARJAX_STALL_TIMEOUT", "600") or 0)
-_STALL_TIMEOUTS = {"sweep": _WATCHED_S, "optimise": _WATCHED_S, "stability": 0.0, "harris-map": 0.0}
+# GEARJAX_STALL_TIMEOUT (seconds) replaces DEFAULT_STALL_TIMEOUT_S (e.g. 0 in a test suite
+# that calls main() in-process, which a stall would end); read when the parser is built.
+def _stall_timeouts() -> dict[str, float]:
+    from ..runtime.watchdog import DEFAULT_STALL_TIMEOUT_S
+
+    setting = os.environ.get("GEARJAX_STALL_TIMEOUT", str(DEFAULT_STALL_TIMEOUT_S))
+    try:
+        watched = float(setting or 0)
+    except ValueError:
+        raise ValueError(f"GEARJAX_STALL_TIMEOUT={setting!r}: must be a number of seconds "
+                         "(0 disables the stall watchdog)") from None
+    return {"sweep": watched, "optimise": watched, "stability": 0.0, "harris-map": 0.0}
 
 
 # Modules adding sub-commands: each defines ``register(subparsers, add_rig, add_scenario)``
@@ -292,120 +298,24 @@ def _check_positions_memory(positions: int, n_periods: int) -> None:
                            f"use at most {int(limit // (n_periods * _BYTES_PER_POSITION))}")
 
 
-def compilation_cache_dir() -> str | None:
-    """Folder of JAX's persistent compilation cache for the command line: ``$JAX_COMPILATION_
-    CACHE_DIR`` when set (JAX reads it itself), else ``$XDG_CACHE_HOME/gearjax/jax``
-    (default ``~/.cache/gearjax/jax``); None with ``GEARJAX_COMPILATION_CACHE=0``. A second
-    run loads the sweep programs, whose equinox checks :func:`_use_cacheable_checks` keeps
-    free of host callbacks (main job 29 -> 18 s; the model builds' programs compile in
-    under a second with the legacy emitters of :func:`compile_bound` and are not
-    stored)."""
-    if os.environ.get("GEARJAX_COMPILATION_CACHE", "1") in ("0", "false", "False"):
-        return None
-    if os.environ.get("JAX_COMPILATION_CACHE_DIR"):
-        return os.environ["JAX_COMPILATION_CACHE_DIR"]
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(base, "gearjax", "jax")
-
-
-def _use_cacheable_checks() -> None:
-    """equinox's runtime checks as NaN instead of a host callback, as ``EQX_ON_ERROR=nan``
-    would (equinox reads that at its import, before the command line runs; a caller's own
-    ``EQX_ON_ERROR`` stays): diffrax checks its ``SaveAt`` times with ``equinox.error_if``
-    in every simulate program, and JAX does not store executables with host callbacks in
-    the persistent compilation cache. The README main job's second run: 29 -> 18 s
-    (measured 2026-11-24). gearjax builds those times itself; a NaN from any such check
-    fails the finite checks of every metric (``solver_ok`` False), as in the tests
-    (``tests/conftest.py`` sets the variable)."""
-    if "EQX_ON_ERROR" in os.environ:
-        return
-    from equinox import _errors  # the module global error_if reads at every call
-
-    _errors.EQX_ON_ERROR = "nan"
-
-
-def _use_compilation_cache(own_process: bool) -> None:
-    """JAX's persistent compilation cache in :func:`compilation_cache_dir`; for the
-    ``gearjax`` process itself (``own_process``) also :func:`_use_cacheable_checks`, which
-    would change equinox's checks for the rest of a caller's process."""
-    path = compilation_cache_dir()
-    if path is None:
-        return
-    if own_process:
-        _use_cacheable_checks()
-    import jax
-
-    if not jax.config.jax_compilation_cache_dir:  # a caller's own choice stays
-        jax.config.update("jax_compilation_cache_dir", path)
-
-
-_DEVICE_FLAG = "--xla_force_host_platform_device_count"
-
-
-def host_device_count() -> int:
-    """CPU devices the command line asks XLA for: one per usable core (each runs its share
-    of a sweep's speeds on its own thread: the main job's 45 speeds integrate ~2x faster on
-    2 cores than in one vmapped batch, which XLA runs on one thread); 1 with
-    ``GEARJAX_HOST_DEVICES=1``, or an explicit count there (ValueError for anything but a
-    whole number >= 1); 1 by default on a jaxlib newer than
-    :data:`gearjax.dynamics.sweep.SHARDED_CPU_JAXLIB` (see there). An ``XLA_FLAGS`` that
-    already sets the count is left alone."""
-    setting = os.environ.get("GEARJAX_HOST_DEVICES", "").strip()
-    if setting:
-        if not (setting.isdigit() and int(setting) >= 1):
-            raise ValueError(f"GEARJAX_HOST_DEVICES={setting!r}: must be a whole number of "
-                             "CPU devices >= 1 (1: no sharding)")
-        return int(setting)
-    if jaxlib_minor() > SHARDED_CPU_JAXLIB:
-        return 1
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
-
-
 _SHARDED_COMMANDS = ("sweep", "paper")  # the commands whose transient sweeps use them
 
-
-def _use_host_devices(command: str) -> None:
-    """Before JAX starts its CPU backend: :func:`host_device_count` CPU devices for the
-    commands that shard sweeps over them; the others keep XLA's one."""
-    if command not in _SHARDED_COMMANDS:
-        return
-    flags = os.environ.get("XLA_FLAGS", "")
-    n = host_device_count()
-    if _DEVICE_FLAG in flags or n <= 1:
-        return
-    os.environ["XLA_FLAGS"] = f"{flags} {_DEVICE_FLAG}={n}".strip()
-
-
-# XLA:CPU's fusion emitters (its default) against its legacy ones, measured 2026-11-24 (2
-# cores, empty caches): the README main job compiles in 13.0-13.5 s instead of 18.5-19.9 s
-# (the whole command 30.3-30.9 s against 34.8-37.5 s; forces within 2.1e-6 relative); the
-# 3D te program then integrates ~40 % slower (1000 speeds: 46.1-48.0 s against 38.9-40.5
-# s; 300 speeds of reference and te: 42.0 against 46.5 s; the reference unchanged, 1000
-# speeds 38.9 against 39.6 s) and the torsional model faster (2000 speeds: te 12.2 against
-# 14.5 s, reference 12.5 against 14.9 s). A sweep that compiles more than it integrates
-# takes the legacy emitters: the torsional model, or up to COMPILE_BOUND_3D_SPEEDS speeds
-# on the 3D one over a mesh period (pitch errors, eccentricities and TE files lengthen the
-# excitation period, hence the integration, by up to a gear revolution) at a damping of at
-# least COMPILE_BOUND_3D_DAMPING (lighter damping lengthens the transients and the
-# contact-loss orbits: Fig. 8, zeta 0.03, 45 speeds: 90 s with the legacy emitters
-# against 84 s). Measured on jaxlib 0.10.2 and applied to jaxlib 0.10.x only: XLA aborts
-# the process on a flag it does not know, and another version's emitters are not measured.
-_FUSION_FLAG = "--xla_cpu_use_fusion_emitters"
-_FUSION_FLAG_JAXLIB = (0, 10)
+# A sweep that compiles more than it integrates takes XLA's legacy CPU emitters
+# (gearjax.runtime.xla.use_legacy_emitters): the torsional model, or up to
+# COMPILE_BOUND_3D_SPEEDS speeds of the 3D one over a mesh period (pitch errors,
+# eccentricities and TE files lengthen the excitation period by up to a gear revolution)
+# at a damping of at least COMPILE_BOUND_3D_DAMPING (lighter damping lengthens the
+# transients and the contact-loss orbits); benchmarks/results/code_notes.md, section
+# gearjax.cli.main, has the measurements behind both bounds.
 COMPILE_BOUND_3D_SPEEDS = 300
 COMPILE_BOUND_3D_DAMPING = 0.1
 
 
 def compile_bound(args) -> bool:
     """Whether ``gearjax`` ``args`` ask for a sweep whose compilation outweighs its
-    integration (see the measurements above :data:`COMPILE_BOUND_3D_SPEEDS`), or an
-    ``optimise`` of the torsional model: each model build there compiles the objective's
-    value and gradient again and each step then integrates in 0.2-0.4 s (defaults, 2
-    cores, empty caches, 2026-11-25: 4 min 18 s against 5 min 1 s, a build 17-22 s
-    against 23-26 s, the steps unchanged)."""
+    integration (the bounds above :data:`COMPILE_BOUND_3D_SPEEDS`), or an ``optimise`` of
+    the torsional model (each model build there compiles the objective's value and
+    gradient again, and each step then integrates briefly)."""
     if args.command == "optimise":
         return args.model == "torsional"
     if args.command != "sweep":
@@ -425,48 +335,47 @@ def compile_bound(args) -> bool:
     return n <= COMPILE_BOUND_3D_SPEEDS
 
 
-def _use_emitters(args) -> None:
-    """Before JAX starts its CPU backend: XLA's legacy emitters for a compile-bound sweep
-    (:func:`compile_bound`), unless ``XLA_FLAGS`` names the flag or
-    ``GEARJAX_XLA_DEFAULTS=0``. Only for the ``gearjax`` command itself (``main()`` without
-    ``argv``): in a process whose backend already runs the flag would not apply, yet JAX's
-    persistent-cache keys read ``XLA_FLAGS``, so that process's executables would be
-    stored and found under the legacy emitters' keys (the test suite's shared cache mixed
-    them, and one 3D test then ran for more than 15 min instead of 21 s)."""
-    if compile_bound(args):
-        use_legacy_emitters()
+def configure_process(args, own_process: bool) -> None:
+    """The host process for ``args`` (:func:`gearjax.runtime.configure`), before JAX starts
+    a backend: XLA's CPU workarounds; one CPU device per core for the commands that shard
+    sweeps (:data:`_SHARDED_COMMANDS`); the persistent compilation cache. Where this
+    process is the command (``own_process``: ``main()`` without ``argv``) also the legacy
+    emitters for a compile-bound sweep (:func:`compile_bound`) and equinox's checks in a
+    cacheable form (:func:`gearjax.runtime.use_cacheable_checks`), which would change a
+    caller's own process: in a process whose backend already runs a flag would not apply,
+    yet JAX's persistent-cache keys read ``XLA_FLAGS``, so that process's executables would
+    be stored under the legacy emitters' keys.
 
+    Raises ValueError for a bad ``GEARJAX_HOST_DEVICES``."""
+    from .. import runtime
 
-def use_legacy_emitters() -> None:
-    """Add ``--xla_cpu_use_fusion_emitters=false`` to ``XLA_FLAGS`` (XLA's legacy CPU
-    emitters, which compile faster: the measurements above :data:`COMPILE_BOUND_3D_SPEEDS`)
-    unless ``XLA_FLAGS`` already names the flag, ``GEARJAX_XLA_DEFAULTS=0``, or jaxlib is
-    not 0.10. Call it before JAX starts a backend, in a process whose programs are all
-    compile-bound: the command line's compile-bound commands (:func:`_use_emitters`) and
-    the test session (``tests/conftest.py``)."""
-    flags = os.environ.get("XLA_FLAGS", "")
-    if (_FUSION_FLAG in flags or os.environ.get("GEARJAX_XLA_DEFAULTS", "1") == "0"
-            or jaxlib_minor() != _FUSION_FLAG_JAXLIB):
+    devices = runtime.host_device_count() if args.command in _SHARDED_COMMANDS else None
+    runtime.configure(host_devices=devices,
+                      legacy_emitters=own_process and compile_bound(args))
+    if runtime.compilation_cache_dir() is None:
         return
-    os.environ["XLA_FLAGS"] = f"{flags} {_FUSION_FLAG}=false".strip()
+    if own_process:
+        runtime.use_cacheable_checks()
+    runtime.use_compilation_cache()
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the ``gearjax`` command line; returns the exit status (0 done, 2 bad input,
     3 stalled: no progress for ``--stall-timeout`` seconds, 130 interrupted by Ctrl-C)."""
-    args = _parser().parse_args(argv)
     try:
-        _use_host_devices(args.command)
-        if argv is None:  # the process is this command: JAX's backend has not started
-            _use_emitters(args)
+        parser = _parser()
+    except ValueError as exc:  # a bad GEARJAX_STALL_TIMEOUT
+        return _fail(str(exc))
+    args = parser.parse_args(argv)
+    try:
+        configure_process(args, own_process=argv is None)
     except ValueError as exc:
         return _fail(str(exc))
-    _use_compilation_cache(own_process=argv is None)
     stall = getattr(args, "stall_timeout", None)
     if stall is not None and not (stall >= 0 and math.isfinite(stall)):
         return _fail(f"--stall-timeout={stall}: must be a finite number of seconds >= 0 "
                      "(0 disables the watchdog)")
-    from ..dynamics.watchdog import stall_guard
+    from ..runtime.watchdog import stall_guard
 
     # the GIL-free backstop only where this process is the command (see watchdog)
     with stall_guard(stall, what=f"gearjax {args.command}", backstop=argv is None):

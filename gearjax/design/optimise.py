@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from ..dynamics import code_memory
+from ..dynamics.progress import AbstractProgressMeter, NoProgressMeter
 from .spaces import ReliefSpace
 
 __all__ = ["OptimisationResult", "optimise", "coarse_starts", "multi_start"]
@@ -54,7 +54,8 @@ class OptimisationResult:
 
 def optimise(objective, x0, *, learning_rate: float = 0.15, max_iter: int = 60,
              rtol: float = 1e-4, patience: int = 8, step_tol: float = 1e-4,
-             callback=None) -> OptimisationResult:
+             callback=None,
+             progress: AbstractProgressMeter = NoProgressMeter()) -> OptimisationResult:
     """Minimise ``objective`` (a :class:`QuasiStaticObjective` or :class:`DynamicObjective`)
     from ``x0`` with optax Adam on the unconstrained variables of its
     :class:`ReliefSpace` (bounds hold by construction), learning rate decayed by cosine
@@ -64,6 +65,10 @@ def optimise(objective, x0, *, learning_rate: float = 0.15, max_iter: int = 60,
     (relative) for ``patience`` iterations ("tolerance"), or the Adam step in ``u`` is
     below ``step_tol`` ("small-step"), or ``max_iter`` steps ("max-iter"). Returns the best
     iterate (by the smoothed value) with the history.
+
+    ``callback(record)`` is called with every history record; ``progress`` is told of the
+    start and of every evaluation done (between evaluations: a host meter may release
+    compiled code there, as a structure change compiles the objective again).
     """
     space = objective.space
     x0 = space.check(x0, "x0")
@@ -78,11 +83,8 @@ def optimise(objective, x0, *, learning_rate: float = 0.15, max_iter: int = 60,
     reason = "max-iter"
     first = None
     it = 0
+    progress.start("optimise", max_iter + 1, f"from {x0.tolist()}")
     for it in range(max_iter + 1):
-        # a long-lived process's map cap, before every evaluation: a structure change
-        # rebuilds the model and compiles its programs again (sdof reference, 660-900
-        # rad/s: ~2,750 maps per rebuild, 10 rebuilds in the CLI's 4 starts)
-        code_memory.release_if_crowded()
         x = np.asarray(space.from_unconstrained(u))
         x = np.clip(x, space.lower, space.upper)
         ev = objective(x, grad=True)
@@ -96,6 +98,8 @@ def optimise(objective, x0, *, learning_rate: float = 0.15, max_iter: int = 60,
                      "grad_norm_u": float(np.linalg.norm(g_u)), "structure_ok": ev.structure_ok})
         if callback is not None:
             callback(hist[-1])
+        progress.update("optimise", it + 1, max_iter + 1, f"objective {ev.exact:.6g}",
+                        elapsed_s=time.perf_counter() - t0)
         if best is None or ev.smooth < best.smooth * (1 - rtol) - 1e-300:
             since = 0
         else:

@@ -52,7 +52,6 @@ most 9 % (next to the low branch's end), the jump up by 87-97 %.
 from __future__ import annotations
 
 import math
-import sys
 import time
 
 import diffrax
@@ -62,7 +61,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import SimulationError
-from . import code_memory, watchdog
+from .progress import AbstractProgressMeter, NoProgressMeter
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import (default_solver, jump_controller, jump_density, simulate,
                        transient_periods)
@@ -145,7 +144,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
                        newton_tol: float = 1e-10, convergence_tol: float = 1e-3,
                        transient_decay: float = 1e-6, min_transient_mesh_periods: int = 8,
                        max_transient_mesh_periods: int = 400,
-                       progress: bool = False) -> BranchResult:
+                       progress: AbstractProgressMeter = NoProgressMeter()) -> BranchResult:
     """Follow the periodic orbit over ``speeds_rad_s`` (rad/s) in ``direction`` (``"up"``:
     increasing speed, ``"down"``: decreasing), each speed's Newton shooting started from
     its neighbour's orbit (module docstring: restarts, stability, the unstable orbits).
@@ -160,7 +159,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     max_newton, newton_tol : Newton shooting of :func:`~gearjax.dynamics.steady.periodic_state`.
     convergence_tol : periodicity threshold of the metrics' ``converged`` (as simulate).
     transient_decay, min/max_transient_mesh_periods : the restart transient.
-    progress : one line per speed on stderr.
+    progress : the meter told of every speed done (default none).
 
     Returns
     -------
@@ -173,7 +172,6 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     if np.unique(speeds).size != speeds.size:
         raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
                               "speeds must be distinct (a branch visits each once)")
-    code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
     model.require_structure()
     cfg = tuple(sorted(dict(max_newton=int(max_newton), newton_tol=float(newton_tol),
                             convergence_tol=float(convergence_tol)).items()))
@@ -192,6 +190,8 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     stable, restarted = np.zeros(n, bool), np.zeros(n, bool)
     y0s, uy0s = np.full((n, k), np.nan), np.full((n, k), np.nan)
     carry = None
+    task = f"continuation {model.formulation} {direction}"
+    progress.start(task, n)
     t_start = time.perf_counter()
     for j, i in enumerate(order):
         w = jnp.asarray(speeds[i])
@@ -214,12 +214,11 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
         stable[i] = ok
         y0s[i] = y
         carry = jnp.asarray(y) if np.all(np.isfinite(y)) else carry
-        watchdog.progress(f"continuation ({direction}) {j + 1}/{n}")
-        if progress:
-            print(f"[gearjax.dynamics.continuation] {direction:4s} {speeds[i]:9.4g} rad/s: "
-                  f"DF {out['dynamic_factor'][i]:.3f}, rho {float(rho):.4f}"
-                  f"{', restarted' if restarted[i] else ''}{'' if ok else ', NO stable orbit'}"
-                  f" ({time.perf_counter() - t_start:.1f} s)", file=sys.stderr, flush=True)
+        progress.update(task, j + 1, n, f"{speeds[i]:9.4g} rad/s: DF "
+                        f"{out['dynamic_factor'][i]:.3f}, rho {float(rho):.4f}"
+                        f"{', restarted' if restarted[i] else ''}"
+                        f"{'' if ok else ', NO stable orbit'}",
+                        elapsed_s=time.perf_counter() - t_start)
     for f in ("contact_loss", "converged", "solver_ok"):
         out[f] = out[f] > 0
     out["converged"] = out["converged"] & stable

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import SimulationError
-from . import code_memory, watchdog
+from .progress import AbstractProgressMeter, NoProgressMeter
 from .harmonic import check_linear_model, harmonic_steady_states
 from .orders import N_MESH_ORDERS
 from .results import SweepResult
@@ -74,7 +74,7 @@ def _rho_batch(model, speeds):
 
 def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: int = 256,
                    max_harmonics: int = 4096, floquet: bool = True,
-                   samples_per_mesh_period: int = 128, progress: bool = False,
+                   samples_per_mesh_period: int = 128, progress: AbstractProgressMeter = NoProgressMeter(),
                    rank_one_tol: float | None = None) -> HarmonicSweepResult:
     """Steady state of a linear formulation (te, perturbation; sdof or 3D) over pinion
     speeds (rad/s) in the frequency domain (module docstring), vmapped over speeds.
@@ -105,7 +105,6 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     check_linear_model(model)
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)
-    code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
     model.require_structure()
     if not (0.0 < rtol < 1.0):
         raise SimulationError("rtol", rtol, "must lie in (0, 1)")
@@ -125,6 +124,8 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     todo = np.arange(speeds.size)
     kw = (("samples_per_mesh_period", int(samples_per_mesh_period)),)
     n_h = lo
+    task = f"harmonic balance {model.formulation}"
+    progress.start(task, speeds.size, f"H={n_h}")
     t0 = time.perf_counter()
     while todo.size:
         t_batch = time.perf_counter()
@@ -132,19 +133,18 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
         for f, v in zip(_FIELDS, res):
             out[f][todo] = np.asarray(v, dtype=float)
         n_used[todo] = n_h
-        # the next batch doubles H at least (and compiles again): allow it 4x this one
-        watchdog.progress(f"harmonic balance, {todo.size} speed(s) at H={n_h}",
-                          expect_s=4.0 * (time.perf_counter() - t_batch))
         if np.any(out["rank_one_error"][todo] > rank_one_tol):
             raise SimulationError(
                 "model", f"rank_one_error={np.max(out['rank_one_error'][todo]):.1e}",
                 "the parametric part of the vector field is not rank one or its forcing "
                 "spans more than 48 directions (a design whose switching angles moved?): use "
                 "gearjax.dynamics.steady (shooting)")
-        if progress:
-            print(f"[gearjax.dynamics.harmonic] {todo.size} speed(s) at H={n_h}: "
-                  f"{time.perf_counter() - t0:.2f} s", flush=True)
+        batch = todo.size
         todo = todo[~(out["error_estimate"][todo] <= rtol)]
+        # the next batch doubles H at least (and compiles again): allow it 4x this one
+        progress.update(task, speeds.size - todo.size, speeds.size,
+                        f"{batch} speed(s) at H={n_h}", elapsed_s=time.perf_counter() - t0,
+                        next_unit_s=4.0 * (time.perf_counter() - t_batch))
         if n_h >= hi or not todo.size:
             break
         # the estimate falls like H^-3 (bench_harmonic.py --convergence): jump to
@@ -158,9 +158,8 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     need = np.flatnonzero(~proven)
     if floquet and need.size:
         rho[need] = np.asarray(_rho_batch(model, jnp.asarray(speeds[need])), dtype=float)
-        if progress:
-            print(f"[gearjax.dynamics.harmonic] Floquet radius at {need.size} speed(s) the "
-                  f"small-gain bound leaves open: {time.perf_counter() - t0:.2f} s", flush=True)
+        progress.note(task, f"Floquet radius at {need.size} speed(s) the small-gain bound "
+                      f"leaves open: {time.perf_counter() - t0:.2f} s")
     ok = out["ok"] > 0
     stable = proven | (rho < 1.0)
     known = proven | np.isfinite(rho)

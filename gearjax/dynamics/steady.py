@@ -62,7 +62,6 @@ accelerators where a non-symmetric eigensolver is not available.
 from __future__ import annotations
 
 import math
-import sys
 import time
 
 import diffrax
@@ -72,7 +71,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..linalg import solve as dense_solve
-from . import code_memory, watchdog
+from .progress import AbstractProgressMeter, NoProgressMeter
 from .batching import over_speeds, sequential_for
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .simulate import SimulationError, SimulationResult, jump_controller, simulate
@@ -342,7 +341,7 @@ def _continue_batch(model, speeds, y0s, kwargs):
     return over_speeds(one, speeds, y0s, sequential=sequential_for(model))
 
 
-def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress: bool = True,
+def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress: AbstractProgressMeter = NoProgressMeter(),
                  continuation: bool = True, continuation_kwargs: dict | None = None,
                  **steady_kwargs) -> SteadySweepResult:
     """Steady state over pinion speeds by shooting (one compilation per chunk shape; the
@@ -371,7 +370,6 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     """
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)  # and float64
-    code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
     model.require_structure()
     if chunk_size is None:
         # the batched monodromy (chunk x n x n per stage) must stay cache-sized: measured on
@@ -390,12 +388,13 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     out = empty_metrics(speeds.size)
     rho = np.full(speeds.size, np.nan)
     y0s = None
+    task = f"steady-state sweep {model.formulation}"
+    progress.start(task, speeds.size, f"{n_chunks} chunk(s) of {chunk} speed(s)")
     t_start = time.perf_counter()
     for c in range(n_chunks):
         sel = padded[c * chunk:(c + 1) * chunk]
         t0 = time.perf_counter()
         res = jax.device_get(_steady_batch(model, jnp.asarray(speeds[sel]), kw))
-        watchdog.progress(f"steady-state sweep chunk {c + 1}/{n_chunks}")
         for f, v in zip(METRIC_FIELDS, res[:len(METRIC_FIELDS)]):
             out[f][sel] = np.asarray(v, dtype=float)
         rho[sel] = np.asarray(res[-2], dtype=float)
@@ -403,9 +402,9 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
         if y0s is None:
             y0s = np.full((speeds.size, y.shape[1]), np.nan)
         y0s[sel] = y
-        if progress:
-            print(f"[gearjax.dynamics.steady] chunk {c + 1}/{n_chunks}: {len(set(sel.tolist()))} speeds "
-                  f"in {time.perf_counter() - t0:.2f} s", file=sys.stderr, flush=True)
+        progress.update(task, min(speeds.size, (c + 1) * chunk), speeds.size,
+                        f"chunk {c + 1}/{n_chunks}: {len(set(sel.tolist()))} speeds in "
+                        f"{time.perf_counter() - t0:.2f} s", elapsed_s=time.perf_counter() - t_start)
     out["transient_periods"][:] = 0.0
     continued = np.zeros(speeds.size, dtype=bool)
     formulation = model.formulation
@@ -424,14 +423,10 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
             for f, v in zip(METRIC_FIELDS, res):
                 out[f][idx] = np.asarray(v, dtype=float)
             continued[idx] = True
-            watchdog.progress("steady-state sweep continuation")
-            if progress:
-                print(f"[gearjax.dynamics.steady] continued {idx.size} speed(s) with contact loss or "
-                      f"without a stable orbit by simulate in {time.perf_counter() - t0:.2f} s",
-                      file=sys.stderr, flush=True)
-    if progress:
-        print(f"[gearjax.dynamics.steady] {formulation}: {speeds.size} speeds in "
-              f"{time.perf_counter() - t_start:.2f} s", file=sys.stderr, flush=True)
+            progress.update(task, speeds.size, speeds.size,
+                            f"continued {idx.size} speed(s) with contact loss or without a "
+                            f"stable orbit by simulate in {time.perf_counter() - t0:.2f} s",
+                            elapsed_s=time.perf_counter() - t_start)
     for f in ("contact_loss", "converged", "solver_ok"):
         out[f] = out[f] > 0
     out["n_steps"] = out["n_steps"].astype(np.int64)

@@ -6,8 +6,10 @@ every model on an accelerator): :mod:`gearjax.dynamics.batching`.
   recompiles: the model's array data and the speeds are traced, only its static structure
   (formulation, which terms exist, jump angles) and the simulation options are compiled in.
   Chunks are padded to ``chunk_size`` by repeating the last speed.
-* Progress is printed per chunk to stderr; rows are appended to ``out_csv`` as chunks
-  complete (a header is written when the file is new or empty).
+* Progress is reported per chunk to the ``progress`` meter
+  (:class:`~gearjax.dynamics.progress.AbstractProgressMeter`, default none); rows are
+  appended to ``out_csv`` as chunks complete (a header is written when the file is new or
+  empty).
 * With several JAX devices the batch is split across them with ``jax.shard_map`` over a
   1-D device mesh (each device runs its own share of the chunk, mapped or vmapped as above;
   no cross-device synchronisation inside the solver loop). Speeds are padded to a multiple of
@@ -18,7 +20,7 @@ every model on an accelerator): :mod:`gearjax.dynamics.batching`.
   --distributed``) every process calls ``sweep`` with the same arguments (SPMD); the device
   mesh spans every device of every process (``jax.devices()``), each process feeds and
   runs its own devices' speeds, and the results are gathered on all processes
-  (``multihost_utils.process_allgather``). Only process 0 prints progress and writes
+  (``multihost_utils.process_allgather``). Only process 0 reports progress and writes
   ``out_csv``. Without ``devices`` a multi-process run uses all devices (each host would
   otherwise repeat the whole sweep).
 """
@@ -27,9 +29,7 @@ from __future__ import annotations
 
 import math
 import os
-import sys
 import time
-import warnings
 from functools import partial
 
 import equinox as eqx
@@ -38,8 +38,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import check_float64
-from . import code_memory, watchdog
 from .batching import over_speeds, sequential_on
+from .progress import AbstractProgressMeter, NoProgressMeter
 from .results import (CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, append_rows,
                       empty_metrics)
 from .simulate import SimulationError, SimulationResult, simulate
@@ -116,7 +116,7 @@ def sweep(
     model,
     speeds_rad_s,
     chunk_size: int | None = None,
-    progress: bool = True,
+    progress: AbstractProgressMeter = NoProgressMeter(),
     out_csv: str | os.PathLike | None = None,
     devices=None,
     method: str = "transient",
@@ -135,7 +135,9 @@ def sweep(
         of the device count).
         Smaller chunks give earlier progress/CSV output; chunks are padded so that every
         call has the same shape (one compilation).
-    progress : print one line per chunk to stderr.
+    progress : the meter told of the sweep's start and of every chunk done
+        (:class:`~gearjax.dynamics.progress.AbstractProgressMeter`; default none; e.g.
+        :class:`gearjax.TextProgressMeter`).
     out_csv : append one row per speed (columns :data:`CSV_COLUMNS`) as chunks complete.
     devices : list of JAX devices to shard the speed axis over; ``None`` uses one device
         (the default device), ``"all"`` every device of the default backend.
@@ -183,7 +185,6 @@ def sweep(
         )
     if method not in METHODS:
         raise SimulationError("method", method, f"must be one of {', '.join(METHODS)}")
-    code_memory.release_if_crowded()  # before compiling: a long-lived process's map cap
     model.require_structure()
     auto = method == "auto"
     if auto:  # the frequency-domain solver runs on one device of one process
@@ -199,10 +200,9 @@ def sweep(
         except SimulationError as exc:
             if not (auto and exc.field == "model"):
                 raise
-            if progress:  # auto: a model the frequency-domain split does not fit
-                print(f"[gearjax.dynamics.sweep] {model.formulation:12s} harmonic balance not "
-                      f"applicable ({exc}); every speed by the transient solver",
-                      file=sys.stderr, flush=True)
+            # auto: a model the frequency-domain split does not fit
+            progress.note(f"sweep {model.formulation}", f"harmonic balance not applicable "
+                          f"({exc}); every speed by the transient solver")
             method = "transient"
     multi_process = jax.process_count() > 1
     lead = jax.process_index() == 0  # the process that prints and writes
@@ -213,7 +213,12 @@ def sweep(
 
     results = empty_metrics(total)
     if not lead:
-        out_csv, orders_csv, progress = None, None, False
+        out_csv, orders_csv, progress = None, None, NoProgressMeter()
+    task = f"sweep {formulation}"
+    progress.start(task, speeds.size, f"chunk 1/{n_chunks}: "
+                   f"{len(set(padded_idx[:chunk].tolist()))} speeds "
+                   f"{speeds[padded_idx[:chunk]].min():.4g}-"
+                   f"{speeds[padded_idx[:chunk]].max():.4g} rad/s, compiling and integrating")
     t_start = time.perf_counter()
     n_done = n_unconverged = 0  # so far, as the progress line says
     for c in range(n_chunks):
@@ -221,11 +226,6 @@ def sweep(
         w = jnp.asarray(speeds[sel])
         if n_dev > 1:
             w = _global_speeds(np.asarray(speeds[sel]), devices)
-        if progress and c == 0:  # a chunk can take minutes: say what runs before it ends
-            print(f"[gearjax.dynamics.sweep] {formulation:12s} chunk 1/{n_chunks}: "
-                  f"{len(set(sel.tolist()))} speeds {speeds[sel].min():.4g}-"
-                  f"{speeds[sel].max():.4g} rad/s, compiling and integrating ...",
-                  file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         out = fn(compiled, w, sim_kwargs)
         if multi_process and n_dev > 1:
@@ -234,7 +234,6 @@ def sweep(
             out = multihost_utils.process_allgather(out, tiled=True)
         out = jax.device_get(out)
         dt = time.perf_counter() - t0
-        watchdog.progress(f"sweep ({formulation}) chunk {c + 1}/{n_chunks}")
         for f, v in zip(METRIC_FIELDS, out):
             results[f][c * chunk:(c + 1) * chunk] = np.asarray(v, dtype=float)
         # rows of the real (non-padded) speeds of this chunk, in sorted-speed order
@@ -248,20 +247,15 @@ def sweep(
                 append_rows(orders_csv, ORDER_COLUMNS, chunk_res.order_rows())
             if out_csv is not None:
                 append_rows(out_csv, CSV_COLUMNS, chunk_res.rows())
-        if progress:
-            n_done += len(first)
-            conv = np.asarray(out[METRIC_FIELDS.index("converged")], dtype=bool)
-            real = np.asarray(list(first.values())) - c * chunk
-            n_unconverged += int(np.sum(~conv[real]))
-            bar = "#" * round(20 * n_done / speeds.size)
-            print(
-                f"[gearjax.dynamics.sweep] {formulation:12s} [{bar:<20s}] chunk {c + 1}/{n_chunks}: {len(first)} speeds "
-                f"{speeds[sel].min():.4g}-{speeds[sel].max():.4g} rad/s in {dt:.2f} s "
-                f"({'incl. compile, ' if c == 0 else ''}{n_done}/{speeds.size} done, "
-                f"{n_unconverged} not converged, "
-                f"elapsed {time.perf_counter() - t_start:.1f} s)",
-                file=sys.stderr, flush=True,
-            )
+        n_done += len(first)
+        conv = np.asarray(out[METRIC_FIELDS.index("converged")], dtype=bool)
+        real = np.asarray(list(first.values())) - c * chunk
+        n_unconverged += int(np.sum(~conv[real]))
+        progress.update(
+            task, n_done, speeds.size,
+            f"chunk {c + 1}/{n_chunks}: {len(first)} speeds {speeds[sel].min():.4g}-"
+            f"{speeds[sel].max():.4g} rad/s in {dt:.2f} s{' incl. compile' if c == 0 else ''}"
+            f", {n_unconverged} not converged", elapsed_s=time.perf_counter() - t_start)
     # back to the caller's order: the first padded slot holding each speed index
     where = np.empty(speeds.size, dtype=int)
     seen = np.zeros(speeds.size, dtype=bool)
@@ -271,13 +265,10 @@ def sweep(
             seen[i] = True
     res = _gather(results, formulation, where)
     failed = ~res.solver_ok.astype(bool)
-    if np.any(failed) and lead:
-        print(
-            f"[gearjax.dynamics.sweep] WARNING: integration failed (step limit or non-finite state) at "
-            f"{int(failed.sum())} speed(s): {speeds[failed][:10].tolist()} rad/s; their metrics "
-            "are NaN and converged=False",
-            file=sys.stderr, flush=True,
-        )
+    if np.any(failed):
+        progress.note(task, f"integration failed (step limit or non-finite state) at "
+                      f"{int(failed.sum())} speed(s): {speeds[failed][:10].tolist()} rad/s; "
+                      "their metrics are NaN and converged=False")
     return res
 
 
@@ -293,35 +284,6 @@ CHUNK_MEMORY_FRACTION = 0.4
 _BYTES_PER_ENTRY = 20 * 8
 
 
-# Newest jaxlib whose XLA:CPU compiled the 3D sweep sharded over several CPU devices.
-# jaxlib 0.11.2 (the lent H100 machine's image, JAX_PLATFORMS=cpu, 2026-11-25) segfaulted
-# inside backend_compile_and_load on the 3D te sweep over 2 and 16 CPU devices (8 speeds;
-# also with the persistent cache off), while one device ran the README main job and the
-# sdof sweep sharded over 4 fake devices passed (benchmarks/results/accelerator_h100.md).
-SHARDED_CPU_JAXLIB = (0, 10)
-
-
-def jaxlib_minor() -> tuple:
-    """``(major, minor)`` of the installed jaxlib, ``()`` where unknown (read from the
-    package metadata: no backend starts)."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return tuple(int(x) for x in version("jaxlib").split(".")[:2])
-    except (PackageNotFoundError, ValueError):
-        return ()
-
-
-def _warn_sharded_cpu(devices) -> None:
-    """Say why a sweep sharded over CPU devices may crash, before XLA compiles it."""
-    if devices[0].platform == "cpu" and jaxlib_minor() > SHARDED_CPU_JAXLIB:
-        warnings.warn(
-            f"sweep over {len(devices)} CPU devices on jaxlib "
-            f"{'.'.join(map(str, jaxlib_minor()))}: jaxlib 0.11.2's XLA:CPU segfaulted "
-            "compiling the 3D sweep sharded over CPU devices (README, Known problems); "
-            "devices=None (one device) avoids it", RuntimeWarning, stacklevel=3)
-
-
 def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
     """How :func:`sweep`'s transient runs ``speeds``: the compiled function, the model it
     takes, the devices, the chunk and the speeds' padded, cost-sorted order."""
@@ -332,8 +294,6 @@ def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
     n_dev = 1 if devices is None else len(devices)
     if n_dev < 1:
         raise SimulationError("devices", devices, "need at least one device")
-    if n_dev > 1:
-        _warn_sharded_cpu(devices)
     first = devices[0] if devices else jax.devices()[0]
     sequential = sequential_on(first.platform, model.state_size)
     if chunk_size is None:
@@ -536,19 +496,17 @@ def _harmonic(model, speeds, chunk_size, progress, out_csv, devices, simulate_kw
         raise SimulationError("devices", devices, 'method="harmonic" runs on one device of one '
                               'process; use method="transient" to shard over devices or hosts')
     t0 = time.perf_counter()
-    hb = harmonic_sweep(model, speeds, rtol=simulate_kwargs.get("rtol", 1e-6),
+    hb = harmonic_sweep(model, speeds, rtol=simulate_kwargs.get("rtol", 1e-6), progress=progress,
                         floquet=model.state_size <= HARMONIC_FLOQUET_MAX_STATES)
     keep = hb.converged & hb.contact_holds & hb.stable & hb.stability_known  # converged: ok
     fields = {f: np.array(getattr(hb, f), copy=True) for f in METRIC_FIELDS}
     fields["contact_loss"] = np.zeros(speeds.size, dtype=bool)
     method = np.where(keep, "harmonic", "transient")
-    if progress:
-        print(f"[gearjax.dynamics.sweep] {model.formulation:12s} harmonic balance: "
-              f"{int(keep.sum())}/{speeds.size} speeds in {time.perf_counter() - t0:.2f} s"
-              f" (incl. compile); {int((~keep).sum())} to the transient solver "
-              f"({int((~hb.contact_holds).sum())} lose contact, "
-              f"{int((~(hb.stable & hb.stability_known)).sum())} not proven stable)",
-              file=sys.stderr, flush=True)
+    progress.note(f"sweep {model.formulation}",
+                  f"harmonic balance: {int(keep.sum())}/{speeds.size} speeds in "
+                  f"{time.perf_counter() - t0:.2f} s (incl. compile); {int((~keep).sum())} to "
+                  f"the transient solver ({int((~hb.contact_holds).sum())} lose contact, "
+                  f"{int((~(hb.stable & hb.stability_known)).sum())} not proven stable)")
     if np.any(~keep):
         n_rest = int((~keep).sum())  # a larger chunk would integrate padding copies
         rest = sweep(model, speeds[~keep], progress=progress, method="transient",

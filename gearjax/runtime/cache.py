@@ -1,0 +1,54 @@
+"""JAX's persistent compilation cache for this process, and equinox's runtime checks in a
+form that cache can store.
+
+JAX does not store an executable that holds a host callback in its persistent cache, and
+equinox's ``error_if`` (diffrax checks its ``SaveAt`` times with it in every ``simulate``
+program) is one, unless equinox raises its errors as NaN (``EQX_ON_ERROR=nan``). gearjax
+builds those times itself; a NaN from any such check fails the finite checks of every
+metric (``solver_ok`` False).
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["compilation_cache_dir", "use_compilation_cache", "use_cacheable_checks"]
+
+
+def compilation_cache_dir() -> str | None:
+    """Folder of the persistent compilation cache: ``$JAX_COMPILATION_CACHE_DIR`` when set
+    (JAX reads it itself), else ``$XDG_CACHE_HOME/gearjax/jax`` (default
+    ``~/.cache/gearjax/jax``); None with ``GEARJAX_COMPILATION_CACHE=0``."""
+    if os.environ.get("GEARJAX_COMPILATION_CACHE", "1") in ("0", "false", "False"):
+        return None
+    if os.environ.get("JAX_COMPILATION_CACHE_DIR"):
+        return os.environ["JAX_COMPILATION_CACHE_DIR"]
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "gearjax", "jax")
+
+
+def use_cacheable_checks() -> bool:
+    """equinox's runtime checks as NaN instead of a host callback for the rest of this
+    process, as ``EQX_ON_ERROR=nan`` in the environment would (equinox reads it at its
+    import, so this sets equinox's module setting directly); a caller's own
+    ``EQX_ON_ERROR`` stays. Returns whether it changed the setting."""
+    if "EQX_ON_ERROR" in os.environ:
+        return False
+    from equinox import _errors  # the module global error_if reads at every call
+
+    _errors.EQX_ON_ERROR = "nan"
+    return True
+
+
+def use_compilation_cache(path: str | None = None) -> str | None:
+    """JAX's persistent compilation cache in ``path`` (default
+    :func:`compilation_cache_dir`); a folder the caller already gave JAX stays. Returns the
+    folder in use, or None where there is none."""
+    import jax
+
+    if jax.config.jax_compilation_cache_dir:  # a caller's own choice stays
+        return jax.config.jax_compilation_cache_dir
+    path = compilation_cache_dir() if path is None else path
+    if path is not None:
+        jax.config.update("jax_compilation_cache_dir", path)
+    return path
