@@ -1,22 +1,14 @@
 """The reference sweep's program, and the next formulation's, compiled on threads.
 
 The command line sweeps its formulations one after the other, and on a CPU most of a short
-sweep is compilation (README main job: 15 of its 32 s XLA compile, 6 s tracing), which runs
-on one thread and releases the GIL; tracing and the 3D model builds are Python and hold it.
-So before the reference sweep of a 3D te/perturbation sweep starts, the reference program is
-traced and compiles on a thread while the te/perturbation model is built and its program
-traced (Python, on the main thread), then that program compiles on a second thread while
-the reference one finishes compiling and integrates; each sweep finds its executable in
-JAX's in-memory compilation cache. README main job, 2 cores, empty caches, measured
-alternately:
-
-* 2026-11-25, the te program ahead only: the command 30.6-32.5 s against 34.4-35.1 s
-  without (the reference sweep ~2 s slower and the te one ~8 s quicker; tracing on the
-  thread as well gained only half as much, the two traces contending for the GIL);
-* 2026-11-25, the reference program too: 29.7-32.6 s (mean 30.9 s, 4 runs) against
-  32.0-34.0 s (mean 32.9 s), results.csv identical. Building the te model on a thread
-  during the reference trace gained nothing (13.5 s against 13.1 s to both programs
-  traced): the builds' compilations are short and their Python holds the GIL."""
+sweep is compilation, which runs on one thread and releases the GIL; tracing and the 3D
+model builds are Python and hold it. So before the reference sweep of a 3D te/perturbation
+sweep starts, the reference program is traced and compiles on a thread while the
+te/perturbation model is built and its program traced (Python, on the main thread), then
+that program compiles on a second thread while the reference one finishes compiling and
+integrates; each sweep finds its executable in JAX's in-memory compilation cache. Results
+are identical either way; the gain is measured in ``benchmarks/results/code_notes.md``
+(section gearjax.cli.ahead)."""
 
 from __future__ import annotations
 

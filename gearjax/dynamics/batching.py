@@ -8,13 +8,9 @@ model's state size:
 * A vmapped adaptive integration advances in lockstep: every speed of a batch takes as
   many steps as its slowest one, and a ``lax.cond`` under ``vmap`` becomes a ``select``
   that evaluates both branches. On XLA:CPU a batch of a large model gains nothing in
-  return (one thread; 292 states are too few for wider kernels to pay), while a tiny
-  model's step is loop overhead that a batch shares. Measured 2026-11-27 on the 2-core VM
-  (``benchmarks/bench_batching.py``, one device, te, 24 speeds 20-480 rad/s, run after the
-  compile): the 3D rig at 38 / 90 / 148 / 292 states 2.7x / 2.9x / 3.4x / 6.0x quicker
-  mapped, each compiled 1-2.3 s sooner; the sdof model (2 states) 1.5-2.1x quicker
-  vmapped (5.5x at 126 speeds a chunk, 2000 speeds 100-1500 rad/s). The README main job
-  went 31 -> 20 s.
+  return (one thread; a few hundred states are too few for wider kernels to pay), while a
+  tiny model's step is loop overhead that a batch shares
+  (``benchmarks/bench_batching.py``, ``benchmarks/results/batching.md``).
 * On an accelerator one kernel serves every speed of a batch, which is what pays there
   (``benchmarks/results/accelerator_h100.md``).
 * jaxlib 0.10.2's CPU LAPACK kernels (eig, solve, qr) split a batch over the intra-op

@@ -377,19 +377,12 @@ def memory_chunk(model, simulate_kwargs: dict | None = None,
 
 
 # Speeds per device and compiled call on a CPU: at most CPU_CHUNK_STATE_ENTRIES / state size,
-# clipped to CPU_CHUNK_SPEEDS. Measured 2026-11-24 on 2 cores (one device each), speeds
-# sorted by cost, the time after the first (compiling) chunk: the 3D main job scenario
-# (266 states), te, 2000 speeds: 16 speeds per device 22.5 ms/speed (53.6 s in all), 32:
-# 25 ms (60 s), 64: 27 ms, 100: 31 ms, 500: 109 ms (343 s); reference, 1000 speeds: 16 per
-# device 35.9 s in all against 42.6 s at 64; the main job (45 speeds) 31 s in two chunks of
-# 24 against 34 s in one. The sdof te (2 states), 2000 speeds: 64 per device 7.4 s in all,
-# 128: 7.8 s, 16: 7.9 s, 1000: 10.7 s. Vmapped speeds advance in lockstep (a wide chunk
-# waits for its slowest speed) and a chunk's solver stages must stay in the core's cache
-# (16 speeds x 266 states x 8 bytes x the 13 stages of Dopri8: ~0.5 MB, the L2 of these
-# cores); a chunk also pays a fixed dispatch cost, hence the lower bound. These chunks were
-# vmapped; since e88f60e a 3D model's speeds are mapped on a CPU (gearjax.dynamics.batching),
-# where the chunk only sets how often rows are written (te, 1000 speeds, 2026-11-27: 28 s in
-# all at 16 and at 64 speeds per device, results identical).
+# clipped to CPU_CHUNK_SPEEDS. Vmapped speeds advance in lockstep (a wide chunk waits for its
+# slowest speed) and a chunk's solver stages must stay in the core's cache (16 speeds x 266
+# states x 8 bytes x the 13 stages of Dopri8: ~0.5 MB); a chunk also pays a fixed dispatch
+# cost, hence the lower bound. Where a model's speeds are mapped (gearjax.dynamics.batching)
+# the chunk only sets how often rows are written. Measurements:
+# benchmarks/results/code_notes.md, section gearjax.dynamics.sweep.
 CPU_CHUNK_STATE_ENTRIES = 4096
 CPU_CHUNK_SPEEDS = (16, 64)
 
@@ -463,15 +456,12 @@ class MethodSweepResult(SweepResult):
 
 def auto_method(model) -> str:
     """The cheapest method that is exact for the model, by measurement: ``"transient"``
-    for every model today. The sdof transient sweep of 45 speeds takes ~7 s, the harmonic
-    one ~20 s (mostly compilation). On the 3D rig the accelerated transient of
-    :func:`gearjax.dynamics.simulate.simulate` (periodic estimate after every period) beat
-    the frequency-domain solver once it existed: main job, 45 speeds, 2 cores, first run
-    with empty caches, te 18 s and perturbation 13 s by the transient (contact-loss speeds
-    in the same batch) against 26 + 11 s and 20 + 11 s by harmonic balance plus its
-    transient fallback; the two agree to 9e-7 in the dynamic factor and 2e-6 in the DTE
-    (``method="harmonic"`` stays, as an independent check and for linear studies). The
-    reference formulation is nonlinear: transient (or ``"steady"``) only."""
+    for every model (the accelerated transient of :func:`gearjax.dynamics.simulate.simulate`
+    beat the frequency-domain solver plus its transient fallback on the sdof and 3D rigs,
+    the two agreeing to 1e-6 in the dynamic factor: ``benchmarks/results/code_notes.md``,
+    section gearjax.dynamics.sweep.auto_method; ``method="harmonic"`` stays, as an
+    independent check and for linear studies). The reference formulation is nonlinear:
+    transient (or ``"steady"``) only."""
     del model  # every model: see above
     return "transient"
 

@@ -1,25 +1,21 @@
 """Compiled code of a long-lived process: release it before the kernel's map limit.
 
 Every program XLA compiles for the CPU keeps its machine code in memory maps of its own
-(LLVM's section memory manager: about six per small program, text, read-only data and
-data, more for large ones), held for as long as JAX caches the executable, i.e. for as
-long as the jitted function lives. Linux caps the maps of a process at
-``vm.max_map_count`` (65,530 by default). A process that compiles many distinct programs
--- the test workers, a notebook running sweeps of many models, ``gearjax paper`` -- reaches
-the cap, and then the next compilation fails (``LLVM compilation error: Cannot allocate
-memory``) and jaxlib 0.10.2 *segfaults* in ``backend_compile_and_load`` (or in
-``executable.serialize()``) instead of raising. Measured 2026-11-25: the suite's two
-pytest-xdist workers peaked at 58,600 and 64,600 maps (a run that passed; the runs that
-crashed were the ones whose worker crossed 65,530); a loop of retained ``jax.jit``
-programs crashed with that stack at exactly the cap (lowered to 20,000 to reproduce it).
+(LLVM's section memory manager: about six per small program), held for as long as JAX
+caches the executable. Linux caps the maps of a process at ``vm.max_map_count`` (65,530 by
+default). A process that compiles many distinct programs -- the test workers, a notebook
+running sweeps of many models, ``gearjax paper`` -- reaches the cap, and then the next
+compilation fails and jaxlib 0.10.2 *segfaults* in ``backend_compile_and_load`` (or in
+``executable.serialize()``) instead of raising (``benchmarks/results/code_notes.md``,
+section gearjax.runtime.code_memory).
 
 :func:`release_if_crowded` drops JAX's compilation caches (``jax.clear_caches()``) when the
 process holds more than a fraction of the cap: the executables are freed and their maps
-unmapped (1,000 programs: 5,003 -> 533 maps), and the jitted functions stay usable; a
-function called again compiles again, or loads its program from the persistent
-compilation cache when one is configured. The long loops call it before they compile
-(:func:`gearjax.dynamics.sweep.sweep` and the steady-state, harmonic and design loops),
-the test suite after every test. Results never change; only the cost of a recompile.
+unmapped, and the jitted functions stay usable; a function called again compiles again,
+or loads its program from the persistent compilation cache when one is configured. The
+command line's progress meter (:class:`gearjax.runtime.HostProgressMeter`) calls it between
+compilations, the test suite after every test. Results never change; only the cost of a
+recompile.
 
 Where ``/proc`` is absent (macOS, Windows) nothing is counted and nothing released.
 """
@@ -61,8 +57,8 @@ def max_map_count() -> int:
 def release_if_crowded(fraction: float = DEFAULT_FRACTION, *, max_maps: int | None = None) -> bool:
     """``jax.clear_caches()`` (and a garbage collection) when this process holds more than
     ``fraction`` of ``max_maps`` memory maps (default: the kernel's ``vm.max_map_count``).
-    Returns whether it released. Cheap (one read of ``/proc/self/maps``, ~1 ms at 60,000
-    maps): call it between compilations, never inside a traced function."""
+    Returns whether it released. Cheap (one read of ``/proc/self/maps``): call it between
+    compilations, never inside a traced function."""
     n = map_count()
     if n is None:
         return False

@@ -20,11 +20,12 @@ caller, e.g. pytest's ``faulthandler_timeout``, keeps its own).
 
 Usage (the CLI's ``--stall-timeout`` does this around every command)::
 
-    from gearjax.dynamics import watchdog
-    with watchdog.stall_guard(600.0, what="gearjax sweep"):
-        res = gj.sweep(model, speeds)       # sweep() calls watchdog.progress() per chunk
+    from gearjax.runtime import HostProgressMeter, watchdog
+    with watchdog.stall_guard(watchdog.DEFAULT_STALL_TIMEOUT_S, what="gearjax sweep"):
+        # the host meter calls watchdog.progress() per chunk
+        res = gj.sweep(model, speeds, progress=HostProgressMeter())
 
-:func:`progress` is a no-op when no guard is active, so library loops call it freely.
+:func:`progress` is a no-op when no guard is active, so a meter may call it freely.
 The first unit includes compilation (minutes for the 3D model on a small machine): keep
 the timeout generous (default :data:`DEFAULT_STALL_TIMEOUT_S`).
 """
