@@ -216,3 +216,17 @@ def test_importing_gearjax_leaves_the_process_alone():
         run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                              text=True, timeout=120)
         assert run.returncode == 0, run.stderr[-1500:]
+
+
+def test_every_environment_variable_is_documented():
+    """Every ``GEARJAX_*`` variable the package or the notebooks read has a row in
+    docs/environment.md (issue 47: one table, each with a reason)."""
+    import re
+
+    root = PKG.parent
+    names = set()
+    for path in [*PKG.rglob("*.py"), *(root / "notebooks").glob("*.ipynb")]:
+        names |= set(re.findall(r"GEARJAX_[A-Z_]+[A-Z]", path.read_text()))
+    doc = (root / "docs" / "environment.md").read_text()
+    rows = set(re.findall(r"^\| `(GEARJAX_[A-Z_]+)", doc, flags=re.M))
+    assert names and names <= rows, f"undocumented: {sorted(names - rows)}"
