@@ -102,7 +102,7 @@ def test_default_chunk_fits_memory(model, monkeypatch, capsys):
     assert sweep_mod.memory_chunk(model, OPTS, budget_bytes=10.5 * per_speed) == 10
     assert sweep_mod.memory_chunk(model, OPTS, budget_bytes=0.5 * per_speed) == 1
     monkeypatch.setattr(sweep_mod, "memory_chunk", lambda *a, **k: 2)
-    sweep(model, [120.0, 640.0, 330.0, 880.0, 450.0], **OPTS)
+    sweep(model, [120.0, 640.0, 330.0, 880.0, 450.0], progress=TextProgressMeter(), **OPTS)
     assert "chunk 3/3" in capsys.readouterr().err
 
 
