@@ -230,3 +230,17 @@ def test_every_environment_variable_is_documented():
     doc = (root / "docs" / "environment.md").read_text()
     rows = set(re.findall(r"^\| `(GEARJAX_[A-Z_]+)", doc, flags=re.M))
     assert names and names <= rows, f"undocumented: {sorted(names - rows)}"
+
+
+def test_one_diffeqsolve_call_site():
+    """Every integration goes through :func:`gearjax.dynamics.integrate.integrate` (issue 46):
+    one ``diffeqsolve`` call in the package, under the jump-aware step-size controller."""
+    calls = [f"{mod}:{node.lineno}" for mod, path in _modules().items()
+             for node in ast.walk(ast.parse(path.read_text()))
+             if isinstance(node, ast.Call) and ast.unparse(node.func).endswith("diffeqsolve")]
+    assert len(calls) == 1 and calls[0].startswith("gearjax.dynamics.integrate:"), calls
+    controllers = [f"{mod}:{node.lineno}" for mod, path in _modules().items()
+                   for node in ast.walk(ast.parse(path.read_text()))
+                   if isinstance(node, ast.Call)
+                   and ast.unparse(node.func).endswith("PIDController")]
+    assert all(c.startswith("gearjax.dynamics.integrate:") for c in controllers), controllers

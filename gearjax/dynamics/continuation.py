@@ -63,7 +63,8 @@ import numpy as np
 from ..errors import SimulationError
 from .progress import AbstractProgressMeter, NoProgressMeter
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
-from .simulate import (default_solver, jump_controller, jump_density, simulate,
+from .integrate import integrate, jump_controller
+from .simulate import (default_solver, jump_density, simulate,
                        transient_periods)
 from .stability import check_speeds
 from .steady import periodic_state
@@ -132,11 +133,9 @@ def _settle(model, omega, y_start, cfg):
     n = transient_periods(model, omega, c["transient_decay"], c["min_transient_mesh_periods"],
                           c["max_transient_mesh_periods"])
     solver, rtol, atol = default_solver(model.formulation, jump_density(model))
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(lambda t, y, args: model.vector_field(t, y, args)), solver,
-        t0=0.0, t1=n * period, dt0=None, y0=y_start, args=omega,
-        saveat=diffrax.SaveAt(t1=True), stepsize_controller=jump_controller(model, rtol, atol),
-        max_steps=2_000_000, throw=False)
+    sol = integrate(lambda t, y, args: model.vector_field(t, y, args), solver,
+                    jump_controller(model, rtol, atol), 0.0, n * period, y_start, omega,
+                    saveat=diffrax.SaveAt(t1=True), max_steps=2_000_000)
     return sol.ys[-1]
 
 

@@ -37,6 +37,8 @@ import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 
+from .integrate import integrate
+
 __all__ = ["solve_legs"]
 
 # the slow-mode estimate ends when a period's change exceeds this times its smallest
@@ -52,8 +54,8 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
 
     Parameters
     ----------
-    model, term, solver, ctrl, omega, max_steps, adjoint : as in ``simulate`` (the term is
-        the model's vector field, ``ctrl`` its jump controller).
+    model, term, solver, ctrl, omega, max_steps, adjoint : as in ``simulate`` (``term`` is
+        the model's vector field ``(theta, y, omega) -> y'``, ``ctrl`` its jump controller).
     y0 : state at theta = 0, the start of the transient.
     ts : (n_meas, n) output angles (rad) of each measured period, in
         ``[t_transient + p P, t_transient + (p + 1) P)``, ``n < n_out``.
@@ -119,11 +121,8 @@ def solve_legs(model, term, solver, ctrl, omega, y0, *, ts, n_out: int, n_win: i
         t0 = jnp.where(tr, 0.0, jnp.where(meas, t0_meas, w_t0[i]))
         t1 = jnp.where(tr, t1_tr, jnp.where(meas, t1_meas, w_ts[i, -1]))
         save = jnp.where(tr, tr_ts, jnp.where(meas, pad(ts[p], t1_meas), pad(w_ts[i], w_ts[i, -1])))
-        sol = diffrax.diffeqsolve(
-            term, solver, t0=t0, t1=t1, dt0=None, y0=jnp.where(tr | meas, y, y_w), args=omega,
-            saveat=diffrax.SaveAt(ts=save), stepsize_controller=ctrl, max_steps=max_steps,
-            adjoint=adjoint, throw=False,
-        )
+        sol = integrate(term, solver, ctrl, t0, t1, jnp.where(tr | meas, y, y_w), omega,
+                        saveat=diffrax.SaveAt(ts=save), max_steps=max_steps, adjoint=adjoint)
         good = sol.result == diffrax.RESULTS.successful
         steps = sol.stats["num_steps"]
         y_end = sol.ys[-1]

@@ -11,7 +11,8 @@ like ``rho^(theta / P)``.
 
 ``Phi(P)`` is computed by integrating the variational (here: the homogeneous matrix)
 equation ``Phi' = A(theta) Phi``, ``Phi(0) = I``, with diffrax (all columns under the same
-error control; the jumps of ``k(theta)`` passed as ``jump_ts``). For a linear system this
+error control; steps end at the jumps of ``k(theta)``: :func:`gearjax.dynamics.integrate.
+jump_controller`). For a linear system this
 *is* the Jacobian of the flow map, without the pitfall of ``jax.jacfwd`` through an
 adaptive solve, whose step sizes would be chosen for one primal trajectory only.
 
@@ -34,6 +35,7 @@ import numpy as np
 from ..errors import SimulationError, check_float64
 from ..models.base import AbstractGearModel
 from .batching import over_speeds, sequential_for
+from .integrate import integrate, jump_controller
 
 __all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "check_speeds",
            "STABILITY_METHODS"]
@@ -68,21 +70,15 @@ def monodromy(model, omega, *, solver=None, rtol: float = 1e-10, atol: float = 1
     solver = diffrax.Dopri8() if solver is None else solver
     omega = jnp.asarray(omega, dtype=float)
     period = float(model.period_rad)
-    jumps = np.asarray(model.jump_thetas, dtype=float)
-    jumps = jumps[(jumps > 0) & (jumps < period)]
-    jumps = jnp.asarray(jumps) if jumps.size else None
     n = model.state_size
 
     def vf(t, phi, args):
         return jax.vmap(lambda col: model.homogeneous_vector_field(t, col, args), in_axes=1,
                         out_axes=1)(phi)
 
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(vf), solver, t0=0.0, t1=period, dt0=None, y0=jnp.eye(n), args=omega,
-        saveat=diffrax.SaveAt(t1=True),
-        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, jump_ts=jumps),
-        max_steps=max_steps, adjoint=diffrax.ForwardMode(), throw=False,
-    )
+    sol = integrate(vf, solver, jump_controller(model, rtol, atol), 0.0, period, jnp.eye(n),
+                    omega, saveat=diffrax.SaveAt(t1=True), max_steps=max_steps,
+                    adjoint=diffrax.ForwardMode())
     ok = sol.result == diffrax.RESULTS.successful
     return jnp.where(ok, sol.ys[-1], jnp.nan)
 

@@ -17,7 +17,7 @@ of the model's ``vector_field`` (exact for an affine vector field, and the same 
 :func:`gearjax.dynamics.stability.monodromy`, which integrates the model's
 ``homogeneous_vector_field``: checked in ``tests/test_steady.py``; the 3D model has only the
 full vector field, hence the linearisation here). Both share one error control and the
-jump angles of the model (:class:`gearjax.dynamics.simulate.PeriodicJumpController`).
+jump angles of the model (:func:`gearjax.dynamics.integrate.integrate`).
 
 That holds while the mesh stays in contact along the orbit: where the linear orbit's
 force turns tensile, the contact law (:func:`gearjax.gears.contact.te_contact`) makes te
@@ -74,7 +74,8 @@ from ..linalg import solve as dense_solve
 from .progress import AbstractProgressMeter, NoProgressMeter
 from .batching import over_speeds, sequential_for
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
-from .simulate import SimulationError, SimulationResult, jump_controller, simulate
+from .integrate import integrate, jump_controller
+from .simulate import SimulationError, SimulationResult, simulate
 from .stability import check_speeds
 
 __all__ = [
@@ -159,12 +160,10 @@ def _one_period(model, omega, y_start, solver, rtol, atol, max_steps):
         fy, lin = jax.linearize(lambda yy: model.vector_field(t, yy, args), y)
         return fy, jax.vmap(lin, in_axes=1, out_axes=1)(phi)
 
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(vf), solver, t0=0.0, t1=float(model.period_rad), dt0=None,
-        y0=(y_start, jnp.eye(n, dtype=y_start.dtype)), args=omega,
-        saveat=diffrax.SaveAt(t1=True), stepsize_controller=jump_controller(model, rtol, atol),
-        max_steps=max_steps, adjoint=diffrax.ForwardMode(), throw=False,
-    )
+    sol = integrate(vf, solver, jump_controller(model, rtol, atol), 0.0,
+                    float(model.period_rad), (y_start, jnp.eye(n, dtype=y_start.dtype)), omega,
+                    saveat=diffrax.SaveAt(t1=True), max_steps=max_steps,
+                    adjoint=diffrax.ForwardMode())
     y_p, phi = sol.ys[0][-1], sol.ys[1][-1]
     ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(phi)) & jnp.all(
         jnp.isfinite(y_p))
