@@ -30,8 +30,8 @@ Metrics: ``y*`` is measured by :func:`gearjax.dynamics.simulate.simulate` with n
 transient, so every metric means what it means there and ``convergence`` measures how
 periodic ``y*`` is. ``converged`` also requires the Floquet spectral radius
 ``rho = max |mu(Phi)| < 1`` (an unstable orbit is never what a transient shows) and, for the
-reference, the Newton iteration to have converged. ``rho`` is estimated by normalised squaring of ``Phi``
-(``log rho = lim 2^-m log ||Phi^(2^m)||``), matrix products only.
+reference, the Newton iteration to have converged. ``rho`` is estimated by normalised
+squaring of ``Phi`` (``log rho = lim 2^-m log ||Phi^(2^m)||``), matrix products only.
 
 Shooting rather than harmonic balance for jumping stiffness: ``k(theta)`` of a spur pair is
 a square wave whose Fourier coefficients decay like 1/h (Gibbs errors of O(1/H) in the peak

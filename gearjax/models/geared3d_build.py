@@ -30,7 +30,7 @@ from .geared3d_modal import modal_structure
 def _quasi_static_scan(cond, el, mods, thetas, f_s, v12, mesh_vectors, max_iter, mask12):
     """:func:`quasi_static_3d` at the angles ``thetas`` (the build's table scan): one
     compilation per model shape, shared by the formulations' builds (a closure over the
-    design compiled anew for each, ~0.6 s every build)."""
+    design compiled anew for each, at every build)."""
     return jax.vmap(lambda t: quasi_static_3d(cond, el, mods, t, f_s, v12, mesh_vectors,
                                               max_iter, mask12))(thetas)
 
