@@ -25,10 +25,10 @@ Gradients: forward mode (``jax.jacfwd``, ``diffrax.ForwardMode``) through mesh c
 quasi-static table, solve and metric; the switching angles follow the design through the
 models' angle map (:mod:`gearjax.excitation.events`, "Derivatives with respect to the
 design"), valid while the discrete quasi-static structure is the build one, which
-:class:`DynamicObjective` checks at every evaluation (rebuilding the model when it fails). With contact loss the objective is continuous with kinks
-(where a contact-loss interval appears at the maximum, where the instant of the maximum
-switches, at rebuilds); between them the derivative is the orbit's (the vector field is
-continuous across contact loss: no saltation term is missing).
+:class:`DynamicObjective` checks at every evaluation (rebuilding the model when it fails).
+With contact loss the objective is continuous with kinks (a contact-loss interval appearing
+at the maximum, a switch of the instant of the maximum, rebuilds); between them it is the
+orbit's derivative (the vector field is continuous across contact loss: no saltation).
 
 Inertias (:data:`DESIGN_INERTIAS`): the sdof model uses the gear bodies (solid cylinders at
 the pitch radii) and puts the NLTE'' reaction on the drive (``kappa = 1``), because the

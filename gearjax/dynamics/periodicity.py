@@ -8,21 +8,20 @@ carries what a sliding measurement (:mod:`gearjax.dynamics.legs`) needs of the m
 before: the last one-period change and the extrema of the periods slid past.
 
 ``convergence`` is the largest relative change of the per-period extrema between the last
-two measured periods (forces over F_S, DTE and acceleration over their peak-to-peak) or,
-if larger, what is left of the transient: modal models (``model.transient_amplitudes``)
+two measured periods (forces over F_S, DTE and acceleration over their peak-to-peak) or, if
+larger, what is left of the transient: modal models (``model.transient_amplitudes``)
 extrapolate the state's change over the last period mode by mode, ``|mu_j| / |1 - mu_j|``
-times each mode's change (``mu_j`` its free-decay multiplier per period), and sum the
-modes' shares of each output; a model without it has its extrema's change divided by
-``|1 - mu|`` of the slowest mode its outputs see (``model.slowest_output_mode``), which
-also amplifies integration noise (the modal extrapolation does not). Both read the linear model's free decay; with contact loss
-in the measured periods (``min F_D <= 0``) a sliding measurement also takes the change's
-own ratio ``q`` between successive periods, ``change q / (1 - q)`` (the linear reading
-alone passes orbits whose force is still an order above ``convergence_tol`` off).
-``converged`` means "periodic with the excitation
-period to within ``convergence_tol``": a sub-harmonic (``period_multiple``, below),
-quasi-periodic or growing response (parametric instability,
-:mod:`gearjax.dynamics.stability`) or an insufficient transient reads as not converged,
-and an undamped model (decay rate 0) never does.
+times each mode's change (``mu_j`` its free-decay multiplier per period), and sum the modes'
+shares of each output; a model without it has its extrema's change divided by ``|1 - mu|``
+of the slowest mode its outputs see (``model.slowest_output_mode``), which also amplifies
+integration noise (the modal extrapolation does not). Both read the linear model's free
+decay; with contact loss in the measured periods (``min F_D <= 0``) a sliding measurement
+also takes the change's own ratio ``q`` between successive periods, ``change q / (1 - q)``
+(the linear reading alone can pass an orbit whose force is ten times
+``convergence_tol`` off). ``converged`` means "periodic with the excitation period to within
+``convergence_tol``": a sub-harmonic (``period_multiple``, below), quasi-periodic or growing
+response (parametric instability, :mod:`gearjax.dynamics.stability`) or an insufficient
+transient reads as not converged, and an undamped model (decay rate 0) never does.
 
 A sliding measurement also recognises a sub-harmonic orbit: it stops once the last
 period's extrema equal those m = 2..``MAX_PERIOD_MULTIPLE`` periods back (measured, then

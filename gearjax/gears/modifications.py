@@ -231,8 +231,8 @@ class ToothModifications(eqx.Module):
         difference are undefined (zero derivative) and came out NaN -- measured on the
         spur Table 1 pair: 1 mm or 13.3 um over the whole path on both gears, and 13.3 um
         with extents 0.8/0.8, gave a NaN natural frequency and an integration that ran to
-        the 2e6-step limit (solver_ok False); 0.78/0.78
-        (band 0.56 g = 0.96 p_b < p_b) is fine. The quasi-static solve
+        the 2e6-step limit (solver_ok False); 0.78/0.78 (band 0.56 g = 0.96 p_b < p_b) is
+        fine. The quasi-static solve
         (:func:`gearjax.quasi_static`, ``dynamics=False``) is exact for these reliefs.
         """
         if self.pitch_errors_m is not None:
