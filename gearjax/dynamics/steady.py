@@ -393,8 +393,8 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
         idx = np.flatnonzero(need)
         if idx.size:
             # from the quasi-static start, as simulate/sweep: after contact loss several
-            # attractors can coexist (measured: the orbit's own continuation reached
-            # another branch, DF off by 1.9), and the sweep must give sweep()'s answer
+            # attractors can coexist (the orbit's own continuation may reach another
+            # branch), and the sweep must give sweep()'s answer
             start = np.asarray(_initial_states(model, jnp.asarray(speeds[idx])))
             ckw = tuple(sorted((continuation_kwargs or {}).items()))
             t0 = time.perf_counter()

@@ -116,7 +116,7 @@ def build_geared3d(
         ``mean_stiffness_N_per_m`` is given; ``nlte_terms`` None: kept iff its NLTE is
         not identically 0.
     moving_events : te/perturbation table: False keeps the switching angles at the build
-        angles (no angle map: the same model at the build design, built ~3x faster for
+        angles (no angle map: the same model at the build design, built faster for
         forward sweeps; :meth:`with_modifications` then moves no switching angle).
 
     Raises
