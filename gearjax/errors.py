@@ -79,8 +79,8 @@ def check_float64() -> None:
     gearjax enables float64 on import; a caller that turns it off again (``jax.config.update(
     "jax_enable_x64", False)``) would get no answer but a long wait: the solvers' tolerances
     (shooting rtol 1e-9, measurement 1e-7) lie below float32's 1.2e-7 resolution, so every
-    integration runs to its step limit (measured: a one-speed sdof ``steady_sweep`` took
-    217 s and returned NaN metrics). The dynamic solvers call this on entry."""
+    integration runs to its step limit and returns NaN metrics. The dynamic solvers call
+    this on entry."""
     import jax
 
     if not jax.config.jax_enable_x64:

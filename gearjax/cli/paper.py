@@ -39,9 +39,9 @@ class Case(NamedTuple):
 
 # Pitch errors make the excitation period a pinion revolution (26 mesh periods): the
 # frequency-domain solver then escalates to thousands of harmonics per revolution, one 3D
-# compile per size, and took longer than the transient (the reference's 404 s for Fig. 12)
-# before the cut; these cases run the transient for every formulation (issue 14: harmonics
-# per mesh period).
+# compile per size, and took longer than the transient (benchmarks/results/code_notes.md,
+# section gearjax.cli.paper); these cases run the transient for every formulation (issue 14:
+# harmonics per mesh period).
 CASES = (
     Case("fig08", "6.3.1", "Fig. 8", "spur, short relief, damping 0.03", ("--damping", "0.03")),
     Case("fig09", "6.3.1", "Fig. 9", "spur, short relief, damping 0.1", ()),

@@ -32,8 +32,8 @@ def last_mesh_period_signals(model, speeds):
     import equinox as eqx
     import jax.numpy as jnp
 
-    # compiled once for all speeds (called op by op, simulate cost 17 s of CPU on the sdof
-    # model, 2.5x its compilation, and 4 s per further speed)
+    # compiled once for all speeds: run op by op, simulate costs more than its compilation,
+    # and again at every speed (benchmarks/results/code_notes.md, gearjax.cli.signals)
     run = eqx.filter_jit(simulate)
     out = []
     for w in speeds:

@@ -29,7 +29,7 @@ DESIGN_MODELS = ("torsional", "3d")
 DESIGN_METHODS = ("auto", "transient", "steady")  # "auto": the transient (DynamicObjective)
 DEFAULT_SHARPNESS = 200.0
 MODELS_KEPT = 8  # earlier models of other structures a DynamicObjective may return to
-DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (module docstring)
+DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (:mod:`gearjax.design`)
 
 
 def design_inertias(mesh: Mesh, inertias_kg_m2=DESIGN_INERTIAS) -> tuple:
@@ -122,7 +122,7 @@ class QuasiStaticObjective:
         a V-shaped (non-differentiable) minimum where the fluctuation vanishes, the mean
         square a smooth one; ``exact`` is the RMS (m).
     n_positions : angles per mesh period.
-    sharpness : beta of the smooth maxima (module docstring); scale = mean static mesh
+    sharpness : beta of the smooth maxima (:mod:`gearjax.design`); scale = mean static mesh
         deflection F_S / (k_m cos b_b) at the first torque, k_m the mean geometric
         mesh stiffness.
     model : ``"torsional"`` (default: TE_S of the rigid-body mesh, Eq. (17)) or ``"3d"``
@@ -220,12 +220,12 @@ class DynamicObjective:
         encoder position 1).
     formulation : ``"te"`` (Eq. (20) / (42) with the contact law, default),
         ``"reference"`` (Eq. (16) / (14)) or ``"perturbation"`` (Eq. (47a) / (48a)); see
-        the module docstring, "Formulation". The 3D perturbation formulation holds its
-        splitting constant k_m at the build design (module docstring, "3D model").
+        :mod:`gearjax.design`, "Formulation". The 3D perturbation formulation holds its
+        splitting constant k_m at the build design.
     pinion_torque_Nm, inertias_kg_m2, damping_ratio : model data (defaults: 254.8 N m,
         :data:`DESIGN_INERTIAS` (the gear bodies, sdof only), 0.03).
     nlte_reaction : ``"drive"`` (default, as every command and model) or ``"pinion"``
-        (module docstring, "Inertias"; sdof only: the 3D model refuses it).
+        (:mod:`gearjax.design`, "Inertias"; sdof only: the 3D model refuses it).
     max_frequency_hz : modal cut-off of the 3D model (Hz; None: all modes); default
         ``"auto"``: :func:`gearjax.models.geared3d.default_max_frequency_hz` of the highest
         speed (3 mesh harmonics x 1.5, at least 6 kHz: 16.8 kHz up to 900 rad/s on the
@@ -234,14 +234,12 @@ class DynamicObjective:
         (transient then measured periods; on the 3D model the transient is cut short by
         the periodic estimate after every period, so its slow shaft-line modes cost no
         long transient); ``"steady"``: the periodic steady state by shooting
-        (:func:`gearjax.dynamics.steady.steady_state`; forward mode only). Measured (3D
-        spur te, 2 speeds 330/480 rad/s, modes < 8.9 kHz, default tolerances): value and
-        jacfwd 1.3 s by the transient (compile ~65 s), against 48 s + 164 s by shooting;
-        values equal to 8e-8 relative (the default was ``"steady"`` for the 3D model until
-        2026-11-24).
+        (:func:`gearjax.dynamics.steady.steady_state`; forward mode only). The transient
+        is the default because it is far cheaper for equal values (see
+        ``benchmarks/results/code_notes.md``, section gearjax.design.objectives).
     rtol : requested relative accuracy of the metrics (None: the solvers' defaults, rtol
         1e-7 and periodicity 1e-3): :func:`method_tolerances`, merged under ``sim_kwargs``.
-    sharpness : beta of the smooth maximum over speeds (module docstring).
+    sharpness : beta of the smooth maximum over speeds (:mod:`gearjax.design`).
     n_table : table knots per mesh period of the model.
     sim_kwargs : options of :func:`gearjax.dynamics.simulate.simulate` (or of
         :func:`gearjax.dynamics.steady.steady_state`) (static).
@@ -371,15 +369,12 @@ class DynamicObjective:
         there (the last :data:`MODELS_KEPT` of other structures), else (or with ``fresh``)
         a model built at ``x``. Checked before integrating: the mapped model of another
         structure has an angle map that does not fit ``x``, and its integration can crawl
-        to the step limit instead of failing (sdof reference, zeta 0.03, 8 speeds, built at (25.8 um, 0.26),
-        asked for (26.7 um, 0.53): no value in 10 min, when a model built there gives
-        value and gradient in 18 s with the compile).
+        to the step limit instead of failing.
 
         Why earlier models are kept: every build compiles the objective's programs again
-        (its event angles are static), ~24 s on the 2-core CPU, and an optimiser's path
-        comes back to a structure it has left. ``gearjax optimise`` with its defaults (4
-        starts, sdof te, 660-900 rad/s) built 8 models in 5 min; 2 of them had the
-        structure of an earlier one."""
+        (its event angles are static), and an optimiser's path comes back to a structure it
+        has left (see ``benchmarks/results/code_notes.md``, section
+        gearjax.design.objectives)."""
         xj = jnp.asarray(x)
         if self.model is not None and not bool(_structure_holds(self.model, xj, self.space)):
             self._earlier = [self.model] + self._earlier[:MODELS_KEPT - 1]

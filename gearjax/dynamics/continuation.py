@@ -5,28 +5,22 @@ Near a tooth critical speed with contact loss the response is *softening*: where
 teeth separate the mesh stiffness drops out of Eqs. (16)/(14) (and out of (20)/(42),
 (47a)/(48a) by the contact law of Section 6.2), so the resonance leans towards low speeds
 and, over a band of speeds, a low orbit (contact kept) and a high orbit (contact lost)
-are both stable. Which one a run shows depends on where it comes from: sweeping the speed
-up stays on the low branch until it ends and then jumps up; sweeping down stays on the
-high branch down to *its* end and jumps down. ``gearjax.dynamics.sweep`` solves every
-speed independently from the quasi-static start (the ``independent`` mode of the command
-line: the attractor whose basin holds the quasi-static state); this module follows one
+are both stable: sweeping up stays on the low branch until it ends and jumps up, sweeping
+down stays on the high branch to *its* end and jumps down. ``gearjax.dynamics.sweep``
+solves every speed independently from the quasi-static start; this module follows one
 branch.
 
-Continuation (natural parameter, sequential in speed, hence a Python loop over one
-compiled per-speed solve, not a vmap): at each speed of the sorted list the periodic
-start ``y*`` is found by the Newton shooting of
-:func:`gearjax.dynamics.steady.periodic_state` started from the neighbour's ``y*``. The
+Continuation (natural parameter, sequential in speed: a Python loop over one compiled
+per-speed solve): at each speed the periodic start ``y*`` is found by the Newton shooting
+of :func:`gearjax.dynamics.steady.periodic_state` from the neighbour's ``y*``. The
 state is the model's dimensionless ``y = (z / x_ref, (dz/dt) / (omega_n x_ref))`` at
 ``theta = 0`` (sdof; the 3D model's modal state is scaled alike): position and *time*
 velocity, so the orbit at one speed is the natural first iterate at the next, without
-rescaling (measured on the sdof spur rig: 3-5 Newton steps per 15 rad/s step along both
-branches). Where that Newton fails (no orbit near the neighbour's: the branch ended at a
-fold) or converges onto an unstable orbit (``spectral_radius >= 1``, recorded in the
-``unstable_*`` fields), the sweep does what a slow run-up on a test rig does: a transient
-at the new speed started from the neighbour's orbit settles onto the attractor there
-(``transient_decay`` of the slowest free mode, as :func:`gearjax.dynamics.simulate.simulate`'s
-automatic transient) and Newton refines it (``restarted``). The first speed of a sweep
-starts from the quasi-static state ``model.initial_state`` (Newton, else the transient).
+rescaling. Where Newton fails (the branch ended at a fold) or converges onto an unstable
+orbit (``spectral_radius >= 1``, kept in the ``unstable_*`` fields), a transient from the
+neighbour's orbit (``transient_decay``, as :func:`gearjax.dynamics.simulate.simulate`'s)
+settles onto the attractor at the new speed, as a slow run-up on a rig does, and Newton
+refines it (``restarted``). The first speed starts from ``model.initial_state``.
 
 Stability: the Floquet multipliers are those of the monodromy ``Phi`` integrated with the
 orbit by :func:`gearjax.dynamics.steady.periodic_state` (``Phi' = (df/dy) Phi`` along the
@@ -40,13 +34,10 @@ orbit (Liouville) and while the two multipliers are complex ``rho = exp(-zeta om
 T)``, ``T = P / Omega`` (a check used in the tests); an orbit is unstable only with a real
 multiplier above 1 (the saddle between the two branches).
 
-Jumps (:func:`branch_jumps`): between two neighbouring speeds of one sweep, a jump is a
-relative change of the followed orbit's maximum mesh force larger than
-``threshold`` (default :data:`JUMP_THRESHOLD` = 0.2) times the smaller of the two
-maxima; each jump says whether the continuation failed there (``restarted``: Newton found
-no stable orbit near the neighbour's). Measured on the sdof spur rig (reference, zeta
-0.03, 15 rad/s steps, 520-700 rad/s): a step along a stable branch changes the force by at
-most 9 % (next to the low branch's end), the jump up by 87-97 %.
+Jumps (:func:`branch_jumps`): between neighbouring speeds, a change of the followed orbit's
+maximum mesh force larger than ``threshold`` (:data:`JUMP_THRESHOLD`) times the smaller of
+the two maxima, with whether the continuation failed there (``restarted``; measurements:
+``benchmarks/results/code_notes.md``, section gearjax.dynamics.continuation).
 """
 
 from __future__ import annotations

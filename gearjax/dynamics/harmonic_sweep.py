@@ -85,9 +85,10 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     harmonics used), until ``max_harmonics``;
     ``converged`` = that estimate met, the orbit finite and not known to be unstable.
     Stability: the small-gain bound (:mod:`gearjax.dynamics.small_gain`, free) proves it
-    where it can; with ``floquet`` the Floquet ``spectral_radius`` decides at the other speeds (one
-    monodromy period of ``n`` columns each: cheap for the sdof model, about 20 s per
-    speed for the 3D rig on 2 cores). Inside a parametric instability zone the periodic
+    where it can; with ``floquet`` the Floquet ``spectral_radius`` decides at the other
+    speeds (one monodromy period of ``n`` columns each: cheap for the sdof model, costly for
+    the 3D rig, see ``benchmarks/results/code_notes.md``, section
+    gearjax.dynamics.harmonic_sweep). Inside a parametric instability zone the periodic
     orbit exists but a transient never reaches it. Where ``contact_holds`` is False the
     linear orbit has a tensile mesh force: exact for the linear equations, not for a
     contact law that clips it.

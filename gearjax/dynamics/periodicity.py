@@ -8,25 +8,20 @@ carries what a sliding measurement (:mod:`gearjax.dynamics.legs`) needs of the m
 before: the last one-period change and the extrema of the periods slid past.
 
 ``convergence`` is the largest relative change of the per-period extrema between the last
-two measured periods (forces over F_S, DTE and acceleration over their peak-to-peak) or,
-if larger, what is left of the transient: modal models (``model.transient_amplitudes``)
+two measured periods (forces over F_S, DTE and acceleration over their peak-to-peak) or, if
+larger, what is left of the transient: modal models (``model.transient_amplitudes``)
 extrapolate the state's change over the last period mode by mode, ``|mu_j| / |1 - mu_j|``
-times each mode's change (``mu_j`` its free-decay multiplier per period), and sum the
-modes' shares of each output; a model without it has its extrema's change divided by
-``|1 - mu|`` of the slowest mode its outputs see (``model.slowest_output_mode``), which
-also amplifies integration noise (the 3D rig at 220 rad/s: extrema noise ~5e-6 F_S read
-as 1e-3, while the modal extrapolation bounds the measured error of a short transient
-by 4-5x and reads 3e-6 there). Both read the linear model's free decay; with contact loss
-in the measured periods (``min F_D <= 0``) a sliding measurement also takes the change's
-own ratio ``q`` between successive periods, ``change q / (1 - q)``. Measured on the sdof
-te case of ``simulate``'s "Transient" (short relief, zeta 0.1; 669.7, 674.9, 680.1 rad/s):
-the linear reading passed at 0.94e-3 with the max force 1.0e-2, 1.1e-2, 4.0e-3 F_S off a
-400-period transient at rtol 1e-10; with the ratio it passes at 0.91-0.97e-3 and the
-errors are 1.0e-3, 1.0e-3, 0.9e-3 F_S. ``converged`` means "periodic with the excitation
-period to within ``convergence_tol``": a sub-harmonic (``period_multiple``, below),
-quasi-periodic or growing response (parametric instability,
-:mod:`gearjax.dynamics.stability`) or an insufficient transient reads as not converged,
-and an undamped model (decay rate 0) never does.
+times each mode's change (``mu_j`` its free-decay multiplier per period), and sum the modes'
+shares of each output; a model without it has its extrema's change divided by ``|1 - mu|``
+of the slowest mode its outputs see (``model.slowest_output_mode``), which also amplifies
+integration noise (the modal extrapolation does not). Both read the linear model's free
+decay; with contact loss in the measured periods (``min F_D <= 0``) a sliding measurement
+also takes the change's own ratio ``q`` between successive periods, ``change q / (1 - q)``
+(the linear reading alone can pass an orbit whose force is ten times
+``convergence_tol`` off). ``converged`` means "periodic with the excitation period to within
+``convergence_tol``": a sub-harmonic (``period_multiple``, below), quasi-periodic or growing
+response (parametric instability, :mod:`gearjax.dynamics.stability`) or an insufficient
+transient reads as not converged, and an undamped model (decay rate 0) never does.
 
 A sliding measurement also recognises a sub-harmonic orbit: it stops once the last
 period's extrema equal those m = 2..``MAX_PERIOD_MULTIPLE`` periods back (measured, then
@@ -34,10 +29,8 @@ slid past) to ``convergence_tol`` while the change over one period stays above 1
 ``convergence_tol`` (so a period-1 transient decaying with an alternating ratio is not
 mistaken for one), and reports ``period_multiple = m`` with the extrema taken over all m
 periods (:func:`with_periods_slid_past`: those slid past on the grid); ``converged`` stays
-False. Sdof te, short relief, zeta 0.03, 1450-1550 rad/s: period 2 after 138-148 periods,
-the max force within ~1e-6 relative of a 400-period transient measured over 4-6 periods;
-before, those speeds slid to the whole budget and were reported unconverged with a
-period-1 reading.
+False. Measurements of these readings: ``benchmarks/results/code_notes.md``, section
+gearjax.dynamics.periodicity.
 """
 
 from __future__ import annotations
@@ -131,9 +124,9 @@ def convergence_measure(model, omega, vals, ys, memo: dict, *, n_periods: int,
         # contact loss: the free decay of the linear model does not bound what is
         # left; the change's own ratio q over successive periods does, as
         # change q / (1 - q); without a measurement before, none yet (inf: slide on).
-        # q is capped at Q_CONTACT_LOSS_MAX: at the noise floor of the extrema (~1e-6
-        # F_S with contact loss) q is a random ratio, and a cap of 0.999 read
-        # 5e-4-9.5e-4 there (Fig. 8, te, 760-860 rad/s) against a measured 1e-6
+        # q is capped at Q_CONTACT_LOSS_MAX: at the noise floor of the extrema q is a
+        # random ratio that a looser cap amplifies (benchmarks/results/code_notes.md,
+        # section gearjax.dynamics.periodicity)
         before = memo["change"]
         q = jnp.clip(change / before, 0.0, Q_CONTACT_LOSS_MAX)
         seen = jnp.where(jnp.isfinite(before), change * q / (1.0 - q), jnp.inf)

@@ -1,94 +1,43 @@
 """Steady-state dynamic response at one pinion speed: diffrax in theta = Omega1 t.
 
-:func:`simulate` integrates any :class:`gearjax.models.base.AbstractGearModel` (the sdof
-:class:`~gearjax.models.torsional.TorsionalModel`, Eqs. (16)/(20)/(47a), and the 3D
-:class:`~gearjax.models.geared3d.Geared3DModel`, Eqs. (14)/(42)/(48a)) at one speed, through
-a transient to its periodic steady state, and measures that state. It asks the model only
-what the base class declares.
+:func:`simulate` integrates any :class:`gearjax.models.base.AbstractGearModel` (sdof
+Eqs. (16)/(20)/(47a), 3D Eqs. (14)/(42)/(48a)) at one speed through a transient to its
+periodic steady state and measures that state, asking the model only what the base class
+declares. It integrates in the angle ``theta`` (rad) from ``model.transient_start``
+(:func:`gearjax.dynamics.integrate.integrate`);
+the transient, each measured period and each refinement window are legs of one call site
+(:mod:`gearjax.dynamics.legs`).
 
-Integration
------------
-``diffeqsolve`` in the angle ``theta`` (rad), from ``model.transient_start``
-to the end of the last measured period. The transient is ``n_transient_periods``
-excitation periods, or (``None``) chosen per speed so that the slowest free response of the
-linearised model decays by ``transient_decay``:
+Transient: ``n_transient_periods`` excitation periods, or (``None``) per speed
 ``n = ceil(ln(1/transient_decay) / (decay_rate * period))`` clipped to
-``[min_transient_mesh_periods, max_transient_mesh_periods]``. Steps per radian grow like
-``1/Omega`` while the periods needed grow like ``Omega``, so every speed costs about the
-same, which a vmapped sweep needs (diffrax advances the batch in lockstep).
+``[min_transient_mesh_periods, max_transient_mesh_periods]``, so that the slowest free
+response of the linearised model decays by ``transient_decay`` (every speed then costs
+about the same steps, as a lockstep vmapped sweep needs). Models with a modal state
+(``model.periodic_estimate``) cut it short: each period's end state is replaced by the
+model's periodic estimate (:func:`gearjax.models.base.modal_periodic_estimate`, shooting
+with each mode's free-decay monodromy as the Jacobian: exact for uncoupled linear modes),
+until the state changes by less than ``10 rtol`` over a period; once that change grows,
+only the slow modes are estimated (``slow_only``), then none. Where the measured periods of
+an automatic transient (forward mode) have not converged, the measurement slides on period
+by period within ``max_transient_mesh_periods`` (contact loss decays more slowly than the
+linear model). Measurements: ``benchmarks/results/code_notes.md``, gearjax.dynamics.simulate.
 
-Transient
----------
-Models with a modal state (the 3D model: ``model.periodic_estimate``) cut the automatic
-transient short. It is integrated one excitation period at a time, and each period's end
-state is replaced by the model's estimate of the periodic state: shooting with the
-free-decay monodromy of each mode as the Jacobian
-(:func:`gearjax.models.base.modal_periodic_estimate`), exact for uncoupled linear modes
-and a quasi-Newton step where the mesh couples them. The transient stops when the state's
-largest change over a period is below ``10 rtol`` (dimensionless state), or after the
-automatic count above. The every-mode estimate is used only while that change keeps
-falling; once it grows (near a resonance with contact loss the diagonal Jacobian
-misleads: at 800 rad/s, zeta 0.03 it diverges by ~3x per period) only the modes well below
-the excitation frequency are estimated (``slow_only``: they respond to the period mean,
-and they are what makes the plain transient long), until a period's change exceeds 4x
-its smallest in that stage; then the periods are integrated as they come. Measured on the
-main job's reference formulation (3D rig, zeta 0.1, 45 speeds 20-900 rad/s): 4-7 periods
-per speed instead of 18-400, 8 s instead of 42 s of integration, dynamic factors within
-2e-5 of the plain transient, whose own ``convergence`` at 900 rad/s is 9e-5 against 3e-6
-here. At zeta 0.03 the speeds of sustained contact loss (780-840 rad/s) took 400 plain
-periods and stayed unconverged (1.1-1.7e-3, reference; te 1.2-2.4e-3 to 860 rad/s): the
-rig's 9.8 Hz mode decays by 0.99943 per mesh period. With the slow-mode stage they converge
-in 155-262 periods (reference, convergence 6e-6-1.7e-5; te 160-200 periods, < 1e-6), their
-dynamic factors within 3.6e-5 of 3000 plain periods' (whose own measure is 3-5e-5). The
-``convergence`` measure (:mod:`gearjax.dynamics.periodicity`) judges the result the same
-way whichever transient led to it.
+Jumps: the right-hand side jumps or kinks at speed-independent angles
+(``model.jump_thetas``); :class:`~gearjax.dynamics.integrate.PeriodicJumpController` ends a step just before each and
+restarts just after it. The reference contact law's state-dependent kinks are left to the
+error control. Solvers and tolerances: :func:`default_solver`.
 
-Where the measured periods of an automatic transient (forward-mode adjoint) have not
-converged, the measurement slides on period by period (:mod:`gearjax.dynamics.legs`) until
-they have, within ``max_transient_mesh_periods`` in all: the automatic count is the linear
-model's, and an orbit with contact loss decays more slowly. Sdof te, short relief,
-zeta 0.1, 2000 speeds 100-1400 rad/s: 27 speeds at 667-685 rad/s (contact loss; their
-orbits decay by 0.76-0.94 per period, Floquet radius of the shooting) were flagged
-unconverged after 19-20 periods; now (669.7, 674.9, 680.1 rad/s) 44, 72 and 36 periods,
-and every speed reads converged, in 12.3 s instead of 8.4 s (the contact-loss speeds'
-extra periods, in lockstep). The README main job is unchanged in time (34 s), as is Fig. 8 (3D, zeta 0.03,
-82 s): every speed converged (perturbation at 780 rad/s had used the accelerated
-transient's whole count and now slides once), dynamic factors within 9.4e-5 of
-``docs/paper/fig08`` (that speed, whose measure there was 7.1e-4; the others 5e-6).
-
-The right-hand side jumps or kinks at angles independent of speed (cell engagement,
-quasi-static active-set changes, NLTE kinks: ``model.jump_thetas``);
-:class:`~gearjax.dynamics.integrate.PeriodicJumpController` ends every step just before such an angle and restarts just
-after it, in O(1) per step. State-dependent kinks of the reference contact law (cells
-losing or regaining contact) are left to the error control. Solvers and tolerances:
-:func:`default_solver` (measured choices: ``benchmarks/results/model_notes.md``).
-
-Metrics
--------
-The state is saved on the output grid of :mod:`gearjax.dynamics.metrics` (mid-cell
-samples plus both sides of every jump, by the solver's dense interpolant, which does not
-constrain the steps); max and min mesh force, DTE and acceleration are read there and
-refined between grid points and, where the grid is too coarse for the free ringing that
-a jump starts (low speed), after the largest jumps, so they are exact to the integration
-tolerance (the windows are further legs of the same ``diffeqsolve`` call site, as are the
-transient and each measured period, :mod:`gearjax.dynamics.legs`: one solver in the compiled
-program). Per speed:
-max and min mesh force F_D (N, Eqs. (22)/(24)), dynamic factor ``max F_D / F_S``, DTE and
-acceleration peak-to-peak, ``contact_loss`` (``min F_D <= 0``: separation for the reference
-formulation, a tensile -- unphysical -- force for the linear te/perturbation ones), the
-convergence measure and ``converged``.
-
-``convergence`` and ``period_multiple`` are read by :mod:`gearjax.dynamics.periodicity`:
-the change of the per-period extrema over the last period, or what is left of the
-transient if larger, and sub-harmonic orbits recognised by a sliding measurement.
-``converged`` means "periodic with the excitation period to within ``convergence_tol``".
-A failed integration (step limit, non-finite state) gives ``solver_ok = False``,
-``converged = False`` and NaN metrics: never a silent NaN.
+Metrics per speed, exact to the integration tolerance (read on the output grid of
+:mod:`gearjax.dynamics.metrics` by the dense interpolant and refined between grid points
+and after the largest jumps): max and min mesh force F_D (N, Eqs. (22)/(24)), dynamic factor
+``max F_D / F_S``, DTE and acceleration peak-to-peak, ``contact_loss`` (``min F_D <= 0``),
+``convergence`` and ``period_multiple`` (:mod:`gearjax.dynamics.periodicity`), and
+``converged`` ("periodic with the excitation period to within ``convergence_tol``"). A
+failed integration gives ``solver_ok = False``, ``converged = False`` and NaN metrics.
 
 Derivatives: every operation on the metric path is differentiable; the default
-``adjoint=diffrax.ForwardMode()`` gives forward-mode derivatives through the solve. Both
-models integrate in a simulation angle whose jumps stay fixed while the physical switching
-angles move with the design (their angle maps), so AD sees the motion of the jumps.
+``adjoint=diffrax.ForwardMode()`` differentiates through the solve, and the models' angle
+maps keep the jumps fixed in the simulation angle while the switching angles move.
 """
 
 from __future__ import annotations
@@ -163,12 +112,9 @@ def default_solver(formulation: str, jumps_per_mesh_period: float = 0.0):
     has more than 20 separated jump angles per mesh period (:func:`jump_density`) (helical gears: every one of the 40 cells
     of a contact line enters and leaves the path, about 240 per mesh period), where the
     steps are cut at the jumps anyway and the cheaper stages of Tsit5 win: Tsit5 at rtol
-    1e-8 (measured on the helical Table 1 pair, 8 speeds: 0.97 s and dynamic-factor error
-    4e-8, against 1.6 s and 3e-8 for Dopri8 at rtol 1e-7). The 3D spur te model (5
-    clusters of jumps, 23 jumps) at 700 rad/s: Dopri8 1e-7 34.8e3 steps, 2.0 s, error of
-    the dynamic factor 1e-8; Tsit5 1e-8 121e3 steps, 3.6 s, 3e-9. ``atol = rtol / 100``; both act
-    on the dimensionless state (lengths relative to the mean static approach). See the
-    module docstring for the measurements.
+    1e-8. ``atol = rtol / 100``; both act on the dimensionless state (lengths relative to
+    the mean static approach). Measured choices: ``benchmarks/results/model_notes.md`` and
+    ``benchmarks/results/code_notes.md``, section gearjax.dynamics.simulate.
     """
     name, rtol, atol = _DEFAULTS.get(formulation, _DEFAULTS["reference"])
     if name == "dopri8" and jumps_per_mesh_period > _MANY_JUMPS:
@@ -265,10 +211,7 @@ def transient_start(model, omega):
 
 # simulate's measured periods: two, the least the convergence measure (last two periods)
 # and the refinement windows (an extreme at the span's ends has an interior periodic copy)
-# need. A third was integrated and saved for no measure. Measured: the main job's
-# reference run (45 speeds, one device) 7.4 -> 6.7 s; `gearjax paper`'s Fig. 12 (pitch
-# errors, a period of a pinion revolution) 325 -> 326 s, its memory chunks growing from
-# 16-20 to 24-30 speeds that cost as much (a chunk costs ~ speeds x slowest speed's steps).
+# need (timings: benchmarks/results/code_notes.md, section gearjax.dynamics.simulate)
 DEFAULT_MEASURED_PERIODS = 2
 DEFAULT_SAMPLES_PER_MESH_PERIOD = 128  # and its output grid density
 
@@ -448,7 +391,7 @@ def simulate(
                                         max_transient_mesh_periods)[1] if slide else 0
 
     # transient, measured periods and refinement windows: legs of one diffeqsolve call
-    # site (gearjax.dynamics.legs; a second one cost ~3 s of compile per program)
+    # site (gearjax.dynamics.legs; a second one would compile a second solver per program)
     grid_ys, win_ys, success, n_steps, (k_tr, steps_tr, ok_tr, n_slid), (
         conv, multiple), memo = solve_legs(
         model, term, solver, ctrl, omega, y0, ts=ts.reshape(n_measured_periods, -1),

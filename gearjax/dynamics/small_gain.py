@@ -11,10 +11,9 @@ components of ``w`` and ``p``). By the small-gain theorem, if ``A0`` is Hurwitz 
 ``sup_chi |g(i chi)| * max|c| < 1``, the loop is exponentially stable for *every* gain
 history within that bound, periodic ones included: every Floquet multiplier lies inside
 the unit circle, with no monodromy integration. Sufficient, not necessary (it ignores
-the frequency content of ``c``): measured on the Baud-Velex spur rig, Eq. (42), the bound
-is 0.78 at damping 0.1 (3D, every speed: the frequency scaling leaves it speed
-independent) and 2.2 at 0.03; sdof Eq. (20) 1.44 and 4.8. The perturbation formulation
-has ``c = 0``: bound 0.
+the frequency content of ``c``; values on the Baud-Velex rig:
+``benchmarks/results/code_notes.md``, section gearjax.dynamics.small_gain). The
+perturbation formulation has ``c = 0``: bound 0.
 
 The sup is sampled at :data:`SMALL_GAIN_GRID` frequencies across each mode's half-power
 band (and zero); a bound below :data:`SMALL_GAIN_MARGIN` proves stability (the margin

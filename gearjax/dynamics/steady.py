@@ -5,58 +5,38 @@ formulations are linear time-periodic systems in the angle ``theta = Omega1 t``:
 
     y' = A(theta) y + b(theta),      A, b periodic with the excitation period P,
 
-so their steady state is fixed by one period. With ``y_p`` the solution from any start
-``y_s`` (here the quasi-static state of ``model.initial_state``) and ``Phi`` the monodromy
-matrix (``Phi' = A(theta) Phi``, ``Phi(0) = I``), the periodic start ``y*`` solves::
+so one period fixes the steady state. With ``y_p`` the solution from the start ``y_s``
+(``model.initial_state``) and ``Phi`` the monodromy matrix (``Phi' = A Phi``, ``Phi(0) = I``)::
 
     (I - Phi) y* = y_p(P) - Phi y_s                                   (shooting)
 
 ``Phi`` and ``y_p`` come from *one* ``diffeqsolve`` over one period of the augmented state
-``(y, Phi)``, ``Phi' = (df/dy) Phi`` with ``df/dy`` applied by forward-mode linearisation
-of the model's ``vector_field`` (exact for an affine vector field, and the same matrix as
-:func:`gearjax.dynamics.stability.monodromy`, which integrates the model's
-``homogeneous_vector_field``: checked in ``tests/test_steady.py``; the 3D model has only the
-full vector field, hence the linearisation here). Both share one error control and the
-jump angles of the model (:func:`gearjax.dynamics.integrate.integrate`).
-
-That holds while the mesh stays in contact along the orbit: where the linear orbit's
+``(y, Phi)``, ``Phi' = (df/dy) Phi`` by forward-mode linearisation of the model's
+``vector_field`` (exact for an affine vector field; the same matrix as
+:func:`gearjax.dynamics.stability.monodromy`), with one error control and the model's jump
+angles (:func:`gearjax.dynamics.integrate.integrate`). Where the linear orbit's
 force turns tensile, the contact law (:func:`gearjax.gears.contact.te_contact`) makes te
-and perturbation piecewise linear like the reference, and :func:`steady_sweep` continues
-those speeds with ``simulate`` as it does the reference's.
+and perturbation piecewise linear like the reference.
 
 The reference formulation (Eq. (14) / (16)) is piecewise linear in ``y``: the same
 step is a Newton iteration ``y <- y + (I - Phi(y))^-1 (y_P(y) - y)`` on the periodicity
 residual (quadratic convergence while the set of loaded cells along the orbit stays the
 same; ``max_newton`` iterations, stopped when the step is below ``newton_tol`` on the
-dimensionless state). Where teeth separate the periodic orbit found may be unstable or
-not the one a transient reaches: :func:`steady_sweep` then recomputes those speeds with
-:func:`gearjax.dynamics.simulate.simulate` (its automatic transient, from the quasi-static start
-as ``sweep``), so the sweep stays exact where it matters.
+dimensionless state). Where teeth separate the orbit found may be unstable or not the one
+a transient reaches: :func:`steady_sweep` recomputes those speeds with
+:func:`gearjax.dynamics.simulate.simulate` from the quasi-static start, as ``sweep`` does.
 
-Metrics: the periodic start is handed to :func:`gearjax.dynamics.simulate.simulate` (through a thin
-wrapper whose ``initial_state`` is ``y*``) with no transient and ``n_measured_periods``
-(default 2) measured periods: every metric has exactly the meaning it has in ``simulate``
-(max/min mesh force, dynamic factor, DTE and acceleration peak-to-peak, contact loss) and
-``convergence`` measures how periodic ``y*`` really is. ``converged`` additionally requires
-the Floquet spectral radius ``rho = max |mu(Phi)| < 1`` (an unstable periodic orbit, e.g.
-inside a parametric instability zone of the te formulation, is never what a transient
-shows: the linear response grows like ``rho`` per period) and, for the reference, the
-Newton iteration to have converged.
+Metrics: ``y*`` is measured by :func:`gearjax.dynamics.simulate.simulate` with no
+transient, so every metric means what it means there and ``convergence`` measures how
+periodic ``y*`` is. ``converged`` also requires the Floquet spectral radius
+``rho = max |mu(Phi)| < 1`` (an unstable orbit is never what a transient shows) and, for the
+reference, the Newton iteration to have converged. ``rho`` is estimated by normalised
+squaring of ``Phi`` (``log rho = lim 2^-m log ||Phi^(2^m)||``), matrix products only.
 
-Why shooting and not harmonic balance (the issue allowed either): ``k(theta)`` of a spur
-pair is a square wave (jumps at every engagement, ``model.jump_thetas``), so its Fourier
-coefficients decay like 1/h and a harmonic balance of H harmonics has Gibbs errors of
-O(1) at the jumps and O(1/H) in the peak mesh force; shooting integrates across the jumps
-exactly (steps end at them) and its error is the integration tolerance times
-``1/(1 - rho)``. The cost of shooting is ``n + 1`` columns over one period against one
-column over a transient of up to ``max_transient_mesh_periods`` periods
-(``benchmarks/bench_work_precision.py`` measures both); the matrix columns share every
-excitation evaluation (only ``A(theta) Phi`` is batched), so for small ``n`` (sdof: 2,
-reduced 3D: a few tens) a period of ``Phi`` costs about one period of ``y``.
-
-Spectral radius: ``rho`` is estimated by repeated normalised squaring of ``Phi``
-(``log rho = lim 2^-m log ||Phi^(2^m)||``), matrix products only, so it also runs on
-accelerators where a non-symmetric eigensolver is not available.
+Shooting rather than harmonic balance for jumping stiffness: ``k(theta)`` of a spur pair is
+a square wave whose Fourier coefficients decay like 1/h (Gibbs errors of O(1/H) in the peak
+force), while shooting integrates across the jumps exactly, with an error of the
+integration tolerance times ``1/(1 - rho)``, at the cost of ``n + 1`` columns over one period.
 """
 
 from __future__ import annotations
@@ -360,9 +340,9 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
 
     ``chunk_size``: speeds per call; default such that a chunk holds about 80 000
     monodromy entries (sdof: all speeds; the 3D rig with 182 states: 2 speeds), because
-    large batched monodromy solves are memory-bound (3D rig, 100 speeds in one vmapped
-    chunk: over 20 min against 2.6 s per speed in chunks of 2); on a CPU, where the speeds
-    are mapped, it sets how often progress is printed.
+    large batched monodromy solves are memory-bound (``benchmarks/results/code_notes.md``,
+    section gearjax.dynamics.steady); on a CPU, where the speeds are mapped, it sets how
+    often progress is printed.
 
     ``transient_periods`` is 0 for shooting speeds and the transient used for continued
     ones; ``n_steps`` counts shooting and measuring steps.
@@ -371,9 +351,8 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     check_speeds(speeds)  # and float64
     model.require_structure()
     if chunk_size is None:
-        # the batched monodromy (chunk x n x n per stage) must stay cache-sized: measured on
-        # the 3D spur rig (n = 182), 8 speeds in chunks of 2: 2.6 s/speed; 100 speeds in one
-        # chunk: not finished after 20 min (the transient sweep: 3.3 s/speed)
+        # the batched monodromy (chunk x n x n per stage) must stay cache-sized
+        # (benchmarks/results/code_notes.md, section gearjax.dynamics.steady)
         n = int(model.state_size)
         chunk = int(min(speeds.size, max(1, _CHUNK_ELEMENTS // (n * n))))
     else:
@@ -412,8 +391,8 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
         idx = np.flatnonzero(need)
         if idx.size:
             # from the quasi-static start, as simulate/sweep: after contact loss several
-            # attractors can coexist (measured: the orbit's own continuation reached
-            # another branch, DF off by 1.9), and the sweep must give sweep()'s answer
+            # attractors can coexist (the orbit's own continuation may reach another
+            # branch), and the sweep must give sweep()'s answer
             start = np.asarray(_initial_states(model, jnp.asarray(speeds[idx])))
             ckw = tuple(sorted((continuation_kwargs or {}).items()))
             t0 = time.perf_counter()

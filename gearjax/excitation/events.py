@@ -26,9 +26,8 @@ boundary term ``(f^- - f^+) dtheta_j/dP``, which AD through a solver whose steps
 
 The fix is a change of the independent variable. The build records, for every jump angle
 ``s_j``, the kind of event and the cells involved (:func:`classify_events`);
-:func:`moved_event_angles` recomputes ``theta_j(P)`` by Newton iterations on the switching
-function from ``s_j`` (implicit differentiation: ``dtheta_j/dP = -g_P / g_theta``), and the
-models integrate in the simulation angle ``s`` with ``theta = phi(s)``,
+:func:`moved_event_angles` recomputes ``theta_j(P)`` from ``s_j``, and the models integrate
+in the simulation angle ``s`` with ``theta = phi(s)``,
 :class:`gearjax.excitation.tables.AngleMap`, a periodic C^1 map with ``phi(s_j) =
 theta_j(P)`` (``phi = identity`` at the build design). The jumps then stay at the fixed
 ``s_j`` given to the step-size controller, the tables are built in ``s`` (knots fixed,
@@ -37,9 +36,8 @@ values ``q(phi(s))``, means over theta taken with the factor ``phi'``), the vect
 in the design between jumps, and AD differentiates the correct function.
 
 The map is valid while the discrete structure of the quasi-static solution (the codes at
-every table knot) is the build one; the models check it (``structure_ok``). A design far
-from the build design (a relief that no longer lifts a tooth off, an event that appears or
-vanishes) needs a rebuilt model.
+every table knot) is the build one; the models check it (``structure_ok``), and a design
+where an event appears or vanishes needs a rebuilt model.
 """
 
 from __future__ import annotations

@@ -166,7 +166,7 @@ def state_codes(qsm: QuasiStaticMesh3D, theta, kinks: bool) -> np.ndarray:
     """Codes (n, 1 + 3 cells) at the angles ``theta`` (NumPy, build time), evaluated in
     fixed chunks of 32 angles (a single compilation: always with the relief zones, which
     ``kinks=False`` then zeroes inside the path, as :meth:`QuasiStaticMesh3D.state_code`
-    would; a second compilation cost ~1 s of every 3D te build)."""
+    would; a second compilation would add to every 3D te build)."""
     t = np.asarray(theta, dtype=float)
     n = t.shape[0]
     size = -(-n // 32) * 32

@@ -228,12 +228,10 @@ class ToothModifications(eqx.Module):
         helical gears, not empty (two cells of the inclined contact lines in it at once).
         Their contacts then have *identical* gaps over whole intervals of theta: the
         contact-change (jump) angles the dynamic models locate by Newton on the gap
-        difference are undefined (zero derivative) and came out NaN -- measured on the
-        spur Table 1 pair: 1 mm or 13.3 um over the whole path on both gears, and 13.3 um
-        with extents 0.8/0.8, gave a NaN natural frequency and an integration that ran to
-        the 2e6-step limit (sdof 40 s, 3D 97 s per speed, solver_ok False); 0.78/0.78
-        (band 0.56 g = 0.96 p_b < p_b) is fine. The quasi-static solve
-        (:func:`gearjax.quasi_static`, ``dynamics=False``) is exact for these reliefs.
+        difference are undefined (zero derivative) and come out NaN, and the integration
+        runs to its step limit (examples: ``benchmarks/results/code_notes.md``, section
+        gearjax.gears.modifications). The quasi-static solve (:func:`gearjax.quasi_static`,
+        ``dynamics=False``) is exact for these reliefs.
         """
         if self.pitch_errors_m is not None:
             for k, (f, z) in enumerate(zip(self.pitch_errors_m, (pair.z1, pair.z2)), start=1):

@@ -216,7 +216,7 @@ class Geared3DModel(AbstractGearModel):
         """A perturbation model is handed to compiled sweeps as the te model with its
         :attr:`te_weight` 0: the two formulations' equations differ only in that weight
         (:meth:`_elastic`), their solver and transient in nothing, so the main job
-        compiles one program for both (~10 s of tracing and XLA compile saved). The
+        compiles one program for both (one tracing and XLA compile saved). The
         perturbation model's own ``harmonic_start`` state keeps it apart."""
         if self.formulation == "perturbation" and self.te_weight is not None and not self.periodic_start:
             return dataclasses.replace(self, formulation="te")

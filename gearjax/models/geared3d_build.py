@@ -30,7 +30,7 @@ from .geared3d_modal import modal_structure
 def _quasi_static_scan(cond, el, mods, thetas, f_s, v12, mesh_vectors, max_iter, mask12):
     """:func:`quasi_static_3d` at the angles ``thetas`` (the build's table scan): one
     compilation per model shape, shared by the formulations' builds (a closure over the
-    design compiled anew for each, ~0.6 s every build)."""
+    design compiled anew for each, at every build)."""
     return jax.vmap(lambda t: quasi_static_3d(cond, el, mods, t, f_s, v12, mesh_vectors,
                                               max_iter, mask12))(thetas)
 
@@ -116,7 +116,7 @@ def build_geared3d(
         ``mean_stiffness_N_per_m`` is given; ``nlte_terms`` None: kept iff its NLTE is
         not identically 0.
     moving_events : te/perturbation table: False keeps the switching angles at the build
-        angles (no angle map: the same model at the build design, built ~3x faster for
+        angles (no angle map: the same model at the build design, built faster for
         forward sweeps; :meth:`with_modifications` then moves no switching angle).
 
     Raises

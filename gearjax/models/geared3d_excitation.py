@@ -51,9 +51,8 @@ def tabulate_jit(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, event_theta
                  **layout):
     """:func:`gearjax.excitation.mesh3d.tabulate` at build time, its values compiled once
     per model shape and event structure: the build's event angles go in as an array and
-    the table's origin (both move with the design) stays outside the program. As static
-    values they made every design compile its own (~3 s of each 3D te rebuild, measured
-    2026-11-25)."""
+    the table's origin (both move with the design) stays outside the program: as static
+    values they would make every design compile its own."""
     return tabulate(qsm, knots, side, cell_first, values=_table_values_jit,
                     event_thetas=jnp.asarray(event_thetas, dtype=float), **layout)
 

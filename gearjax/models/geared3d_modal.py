@@ -3,9 +3,9 @@
 The basis holds the modes of ``(M, K_bar)`` and static corrections orthogonalised against
 them, so ``kbar_r = T^T K_bar T`` is diagonal (to round-off) and modal damping makes
 ``c_r = T^T C T`` diagonal except on the trailing static-correction block. The vector field
-applies them as such (:func:`stiffness_product`, :func:`damping_product`): on the
-Baud-Velex rig (146 coordinates) the two dense products took most of a step (right-hand
-side of 45 vmapped speeds: 250 us dense, 66 us structured). :func:`modal_structure`
+applies them as such (:func:`stiffness_product`, :func:`damping_product`), since the two
+dense products take most of a step (``benchmarks/results/code_notes.md``, section
+gearjax.models.geared3d_modal, and ``modal_products.md`` there). :func:`modal_structure`
 decides at build which form holds; a rig whose damping couples modes keeps the dense one.
 """
 

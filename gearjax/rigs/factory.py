@@ -60,7 +60,7 @@ def build_model(
         the model's encoders).
     moving_events : 3D te/perturbation: False builds the table without the angle map that
         moves its switching angles with the design (forward sweeps need none; the build
-        compiles ~3x faster); the torsional model keeps its map (it costs little).
+        compiles faster); the torsional model keeps its map (it costs little).
     kwargs : go to the model's ``build`` (``formulation``, ``damping_ratio``,
         ``nlte_terms``, ``max_frequency_hz``, ...). Defaults taken from the rig:
         ``pinion_torque_Nm`` (C_m0, N m) and, 3D, ``torque_node`` (the motor node) and

@@ -276,8 +276,8 @@ def periodic_mesh_force(omega, v, zeta: float, k_split: float, static_force_N: f
     keeps its fourth order), ``k`` evaluated by ``stiffness(theta_array)`` at every stage;
     the orbit is the fixed point of the period map (monodromy matrix, one linear solve).
     Returns ``(theta, force / F_S)`` over one period starting at 0, both one-sided values
-    at every step end (so the maximum at a jump is seen exactly). Measured on the
-    Baud-Velex rig (258 modes, 900 rad/s): DF to 2e-7 at 1024 steps, ~10 s.
+    at every step end (so the maximum at a jump is seen exactly). Accuracy and cost:
+    ``benchmarks/results/code_notes.md``, section gearjax.rigs.ross_bridge.
     """
     P = float(period_rad)
     omega, v = np.asarray(omega, dtype=float), np.asarray(v, dtype=float)
