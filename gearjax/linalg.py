@@ -3,11 +3,10 @@
 jaxlib 0.10.2's CPU LAPACK kernels (``getrf``, ``trsm``, ...) split a *batch* of matrices
 over XLA's intra-op thread pool and then wait for the pieces from inside that same pool
 (``jax::ParallelBatchMap``). When as many batched kernels run at once as the pool has
-threads (two on the 2-core CI machine: two independent ``jnp.linalg.solve`` under ``vmap``
-in one program are enough), every worker waits for a worker and the program hangs at 0 %
-CPU. It was seen in ``gearjax paper`` (the 3D model's quasi-static tabulation) and in the
-test suite, and reproduced with three vmapped ``jax.scipy.linalg.solve_triangular`` in one
-``jit``; ``--xla_cpu_multi_thread_eigen=false`` does not prevent it.
+threads (on a 2-thread pool, two independent ``jnp.linalg.solve`` under ``vmap`` in one
+program), every worker waits for a worker and the program hangs at 0 % CPU;
+``--xla_cpu_multi_thread_eigen=false`` does not prevent it (where it was seen:
+``benchmarks/results/code_notes.md``, section gearjax.linalg).
 
 :func:`solve` is LU with partial pivoting written in plain jax (``fori_loop`` over the
 columns; no LAPACK call, so batching it with ``vmap`` gives element-wise XLA ops), wrapped

@@ -16,7 +16,7 @@ def hessenberg_lstsq(hm, g):
     """``argmin |hm y - g|`` for the (m+1, m) upper Hessenberg ``hm`` of GMRES: Givens
     rotations and back substitution in plain jax (no LAPACK call: jaxlib 0.10.2's batched
     CPU LAPACK kernels wait on the intra-op pool they run on, and two of them under vmap
-    deadlock a 2-worker pool; reproduced with two vmapped ``jnp.linalg.solve``)."""
+    deadlock a 2-worker pool, :mod:`gearjax.linalg`)."""
     m = hm.shape[1]
 
     def rotate(j, rg):

@@ -14,17 +14,15 @@ A call integrates up to three kinds of *legs*, one after the other:
 
 They are the iterations of one ``while`` loop around one ``diffeqsolve``: its tracing and
 XLA compilation dominate the cost of a sweep of the 3D model (a second call site for the
-transient would compile a second solver per formulation). The legs share
-one output length (``n_out`` saved angles, padded with the leg's end angle, so that the
-last saved state is the leg's end). Under ``vmap`` the loop runs in lockstep: a speed
-still in its transient integrates a period while another integrates a measured period or
-a window (same arithmetic, the inputs differ); legs of at most one period keep that from
-costing more than the slowest speed's periods (a two-period measured leg beside
-one-period transient legs costs the lockstep batch extra steps). Each leg restarts the step-size
-control (``dt0=None``): against one solve through the measured periods the main job's
-dynamic factors moved by up to 7e-6 (reference, whose convergence measure is 2e-5) and
-2e-7 (te); derivatives through contact loss, whose error depends on where the steps fall
-around an impact, by more (``tests/test_design.py``).
+transient would compile a second solver per formulation). The legs share one output length
+(``n_out`` saved angles, padded with the leg's end angle, so that the last saved state is
+the leg's end). Under ``vmap`` the loop runs in lockstep: a speed still in its transient
+integrates a period while another integrates a measured period or a window (same arithmetic,
+the inputs differ); legs of at most one period keep that from costing more than the slowest
+speed's periods. Each leg restarts the step-size control (``dt0=None``), which moves the
+metrics by less than their convergence measure (derivatives through contact loss, whose error
+depends on where the steps fall around an impact, by more: ``tests/test_design.py``;
+measurements: ``benchmarks/results/code_notes.md``, section gearjax.dynamics.legs).
 """
 
 from __future__ import annotations

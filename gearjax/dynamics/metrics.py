@@ -19,10 +19,8 @@ grid. Three rules make the extrema exact to the integration tolerance:
    the remaining error between jumps is of sixth order in ``h / n_refine``.
 3. Where the period of the free mode that dominates the mesh deflection spans fewer than
    16 grid intervals (low speed: ``2 pi Omega / omega_n`` rad), the grid aliases the
-   ringing that a jump starts, and rule 2 refines around a grid value elsewhere (sdof,
-   perfect spur teeth, zeta 0.1, 5 rad/s: the minimum, the first undershoot half a free
-   period after a pair engages, 0.2537 F_S, was read 0.5000 F_S; the 3D main job's at
-   20 rad/s 2.0e-3 F_S high, its acceleration peak-to-peak 6 % low). The solution is
+   ringing that a jump starts, and rule 2 refines around a grid value elsewhere (the
+   first undershoot after a pair engages is missed). The solution is
    then also integrated from the one-sided point after each of the largest jumps of the
    force and after the jumps where each output is nearest its extremes (:func:`jump_windows`;
    after every jump where there are few; jumps closer than a sixteenth of a grid interval
@@ -31,10 +29,9 @@ grid. Three rules make the extrema exact to the integration tolerance:
    where the output keeps rising for a moment after the jump and peaks before the
    window's second point, from the quartic through its first five points.
 
-A cubic Hermite interpolant of the state between grid points (from the states and the
-vector field) was tried first: its fourth-order interpolation error reached 1.7e-6 F_S at
-128 samples per mesh period on the sdof long-relief case (the state carries the static
-ripple of TE_S), more than the closed-form checks allow; re-integration has no such floor.
+Re-integration rather than an interpolant of the state between grid points: the state
+carries the static ripple of TE_S, so an interpolant has an error floor that
+re-integration does not (``benchmarks/results/code_notes.md``, gearjax.dynamics.metrics).
 """
 
 from __future__ import annotations
