@@ -36,7 +36,7 @@ from gearjax.cli.dynamics import periodic_start_options
 from gearjax.models.geared3d import default_max_frequency_hz
 from gearjax.rigs.factory import build_model
 from gearjax.rigs.registry import get_rig
-from gearjax.dynamics.sweep import device_memory_bytes, lower_sweep, sweep
+from gearjax.dynamics.sweep import Transient, device_memory_bytes, lower_sweep, sweep
 
 
 def models(damping: float):
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
         for chunk in chunks:
             row = dict(formulation=form, speeds=a.speeds, chunk=chunk, device=dev.device_kind)
             t0 = time.perf_counter()
-            lowered = lower_sweep(model, speeds, chunk_size=chunk, **opts)
+            lowered = lower_sweep(model, speeds, Transient(**opts), chunk_size=chunk)
             t1 = time.perf_counter()
             compiled = lowered.compile()
             row.update(lower_s=t1 - t0, compile_s=time.perf_counter() - t1,
@@ -97,7 +97,7 @@ def main(argv=None) -> int:
                 row["skipped"] = "memory estimate over the device's limit"
             else:
                 t0 = time.perf_counter()
-                res = sweep(model, speeds, chunk_size=chunk, **opts)
+                res = sweep(model, speeds, Transient(**opts), chunk_size=chunk)
                 row["run_s"] = time.perf_counter() - t0
                 df = np.asarray(res.dynamic_factor)
                 row["unconverged"] = int(np.sum(~np.asarray(res.converged)))

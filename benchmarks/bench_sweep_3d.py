@@ -46,7 +46,7 @@ from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.rigs.registry import get_rig
 from gearjax.dynamics.simulate import default_solver, jump_density, transient_start
 from gearjax.dynamics.steady import steady_sweep
-from gearjax.dynamics.sweep import sweep
+from gearjax.dynamics.sweep import Transient, sweep
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
@@ -110,10 +110,11 @@ def main():
         # accelerated: simulate's default, periodic estimate after every period
         for name, kw in (("transient (plain)", (("accelerate", False),)), ("transient", ())):
             t0 = time.perf_counter()
-            sweep_mod._batched.lower(model, w, kw).compile()
+            opts = tuple(sorted(Transient(**dict(kw)).simulate_options().items()))
+            sweep_mod._batched.lower(model, w, opts).compile()
             comp = time.perf_counter() - t0
             t0 = time.perf_counter()
-            tr = sweep(model, speeds, **dict(kw))
+            tr = sweep(model, speeds, Transient(**dict(kw)))
             # lower().compile() does not fill jit's cache: the call compiles again; run time =
             # call - compile (the first-call time is printed too)
             first_tr = time.perf_counter() - t0

@@ -50,6 +50,12 @@ from .dynamics.continuation import continuation_sweep as continuation_sweep
 
 from .dynamics.simulate import simulate as simulate
 from .dynamics.sweep import sweep as sweep
+from .dynamics.solvers import AbstractPeriodicSolver as AbstractPeriodicSolver
+from .dynamics.solvers import Fallback as Fallback
+from .dynamics.sweep import Auto as Auto
+from .dynamics.sweep import Transient as Transient
+from .dynamics.steady import Shooting as Shooting
+from .dynamics.harmonic_sweep import HarmonicBalance as HarmonicBalance
 from .dynamics.progress import AbstractProgressMeter as AbstractProgressMeter
 from .dynamics.progress import NoProgressMeter as NoProgressMeter
 from . import runtime as runtime

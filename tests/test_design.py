@@ -238,15 +238,17 @@ def test_sweeps_refuse_a_model_mapped_to_another_structure(mesh_iso):
     a design of other switching events is refused with a clear error before compiling,
     never integrated into NaN (the design objectives rebuild instead, test above)."""
     from gearjax.dynamics.continuation import continuation_sweep
-    from gearjax.dynamics.harmonic_sweep import harmonic_sweep
+    from gearjax.dynamics.harmonic_sweep import HarmonicBalance, harmonic_sweep
+    from gearjax.dynamics.solvers import Fallback
     from gearjax.dynamics.steady import steady_sweep
+    from gearjax.dynamics.sweep import Transient
     from gearjax.errors import ModelError
 
     m0 = _build(mesh_iso, 13.3e-6, 0.2)
     m1 = m0.with_modifications(ToothModifications.tip_relief(13.3e-6, 0.21))
     assert not bool(m1.structure_ok) and bool(m0.structure_ok)
     for run in (lambda m: sweep(m, [700.0]),
-                lambda m: sweep(m, [700.0], method="harmonic"),
+                lambda m: sweep(m, [700.0], Fallback(HarmonicBalance(), Transient())),
                 lambda m: steady_sweep(m, [700.0]),
                 lambda m: harmonic_sweep(m, [700.0]),
                 lambda m: continuation_sweep(m, [700.0, 710.0])):
@@ -698,6 +700,8 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
     # to the shooting sweep (its transient-only options aside); the shooting's own 1e-9
     # is tightened by a tighter request, never loosened
     import gearjax.dynamics.steady as steady
+    from gearjax.cli.dynamics import solver_for
+    from gearjax.dynamics.steady import Shooting
     from gearjax.dynamics.sweep import tolerance_options
 
     def capture(model, speeds, **kw):
@@ -706,14 +710,15 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(steady, "steady_sweep", capture)
-    built = types.SimpleNamespace(require_structure=lambda: None)  # what sweep asks first
+    # what sweep asks of a model first, and what the command line's solver choice reads
+    built = types.SimpleNamespace(require_structure=lambda: None, periodic_start=False)
     for r, shoot_rtol in ((1e-4, None), (1e-11, 1e-11)):
         shoot = DynamicObjective(mesh, ReliefSpace(), [300.0], model="3d", rig=RIG,
                                  method="steady", rtol=r)
         with pytest.raises(KeyboardInterrupt):
-            sweep(built, [300.0], method="steady", **tolerance_options(r))
-        assert {k: v for k, v in seen.items() if k not in ("chunk_size", "progress",
-                "continuation_kwargs")} == shoot.sim_kwargs
+            sweep(built, [300.0], solver_for("steady", built, r, tolerance_options(r)))
+        assert Shooting(**{k: v for k, v in seen.items() if k not in (
+            "chunk_size", "progress", "continuation")}) == Shooting(**shoot.sim_kwargs)
         assert shoot.sim_kwargs.get("rtol") == shoot_rtol
         assert shoot.sim_kwargs["measure_rtol"] == r
     with pytest.raises(DesignError, match="method"):

@@ -418,10 +418,10 @@ def test_pinion_eccentricity_terms(torsional_setup):
 
 @pytest.mark.slow
 def test_sweep_vmaps_the_3d_model(rig_te):
-    from gearjax.dynamics.sweep import sweep
+    from gearjax.dynamics.sweep import Transient, sweep
 
-    r = sweep(rig_te, np.array([250.0, 500.0]), n_transient_periods=10,
-              n_measured_periods=2)
+    r = sweep(rig_te, np.array([250.0, 500.0]),
+              Transient(n_transient_periods=10, n_measured_periods=2))
     assert np.all(r.solver_ok) and np.all(np.isfinite(r.accel_ptp_m_s2))
     one = simulate(rig_te, 500.0, n_transient_periods=10, n_measured_periods=2)
     np.testing.assert_allclose(r.max_mesh_force_N[1], float(one.max_mesh_force_N), rtol=1e-6)
@@ -646,6 +646,6 @@ def test_perturbation_runs_in_the_te_program(rig_te, monkeypatch):
     counted = eqx.debug.assert_max_traces(_simulate, max_traces=1)
     monkeypatch.setattr(sweep_mod, "simulate", counted)
     kw = dict(n_transient_periods=1, n_measured_periods=2)
-    a = sweep_mod.sweep(rig_te, [300.0], **kw)
-    b = sweep_mod.sweep(pert, [300.0], **kw)
+    a = sweep_mod.sweep(rig_te, [300.0], sweep_mod.Transient(**kw))
+    b = sweep_mod.sweep(pert, [300.0], sweep_mod.Transient(**kw))
     assert b.formulation == "perturbation" and a.dynamic_factor[0] != b.dynamic_factor[0]

@@ -257,13 +257,16 @@ def test_small_gain_bound_proves_only_what_floquet_confirms(square_wave):
 
 def test_auto_falls_back_to_the_transient_when_the_split_does_not_fit(square_wave, monkeypatch,
                                                                       capsys):
-    """``sweep(method="auto")`` on a model whose vector field the frequency-domain split
-    refuses (``SimulationError`` on ``model``, e.g. a residual above ``rank_one_tol``) runs
-    every speed by the transient instead of stopping the sweep (the README's main job once
-    stopped there); ``method="harmonic"`` asked explicitly still raises."""
+    """``sweep`` with :class:`Auto` on a model whose vector field the frequency-domain
+    split refuses (``SimulationError`` on ``model``, e.g. a residual above
+    ``rank_one_tol``), where Auto would choose that solver, runs every speed by the
+    transient instead of stopping the sweep (the README's main job once stopped there); the
+    frequency domain asked explicitly still raises."""
     import gearjax.dynamics.harmonic_sweep as harmonic_mod
     import gearjax.dynamics.sweep as sweep_mod
-    from gearjax.dynamics.sweep import sweep
+    from gearjax.dynamics.harmonic_sweep import HarmonicBalance
+    from gearjax.dynamics.solvers import Fallback
+    from gearjax.dynamics.sweep import Auto, Transient, sweep
 
     from gearjax.errors import SimulationError
     from gearjax.runtime import TextProgressMeter
@@ -274,11 +277,12 @@ def test_auto_falls_back_to_the_transient_when_the_split_does_not_fit(square_wav
         raise SimulationError("model", "rank_one_error=1.2e-08", "not rank one")
 
     monkeypatch.setattr(harmonic_mod, "harmonic_sweep", refuse)
-    monkeypatch.setattr(sweep_mod, "auto_method", lambda m: "harmonic")
+    monkeypatch.setattr(sweep_mod.Auto, "choose",
+                        lambda self, m: Fallback(HarmonicBalance(), Transient()))
     speeds = np.array([300.0, 600.0])
-    res = sweep(model, speeds, method="auto", progress=TextProgressMeter())
-    direct = sweep(model, speeds, method="transient")
+    res = sweep(model, speeds, Auto(), progress=TextProgressMeter())
+    direct = sweep(model, speeds, Transient())
     assert "not applicable" in capsys.readouterr().err
     np.testing.assert_array_equal(res.max_mesh_force_N, direct.max_mesh_force_N)
     with pytest.raises(SimulationError, match="rank_one_error"):
-        sweep(model, speeds, method="harmonic")
+        sweep(model, speeds, Fallback(HarmonicBalance(), Transient()))

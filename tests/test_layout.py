@@ -244,3 +244,24 @@ def test_one_diffeqsolve_call_site():
                    if isinstance(node, ast.Call)
                    and ast.unparse(node.func).endswith("PIDController")]
     assert all(c.startswith("gearjax.dynamics.integrate:") for c in controllers), controllers
+
+
+def test_no_solver_chosen_by_a_string_in_dynamics():
+    """The periodic solvers are objects (:mod:`gearjax.dynamics.solvers`, issue 46): no
+    function of :mod:`gearjax.dynamics` takes a ``method`` argument, the entry point
+    ``sweep`` takes no ``**kwargs``, and no solver calls it with a ``**kwargs`` tunnel."""
+    bad = []
+    for mod, path in _modules().items():
+        if not mod.startswith("gearjax.dynamics"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                names = [a.arg for a in node.args.args + node.args.kwonlyargs]
+                if "method" in names:
+                    bad.append(f"{mod}:{node.lineno} {node.name}(method=...)")
+                if node.name == "sweep" and mod == "gearjax.dynamics.sweep" and node.args.kwarg:
+                    bad.append(f"{mod}:{node.lineno} sweep(**{node.args.kwarg.arg})")
+            if isinstance(node, ast.Call) and ast.unparse(node.func) == "sweep" and any(
+                    k.arg is None for k in node.keywords):
+                bad.append(f"{mod}:{node.lineno} {ast.unparse(node.func)}(**...)")
+    assert not bad, "\n".join(bad)

@@ -162,14 +162,14 @@ def test_rtol_option_tightens_the_transient_to_the_closed_form(square_wave):
     where contact holds (measured 3e-8, the closed form's own dense sampling; the default
     tolerances: 1.6e-6 F_S at 600 rad/s), and the achieved periodicity measure below the
     test it asked for (min(1e-3, 1e5 rtol))."""
-    from gearjax.dynamics.sweep import sweep, tolerance_options
+    from gearjax.dynamics.sweep import Transient, sweep, tolerance_options
 
     model, pair, k1, k2 = square_wave
     f_s = static_mesh_force(pair, TORQUE)
     speeds = np.array([226.0, 600.0])
     opts = tolerance_options(1e-10)
     assert opts["convergence_tol"] == pytest.approx(1e-5)
-    res = sweep(model, speeds, method="transient", **opts)
+    res = sweep(model, speeds, Transient(**opts))
     assert np.all(res.converged) and np.all(np.asarray(res.convergence) <= 1e-5)
     inert = tuple(np.asarray(model.inertias_kg_m2))
     for i, w in enumerate(speeds):

@@ -13,7 +13,7 @@ from gearjax.cli.main import main
 from gearjax.rigs.factory import build_model
 from gearjax.rigs.figures import predicted_critical_speeds
 from gearjax.rigs.registry import get_rig
-from gearjax.dynamics.sweep import auto_method, sweep
+from gearjax.dynamics.sweep import Auto, Transient, sweep
 
 CSV_COLUMNS = ["speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor", "dte_ptp_m",
                "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged", "convergence",
@@ -64,7 +64,7 @@ def test_claim_5_encoder_positions_do_not_change_forces():
                         encoder_position=enc, max_frequency_hz=6000.0)
         res[enc] = sweep(m, np.array([840.0]))  # near the critical speed
         w_x0[enc] = float(m.w_x0)
-    assert auto_method(m) == "transient"  # what `gearjax sweep` picks for the 3D te model
+    assert isinstance(Auto().choose(m), Transient)  # what `gearjax sweep` picks for the 3D te model
     # position 3 (coupling hubs) sees a different static twist; 2 (free ends) the same as 1
     assert abs(w_x0[3] - w_x0[1]) > 1e-7
     for enc in (2, 3):

@@ -24,7 +24,7 @@ from gearjax.rigs import build_model
 from gearjax.models.torsional import TorsionalModel, solid_cylinder_inertias
 from gearjax.dynamics.simulate import simulate
 from gearjax.dynamics.steady import steady_sweep
-from gearjax.dynamics.sweep import sweep
+from gearjax.dynamics.sweep import Transient, sweep
 
 from oscillators import HarmonicOscillator
 
@@ -139,7 +139,7 @@ def test_very_light_and_very_heavy_discs(spur, scale):
     w_c = float(model.natural_frequency_rad_s()) / spur.pair.z1
     speeds = np.array([0.05 * w_c, 0.2 * w_c]) if scale < 1 else np.array([5 * w_c, 20 * w_c])
     st = steady_sweep(model, speeds)
-    tr = sweep(model, speeds, n_transient_periods=None)
+    tr = sweep(model, speeds, Transient(n_transient_periods=None))
     _no_silent_nan(st)
     _no_silent_nan(tr)
     assert np.all(st.converged) and not np.any(st.contact_loss)
@@ -154,7 +154,7 @@ def test_very_light_and_very_heavy_discs(spur, scale):
         # the shooting's 1.5215) ...
         np.testing.assert_array_equal(tr.converged, [True, False])
         # ... and converged with the cap raised above 1466 periods
-        long = sweep(model, speeds[1:], max_transient_mesh_periods=2000)
+        long = sweep(model, speeds[1:], Transient(max_transient_mesh_periods=2000))
         assert long.converged[0]
         df_tr[1] = long.dynamic_factor[0]
         # the limit: measured DF 1.520611 (limit), 1.534925 and 1.521477 (shooting at 5 and

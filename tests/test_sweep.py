@@ -21,12 +21,13 @@ from gearjax import Mesh, baud_velex_pair, table1_relief
 from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import SimulationError, simulate
-from gearjax.dynamics.sweep import CSV_COLUMNS, sweep
+from gearjax.dynamics.sweep import CSV_COLUMNS, Transient, sweep
 from gearjax.dynamics.results import append_rows
 from gearjax.errors import GearjaxError
 from gearjax.runtime import TextProgressMeter
 
 OPTS = dict(n_transient_periods=12, n_measured_periods=2)
+TR = Transient(**OPTS)
 
 
 @pytest.fixture(scope="module")
@@ -40,11 +41,11 @@ def test_repeated_sweeps_trace_once(model, monkeypatch):
     counted = eqx.debug.assert_max_traces(simulate, max_traces=1)
     monkeypatch.setattr(sweep_mod, "simulate", counted)
     a = sweep(model, [900.0, 100.0, 300.0, 500.0, 700.0, 200.0, 400.0], chunk_size=4,
-              **OPTS)
-    b = sweep(model, [150.0, 250.0, 350.0], chunk_size=4, **OPTS)
+              solver=TR)
+    b = sweep(model, [150.0, 250.0, 350.0], chunk_size=4, solver=TR)
     damped = TorsionalModel.build(model.mesh, model.mods, formulation="perturbation",
                                   damping_ratio=0.08)
-    c = sweep(damped, [150.0, 250.0, 350.0], chunk_size=4, **OPTS)
+    c = sweep(damped, [150.0, 250.0, 350.0], chunk_size=4, solver=TR)
     assert eqx.debug.get_num_traces(counted) <= 1
     assert a.speed_rad_s.tolist() == [900.0, 100.0, 300.0, 500.0, 700.0, 200.0, 400.0]
     assert np.all(c.dynamic_factor < b.dynamic_factor)  # more damping, same speeds
@@ -79,9 +80,9 @@ def test_lowered_sweep_program_is_the_one_the_sweep_runs(model, monkeypatch):
     jax.config.update("jax_enable_compilation_cache", False)
     try:
         on[0] = True
-        lower_sweep(model, speeds, chunk_size=5, **OPTS).compile()
+        lower_sweep(model, speeds, TR, chunk_size=5).compile()
         own, compiles[:] = max(compiles), []
-        res = sweep(model, speeds, chunk_size=5, **OPTS)
+        res = sweep(model, speeds, chunk_size=5, solver=TR)
         on[0] = False
     finally:
         on[0] = False
@@ -102,7 +103,7 @@ def test_default_chunk_fits_memory(model, monkeypatch, capsys):
     assert sweep_mod.memory_chunk(model, OPTS, budget_bytes=10.5 * per_speed) == 10
     assert sweep_mod.memory_chunk(model, OPTS, budget_bytes=0.5 * per_speed) == 1
     monkeypatch.setattr(sweep_mod, "memory_chunk", lambda *a, **k: 2)
-    sweep(model, [120.0, 640.0, 330.0, 880.0, 450.0], progress=TextProgressMeter(), **OPTS)
+    sweep(model, [120.0, 640.0, 330.0, 880.0, 450.0], progress=TextProgressMeter(), solver=TR)
     assert "chunk 3/3" in capsys.readouterr().err
 
 
@@ -146,7 +147,7 @@ def test_csv_rows_and_progress(model, tmp_path, capsys):
     out = tmp_path / "sweep.csv"
     speeds = [120.0, 640.0, 330.0, 880.0, 450.0]
     # chunk_size 4 and OPTS as in test_repeated_sweeps_trace_once: the same compiled chunk
-    res = sweep(model, speeds, chunk_size=4, out_csv=out, progress=TextProgressMeter(), **OPTS)
+    res = sweep(model, speeds, chunk_size=4, out_csv=out, progress=TextProgressMeter(), solver=TR)
     err = capsys.readouterr().err
     assert "chunk 1/2" in err and "chunk 2/2" in err and "5/5 done" in err
     # the progress line counts the unconverged speeds so far, as it counts those done
@@ -165,7 +166,7 @@ def test_csv_rows_and_progress(model, tmp_path, capsys):
         assert r["contact_loss"] == str(bool(res.contact_loss[i]))
         assert r["converged"] == str(bool(res.converged[i]))
     # a second sweep appends rows (header written once)
-    sweep(model, [500.0], chunk_size=4, out_csv=out, **OPTS)
+    sweep(model, [500.0], chunk_size=4, out_csv=out, solver=TR)
     with open(out) as fh:
         lines = fh.read().splitlines()
     assert len(lines) == 1 + 5 + 1 and lines.count(",".join(CSV_COLUMNS)) == 1
@@ -206,7 +207,7 @@ def test_mapped_batch_equals_the_vmapped_one(model, monkeypatch):
     for mapped, fn in ((True, sweep_mod._sequential), (False, sweep_mod._batched)):
         monkeypatch.setattr(sweep_mod, "sequential_on", lambda platform, n, m=mapped: m)
         assert sweep_mod._plan(model, sw, 4, None, OPTS)[0] is fn
-        res[mapped] = sweep(model, speeds, chunk_size=4, **OPTS)
+        res[mapped] = sweep(model, speeds, chunk_size=4, solver=TR)
     a, b = res[True], res[False]
     assert a.speed_rad_s.tolist() == b.speed_rad_s.tolist() == speeds
     for f in ("converged", "contact_loss", "solver_ok"):
@@ -227,7 +228,7 @@ _SHARDED = textwrap.dedent(
     import jax
     from gearjax import Mesh, baud_velex_pair, table1_relief
     from gearjax.models.torsional import TorsionalModel
-    from gearjax.dynamics.sweep import sweep
+    from gearjax.dynamics.sweep import Transient, sweep
     assert len(jax.devices()) == 4, jax.devices()
     m = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
                              formulation="perturbation")
@@ -236,8 +237,8 @@ _SHARDED = textwrap.dedent(
     # the same batch per call on one device as on each of the 4 (chunk 5 -> 8 over 4
     # devices: 2 speeds each); even so the shard_map program rounds differently (see the
     # test's docstring for how far the two agree)
-    a = sweep(m, speeds, chunk_size=2, **kw)
-    b = sweep(m, speeds, devices="all", chunk_size=5, **kw)
+    a = sweep(m, speeds, Transient(**kw), chunk_size=2)
+    b = sweep(m, speeds, Transient(**kw), devices="all", chunk_size=5)
     fields = ["speed_rad_s", "max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m",
               "convergence", "n_steps"]
     print(json.dumps({f: [np.asarray(getattr(r, f)).tolist() for r in (a, b)] for f in fields}
@@ -402,51 +403,54 @@ def test_3d_slow_mode_transient_is_right_or_flagged():
     assert np.all(auto.converged)
     np.testing.assert_allclose(auto.dynamic_factor, ref.dynamic_factor, rtol=0, atol=1e-4)
     np.testing.assert_allclose(auto.dte_ptp_m, ref.dte_ptp_m, rtol=1e-4)
-    plain = sweep(model, speeds, start="initial")
+    plain = sweep(model, speeds, Transient(start="initial"))
     err = np.abs(plain.dynamic_factor - ref.dynamic_factor)
     assert np.all((err <= 1e-4) | ~plain.converged), (err, plain.convergence)
 
 
 def test_method_steady_matches_steady_sweep(tmp_path):
-    """sweep(method="steady") is steady_sweep with sweep's interface (CSV written)."""
-    from gearjax.dynamics.steady import steady_sweep
+    """sweep with Fallback(Shooting(), Transient()) is steady_sweep (shooting, the speeds it
+    does not solve by the transient) with sweep's interface (CSV written)."""
+    from gearjax.dynamics.solvers import Fallback
+    from gearjax.dynamics.steady import Shooting, steady_sweep
 
     model = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
                                  formulation="te", damping_ratio=0.03)
     speeds = np.array([500.0, 300.0])
     out = tmp_path / "r.csv"
-    a = sweep(model, speeds, method="steady", out_csv=out)
+    a = sweep(model, speeds, Fallback(Shooting(), Transient()), out_csv=out)
     b = steady_sweep(model, speeds)
     np.testing.assert_array_equal(a.dynamic_factor, b.dynamic_factor)
     np.testing.assert_array_equal(a.mesh_force_orders_N, b.mesh_force_orders_N)
     rows = out.read_text().strip().splitlines()
     assert len(rows) == 3 and rows[0].startswith("speed_rad_s")
     with pytest.raises(SimulationError):
-        sweep(model, speeds, method="fast")
+        sweep(model, speeds, "fast")
 
 
 @pytest.mark.slow  # 35 s; --method harmonic is not the default (the solver itself: test_harmonic)
 def test_method_harmonic_keeps_the_linear_orbit_only_where_it_is_the_models(tmp_path):
-    """sweep(method="harmonic") on the sdof te model (damping 0.1, short relief): at the
+    """sweep with Fallback(HarmonicBalance(), Transient()) on the sdof te model (damping 0.1, short relief): at the
     speeds where the linear orbit stays compressive it is the model's orbit, so the peak
     force equals the transient sweep's (independent solver: diffrax from the quasi-static
     start, automatic transient) to the transient's accuracy; at the speeds near the tooth
     critical speed where the linear mesh force turns tensile the harmonic result is not
     used: those speeds are solved by the transient (contact law) and equal it.
     The CLI's --method harmonic counts both in summary.json."""
-    from gearjax.dynamics.sweep import MethodSweepResult, auto_method
     from gearjax.cli.main import main
+    from gearjax.dynamics.harmonic_sweep import HarmonicBalance
+    from gearjax.dynamics.solvers import Fallback
+    from gearjax.dynamics.sweep import Auto
 
     model = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
                                  formulation="te", damping_ratio=0.1)
     speeds = np.array([600.0, 850.0])  # the CLI's below: one compilation serves both
     out = tmp_path / "r.csv"
-    h = sweep(model, speeds, method="harmonic", out_csv=out)
-    t = sweep(model, speeds, method="transient")
-    assert isinstance(h, MethodSweepResult)
+    h = sweep(model, speeds, Fallback(HarmonicBalance(), Transient()), out_csv=out)
+    t = sweep(model, speeds, Transient())
     lost = t.contact_loss
     assert lost.any() and not lost.all()  # both branches of the method are exercised
-    np.testing.assert_array_equal(h.method, np.where(lost, "transient", "harmonic"))
+    np.testing.assert_array_equal(h.solver, np.where(lost, "transient", "harmonic"))
     f_s = float(model.static_force_N)
     assert np.max(np.abs(h.max_mesh_force_N - t.max_mesh_force_N)[~lost]) < 1e-4 * f_s
     # same solver, but a batch of its own: vmapped adaptive steps run in lockstep, so the
@@ -462,11 +466,11 @@ def test_method_harmonic_keeps_the_linear_orbit_only_where_it_is_the_models(tmp_
     assert np.all(np.isnan(h.accel_orders_m_s2))  # torsional model: no acceleration
     assert np.all(h.converged) and not np.any(h.contact_loss[~lost])
     assert len(out.read_text().strip().splitlines()) == speeds.size + 1
-    assert auto_method(model) == "transient"  # the sdof transient is cheaper
+    assert isinstance(Auto().choose(model), Transient)  # the sdof transient is cheaper
     ref = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
                                formulation="reference")
     with pytest.raises(SimulationError, match="formulation"):
-        sweep(ref, speeds, method="harmonic")
+        sweep(ref, speeds, Fallback(HarmonicBalance(), Transient()))
     assert main(["sweep", "--model", "torsional", "--formulations", "te", "--speeds",
                  "600:850:2", "--method", "harmonic", "--out", str(tmp_path / "cli"),
                  "--json"]) == 0

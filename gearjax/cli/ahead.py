@@ -17,7 +17,7 @@ import threading
 import time
 from typing import NamedTuple
 
-from ..dynamics.sweep import auto_method, lower_sweep
+from ..dynamics.sweep import lower_sweep
 
 
 def worth_compiling_ahead(args, forms, form: str, model) -> str | None:
@@ -33,8 +33,7 @@ def worth_compiling_ahead(args, forms, form: str, model) -> str | None:
             or form != "reference" or args.model != "3d" or args.direction != "independent"
             or jax.process_count() > 1):
         return None
-    if args.method not in ("transient", "auto") or (
-            args.method == "auto" and auto_method(model) != "transient"):
+    if args.method not in ("transient", "auto"):  # Auto: the transient (its rule)
         return None
     later = [f for f in forms[forms.index(form) + 1:] if f in LINEAR_FORMULATIONS]
     return later[0] if later else None

@@ -54,8 +54,8 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
 from ..runtime import watchdog
 from ..runtime.progress import command_meter
 from ..models.base import LINEAR_FORMULATIONS
-from ..dynamics.stability import STABILITY_METHODS
-from ..dynamics.sweep import HARMONIC_FLOQUET_MAX_STATES, METHODS, tolerance_options
+from ..dynamics.harmonic_sweep import HARMONIC_FLOQUET_MAX_STATES
+from ..dynamics.sweep import tolerance_options
 from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv
 from ..rigs.factory import build_model
@@ -259,6 +259,36 @@ def periodic_start_options(model) -> dict:
     return {"n_transient_periods": 0, "start": "initial"}
 
 
+# --method: the command line's names of the periodic solvers (gearjax.dynamics.solvers)
+METHODS = ("auto", "transient", "steady", "harmonic")
+# gearjax stability --method: the monodromy everywhere (steady), or the small-gain bound
+# first and the monodromy where it does not prove stability (harmonic:
+# gearjax.dynamics.harmonic.small_gain_bounds)
+STABILITY_METHODS = ("auto", "steady", "harmonic")
+
+
+def solver_for(method: str, model, rtol: float | None, tolerances: dict):
+    """The periodic solver of ``--method`` for ``model`` at ``--rtol`` (``tolerances``: its
+    transient options, :func:`gearjax.dynamics.sweep.tolerance_options`): ``auto``
+    :class:`~gearjax.dynamics.sweep.Auto`; ``transient``; ``steady`` shooting, the speeds it
+    does not solve by the transient; ``harmonic`` the frequency domain, likewise."""
+    from ..dynamics.harmonic_sweep import HarmonicBalance
+    from ..dynamics.solvers import Fallback
+    from ..dynamics.steady import Shooting
+    from ..dynamics.sweep import Auto, Transient
+
+    if method == "auto":
+        return Auto(rtol=rtol)
+    transient = Transient(**tolerances, **periodic_start_options(model))
+    if method == "transient":
+        return transient
+    if method == "steady":
+        return Fallback(Shooting.for_transient(transient), transient)
+    if method == "harmonic":
+        return Fallback(HarmonicBalance(rtol=tolerances.get("rtol", 1e-6)), transient)
+    raise ValueError(f"--method={method!r}: choose from {', '.join(METHODS)}")
+
+
 def _check_cutoff(args, rig, cutoff_hz) -> None:
     """Refuse a 3D ``--max-frequency`` below the lowest natural frequency (it would keep no
     vibration mode), from the rig's modal analysis alone, before the model is built."""
@@ -416,8 +446,8 @@ def cmd_sweep(args) -> int:
 
         def sweep_options(model):
             size = None if args.chunk is None else min(args.chunk, todo_of(model.formulation).size)
-            return dict(chunk_size=size, devices=devices, **periodic_start_options(model),
-                        **tolerances)
+            return dict(solver=solver_for(args.method, model, args.rtol, tolerances),
+                        chunk_size=size, devices=devices)
 
         linear = None  # a 3D te/perturbation model: the other one shares its build
         early, ahead = {}, Ahead()  # programs compiling on threads, a model built ahead
@@ -460,8 +490,8 @@ def cmd_sweep(args) -> int:
                 # default: sweep's (CPU: 16-64 speeds per device; accelerators: memory)
                 ahead.join(mine=form == "reference", linear=form in LINEAR_FORMULATIONS)
                 res = sweep(model, todo, progress=command_meter(not args.json), out_csv=csv_path,
-                            method=args.method, orders_csv=orders_path, **sweep_options(model))
-                methods[form] = method_counts(res, args.method)
+                            orders_csv=orders_path, **sweep_options(model))
+                methods[form] = method_counts(res)
             times[form] = (t_build, time.perf_counter() - t0 + traced)
             if sig_speeds and lead:
                 signals[form] = last_mesh_period_signals(model, sig_speeds)

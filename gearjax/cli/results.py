@@ -139,13 +139,11 @@ def max_force_by_speed(rows: list[dict], formulation: str) -> dict[float, float]
             for r in rows if r["formulation"] == formulation}
 
 
-def method_counts(res, requested: str) -> dict:
-    """Speeds solved by each method in one sweep (``summary.json``): a harmonic sweep
-    reports per speed (its fallback speeds are ``transient``)."""
-    from ..dynamics.sweep import MethodSweepResult
-
-    if not isinstance(res, MethodSweepResult):
-        name = "transient" if requested == "auto" else requested
-        return {name: int(np.size(res.speed_rad_s))}
-    names, counts = np.unique(np.asarray(res.method), return_counts=True)
+def method_counts(res) -> dict:
+    """Speeds solved by each solver in one sweep (``summary.json``; the result's
+    ``solver`` per speed: a frequency-domain or shooting sweep's fallback speeds are
+    ``transient``)."""
+    names, counts = np.unique(np.asarray(res.solver), return_counts=True)
     return {str(k): int(v) for k, v in zip(names, counts)}
+
+

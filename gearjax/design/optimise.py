@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from ..dynamics.progress import AbstractProgressMeter, NoProgressMeter
+from ..dynamics.progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .spaces import ReliefSpace
 
 __all__ = ["OptimisationResult", "optimise", "coarse_starts", "multi_start"]
@@ -83,7 +83,7 @@ def optimise(objective, x0, *, learning_rate: float = 0.15, max_iter: int = 60,
     reason = "max-iter"
     first = None
     it = 0
-    progress.start("optimise", max_iter + 1, f"from {x0.tolist()}")
+    check_meter(progress).start("optimise", max_iter + 1, f"from {x0.tolist()}")
     for it in range(max_iter + 1):
         x = np.asarray(space.from_unconstrained(u))
         x = np.clip(x, space.lower, space.upper)

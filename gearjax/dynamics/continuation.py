@@ -52,7 +52,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import SimulationError
-from .progress import AbstractProgressMeter, NoProgressMeter
+from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .integrate import integrate, jump_controller
 from .simulate import (default_solver, jump_density, simulate,
@@ -181,7 +181,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     y0s, uy0s = np.full((n, k), np.nan), np.full((n, k), np.nan)
     carry = None
     task = f"continuation {model.formulation} {direction}"
-    progress.start(task, n)
+    check_meter(progress).start(task, n)
     t_start = time.perf_counter()
     for j, i in enumerate(order):
         w = jnp.asarray(speeds[i])
@@ -215,7 +215,8 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     out["n_steps"] = np.nan_to_num(out["n_steps"]).astype(np.int64)
     extra["newton_iterations"] = np.nan_to_num(extra["newton_iterations"]).astype(np.int64)
     return BranchResult(**out, formulation=model.formulation, direction=direction,
-                        stable=stable, restarted=restarted, y0=y0s, unstable_y0=uy0s, **extra)
+                        stable=stable, restarted=restarted, y0=y0s, unstable_y0=uy0s,
+                        solver=np.full(n, "continuation"), **extra)
 
 
 def forces_differ(f_a, f_b, threshold: float = JUMP_THRESHOLD):

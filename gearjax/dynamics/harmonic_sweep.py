@@ -16,15 +16,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import SimulationError
-from .progress import AbstractProgressMeter, NoProgressMeter
+from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .harmonic import check_linear_model, harmonic_steady_states
 from .orders import N_MESH_ORDERS
 from .results import SweepResult
+from .solvers import AbstractPeriodicSolver, SweepRun
 from .small_gain import SMALL_GAIN_MARGIN
 from .stability import check_speeds, monodromy
 from .steady import spectral_radius_of
 
-__all__ = ["harmonic_sweep", "HarmonicSweepResult"]
+__all__ = ["harmonic_sweep", "HarmonicSweepResult", "HarmonicBalance",
+           "HARMONIC_FLOQUET_MAX_STATES"]
 
 
 class HarmonicSweepResult(SweepResult):
@@ -126,7 +128,7 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     kw = (("samples_per_mesh_period", int(samples_per_mesh_period)),)
     n_h = lo
     task = f"harmonic balance {model.formulation}"
-    progress.start(task, speeds.size, f"H={n_h}")
+    check_meter(progress).start(task, speeds.size, f"H={n_h}")
     t0 = time.perf_counter()
     while todo.size:
         t_batch = time.perf_counter()
@@ -177,4 +179,48 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
         n_harmonics=n_used, error_estimate=out["error_estimate"], contact_holds=holds,
         spectral_radius=rho, stable=stable, stability_known=known,
         small_gain=out["small_gain"], y0=out["y0"], mesh_force_orders_N=out["mesh_orders"][:, 0],
-        dte_orders_m=out["mesh_orders"][:, 1], accel_orders_m_s2=out["mesh_orders"][:, 2])
+        dte_orders_m=out["mesh_orders"][:, 1], accel_orders_m_s2=out["mesh_orders"][:, 2],
+        solver=np.full(speeds.size, "harmonic"))
+
+
+HARMONIC_FLOQUET_MAX_STATES = 32  # above: the transient is cheaper than a monodromy
+
+
+class HarmonicBalance(AbstractPeriodicSolver):
+    """The periodic orbit of the linear te/perturbation equations in the frequency domain
+    (:func:`harmonic_sweep`; no integration). A speed is solved where that orbit is the
+    model's: contact holds over the period, the harmonics converged to ``rtol``, and
+    stability is proven by the small-gain bound or the Floquet radius; compose with
+    :class:`~gearjax.dynamics.solvers.Fallback` to hand the others to the transient.
+
+    ``floquet``: compute the Floquet radius where the bound leaves stability open (None:
+    for models of at most :data:`HARMONIC_FLOQUET_MAX_STATES` states, above which the
+    transient is the cheaper judge). The other fields are :func:`harmonic_sweep`'s.
+    Raises :class:`~gearjax.errors.SimulationError` for the reference formulation or a
+    model whose parametric part is not rank one."""
+
+    rtol: float = 1e-6
+    min_harmonics: int = 256
+    max_harmonics: int = 4096
+    floquet: bool | None = None
+    samples_per_mesh_period: int = 128
+    rank_one_tol: float | None = None
+
+    def solved(self, result: SweepResult) -> np.ndarray:
+        return np.asarray(result.converged, dtype=bool) & np.asarray(result.contact_holds) \
+            & np.asarray(result.stable) & np.asarray(result.stability_known)
+
+    def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> HarmonicSweepResult:
+        if run.devices is not None or jax.process_count() > 1:
+            raise SimulationError("devices", run.devices, "the frequency domain runs on one "
+                                  "device of one process; use Transient() to shard over "
+                                  "devices or hosts")
+        floquet = (model.state_size <= HARMONIC_FLOQUET_MAX_STATES if self.floquet is None
+                   else bool(self.floquet))
+        res = harmonic_sweep(model, speeds, rtol=self.rtol, min_harmonics=self.min_harmonics,
+                             max_harmonics=self.max_harmonics, floquet=floquet,
+                             samples_per_mesh_period=self.samples_per_mesh_period,
+                             progress=run.progress, rank_one_tol=self.rank_one_tol)
+        if run.sink is not None:
+            run.sink(res)
+        return res

@@ -15,7 +15,9 @@ import abc
 
 import equinox as eqx
 
-__all__ = ["AbstractProgressMeter", "NoProgressMeter"]
+from ..errors import SimulationError
+
+__all__ = ["AbstractProgressMeter", "NoProgressMeter", "check_meter"]
 
 
 class AbstractProgressMeter(eqx.Module):
@@ -52,3 +54,13 @@ class NoProgressMeter(AbstractProgressMeter):
 
     def note(self, task: str, message: str) -> None:
         del task, message
+
+
+def check_meter(progress) -> AbstractProgressMeter:
+    """``progress`` if it is a meter; raises :class:`~gearjax.errors.SimulationError` on
+    ``progress`` otherwise (e.g. the boolean earlier versions took)."""
+    if not isinstance(progress, AbstractProgressMeter):
+        raise SimulationError("progress", progress, "must be a progress meter: "
+                              "gearjax.NoProgressMeter() (the default: nothing reported) or "
+                              "gearjax.TextProgressMeter() (a line per chunk on stderr)")
+    return progress

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import GearjaxError
 from .orders import N_MESH_ORDERS
 
-__all__ = ["SweepResult", "CSV_COLUMNS", "METRIC_FIELDS", "ORDER_FIELDS", "ORDER_COLUMNS",
+__all__ = ["SweepResult", "merge_results", "CSV_COLUMNS", "METRIC_FIELDS", "ORDER_FIELDS", "ORDER_COLUMNS",
            "csv_rows", "order_rows", "empty_metrics", "append_rows", "check_header"]
 
 CSV_COLUMNS = (
@@ -48,6 +48,9 @@ class SweepResult(eqx.Module):
         frequency) of the dynamic mesh force (N), the DTE (m) and the acceleration
         (m/s^2; NaN for models without one), :mod:`gearjax.dynamics.orders`.
     formulation : the model's formulation (str).
+    solver : (n_speeds,) name of the solver whose orbit gave each speed's metrics
+        (``"transient"``, ``"steady"`` (shooting), ``"harmonic"`` (frequency domain),
+        ``"continuation"``: :mod:`gearjax.dynamics.solvers`).
     """
 
     speed_rad_s: np.ndarray
@@ -67,6 +70,7 @@ class SweepResult(eqx.Module):
     dte_orders_m: np.ndarray
     accel_orders_m_s2: np.ndarray
     formulation: str = eqx.field(static=True)
+    solver: np.ndarray = eqx.field(kw_only=True)
 
     def rows(self):
         """CSV rows (dicts keyed by :data:`CSV_COLUMNS`)."""
@@ -75,6 +79,27 @@ class SweepResult(eqx.Module):
     def order_rows(self):
         """``orders.csv`` rows (dicts keyed by :data:`ORDER_COLUMNS`)."""
         return order_rows(self)
+
+    def take(self, idx) -> "SweepResult":
+        """The speeds ``idx`` (indices or a mask) of this result, as a plain
+        :class:`SweepResult` (a subclass's extra fields are dropped)."""
+        kw = {f: np.asarray(getattr(self, f))[idx] for f in METRIC_FIELDS}
+        return SweepResult(**kw, formulation=self.formulation,
+                           solver=np.asarray(self.solver)[idx])
+
+
+def merge_results(a: SweepResult, b: SweepResult, from_b) -> SweepResult:
+    """One :class:`SweepResult` over ``a``'s speeds, taking the speeds where the mask
+    ``from_b`` is True, in order, from ``b`` (which holds exactly those speeds)."""
+    from_b = np.asarray(from_b, dtype=bool)
+    kw = {}
+    for f in METRIC_FIELDS + ("solver",):
+        va, vb = np.asarray(getattr(a, f)), np.asarray(getattr(b, f))
+        out = va.astype(np.result_type(va, vb), copy=True)
+        out[from_b] = vb
+        kw[f] = out
+    return SweepResult(**{k: v for k, v in kw.items() if k != "solver"},
+                       formulation=a.formulation, solver=kw["solver"])
 
 
 ORDER_FIELDS = ("mesh_force_orders_N", "dte_orders_m", "accel_orders_m_s2")

@@ -37,13 +37,7 @@ from ..models.base import AbstractGearModel
 from .batching import over_speeds, sequential_for
 from .integrate import integrate, jump_controller
 
-__all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "check_speeds",
-           "STABILITY_METHODS"]
-
-# gearjax stability --method: the monodromy everywhere (steady), or the small-gain bound
-# first and the monodromy where it does not prove stability (harmonic:
-# gearjax.dynamics.harmonic.small_gain_bounds)
-STABILITY_METHODS = ("auto", "steady", "harmonic")
+__all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "check_speeds"]
 
 
 def monodromy(model, omega, *, solver=None, rtol: float = 1e-10, atol: float = 1e-12,

@@ -51,11 +51,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..linalg import solve as dense_solve
-from .progress import AbstractProgressMeter, NoProgressMeter
+from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .batching import over_speeds, sequential_for
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .integrate import integrate, jump_controller
 from .simulate import SimulationError, SimulationResult, simulate
+from .solvers import AbstractPeriodicSolver, SweepRun
 from .stability import check_speeds
 
 __all__ = [
@@ -67,6 +68,7 @@ __all__ = [
     "SteadySweepResult",
     "shooting_options",
     "spectral_radius_of",
+    "Shooting",
 ]
 
 # Shooting solver: Dopri8 at rtol 1e-9 (benchmarks/bench_work_precision.py: the periodic
@@ -367,7 +369,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     rho = np.full(speeds.size, np.nan)
     y0s = None
     task = f"steady-state sweep {model.formulation}"
-    progress.start(task, speeds.size, f"{n_chunks} chunk(s) of {chunk} speed(s)")
+    check_meter(progress).start(task, speeds.size, f"{n_chunks} chunk(s) of {chunk} speed(s)")
     t_start = time.perf_counter()
     for c in range(n_chunks):
         sel = padded[c * chunk:(c + 1) * chunk]
@@ -409,7 +411,65 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
         out[f] = out[f] > 0
     out["n_steps"] = out["n_steps"].astype(np.int64)
     return SteadySweepResult(**out, formulation=formulation, spectral_radius=rho,
-                             continued=continued)
+                             continued=continued,
+                             solver=np.where(continued, "transient", "steady"))
+
+
+class Shooting(AbstractPeriodicSolver):
+    """Newton shooting on the periodicity residual ``y(P) - y(0)`` (module docstring),
+    then :func:`~gearjax.dynamics.simulate.simulate` over ``n_measured_periods`` from the
+    periodic state: :func:`steady_sweep` without its continuation. A speed is solved where
+    the orbit keeps contact, is stable (Floquet radius < 1) and converged; compose with
+    :class:`~gearjax.dynamics.solvers.Fallback` to hand the others to the transient.
+
+    ``rtol``/``atol``: the shooting period's tolerances (None: 1e-9 / 1e-11, Dopri8);
+    ``measure_rtol``/``measure_atol``: the measured periods' (None: ``simulate``'s);
+    ``max_newton``, ``newton_tol``, ``convergence_tol``, ``n_measured_periods``,
+    ``samples_per_mesh_period``, ``max_steps``: as :func:`steady_state` and ``simulate``.
+    :meth:`for_transient` reads a transient's tolerances the one way every command does.
+    """
+
+    rtol: float | None = None
+    atol: float | None = None
+    measure_rtol: float | None = None
+    measure_atol: float | None = None
+    max_newton: int = 8
+    newton_tol: float = 1e-10
+    convergence_tol: float = 1e-3
+    n_measured_periods: int = 2
+    samples_per_mesh_period: int = 128
+    max_steps: int = 2_000_000
+
+    @classmethod
+    def for_transient(cls, transient) -> "Shooting":
+        """The shooting at the accuracy of ``transient``'s options
+        (:func:`shooting_options`)."""
+        opts = shooting_options(transient.simulate_options())
+        return cls(**{k: v for k, v in opts.items() if k in _SHOOTING_FIELDS})
+
+    def options(self) -> dict:
+        """:func:`steady_state`'s keyword arguments."""
+        return {f: getattr(self, f) for f in _SHOOTING_FIELDS}
+
+    def solved(self, result: SweepResult) -> np.ndarray:
+        rho = np.asarray(result.spectral_radius, dtype=float)
+        return (~np.asarray(result.contact_loss, dtype=bool) & (rho < 1.0)
+                & np.asarray(result.converged, dtype=bool))
+
+    def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> SweepResult:
+        if run.devices is not None or jax.process_count() > 1:
+            raise SimulationError("devices", run.devices, "shooting runs on one device of one "
+                                  "process; use Transient() to shard over devices or hosts")
+        res = steady_sweep(model, speeds, chunk_size=run.chunk_size, progress=run.progress,
+                           continuation=False, **self.options())
+        if run.sink is not None:
+            run.sink(res)
+        return res
+
+
+_SHOOTING_FIELDS = ("rtol", "atol", "measure_rtol", "measure_atol", "max_newton", "newton_tol",
+                    "convergence_tol", "n_measured_periods", "samples_per_mesh_period",
+                    "max_steps")
 
 
 @eqx.filter_jit

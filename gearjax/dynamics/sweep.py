@@ -1,6 +1,8 @@
-"""Speed sweeps: one jitted :func:`gearjax.dynamics.simulate.simulate` per chunk of speeds,
-its speeds one after the other (a 3D model on a CPU) or vmapped (the sdof model on a CPU,
-every model on an accelerator): :mod:`gearjax.dynamics.batching`.
+"""Speed sweeps: :func:`sweep`, the one entry point of the periodic solvers
+(:mod:`gearjax.dynamics.solvers`), :class:`Auto` (the rule that picks one) and
+:class:`Transient`, whose sweep is one jitted :func:`gearjax.dynamics.simulate.simulate`
+per chunk of speeds, its speeds one after the other (a 3D model on a CPU) or vmapped (the
+sdof model on a CPU, every model on an accelerator): :mod:`gearjax.dynamics.batching`.
 
 * The speeds are the only batched input, so a new set of speeds (same chunk size) never
   recompiles: the model's array data and the speeds are traced, only its static structure
@@ -27,6 +29,7 @@ every model on an accelerator): :mod:`gearjax.dynamics.batching`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import time
@@ -39,12 +42,14 @@ import numpy as np
 
 from ..errors import check_float64
 from .batching import over_speeds, sequential_on
-from .progress import AbstractProgressMeter, NoProgressMeter
+from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
+from .solvers import AbstractPeriodicSolver, SweepRun
 from .results import (CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, append_rows,
                       empty_metrics)
 from .simulate import SimulationError, SimulationResult, simulate
 
-__all__ = ["sweep", "SweepResult", "CSV_COLUMNS"]
+__all__ = ["sweep", "Transient", "Auto", "SweepResult", "CSV_COLUMNS", "tolerance_options",
+           "lower_sweep", "default_chunk_size", "memory_chunk"]
 
 
 def _over_speeds(model, speeds, sim_kwargs, sequential: bool):
@@ -112,67 +117,196 @@ def _cost_order(speeds):
     return np.argsort(speeds, kind="stable")
 
 
+class Transient(AbstractPeriodicSolver):
+    """:func:`gearjax.dynamics.simulate.simulate` at every speed: diffrax from the model's
+    quasi-static start (:meth:`~gearjax.models.base.AbstractGearModel.transient_start`)
+    through a transient to the periodic steady state, then measured over
+    ``n_measured_periods`` periods. Any model and formulation, contact loss included; the
+    only solver that shards speeds over devices and writes rows chunk by chunk.
+
+    The fields are :func:`~gearjax.dynamics.simulate.simulate`'s options of the same names
+    (``rtol``/``atol``: None for :func:`~gearjax.dynamics.simulate.default_solver`'s;
+    ``n_transient_periods``: None for the automatic transient of its module docstring).
+    """
+
+    n_transient_periods: int | None = None
+    n_measured_periods: int = 2
+    rtol: float | None = None
+    atol: float | None = None
+    samples_per_mesh_period: int = 128
+    transient_decay: float = 1e-6
+    min_transient_mesh_periods: int = 8
+    max_transient_mesh_periods: int = 400
+    convergence_tol: float = 1e-3
+    max_steps: int = 2_000_000
+    start: str = "auto"
+    extrapolate: bool = True
+    accelerate: bool = True
+
+    def simulate_options(self) -> dict:
+        """The keyword arguments of :func:`~gearjax.dynamics.simulate.simulate` (static)."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    def solved(self, result: SweepResult) -> np.ndarray:
+        return np.ones(np.shape(result.speed_rad_s), dtype=bool)  # the last resort
+
+    def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> SweepResult:
+        progress, sink = run.progress, run.sink
+        multi_process = jax.process_count() > 1
+        lead = jax.process_index() == 0  # the process that reports and writes
+        fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, sim_kwargs = _plan(
+            model, speeds, run.chunk_size, run.devices, self.simulate_options())
+        total = n_chunks * chunk
+        formulation = model.formulation
+
+        results = empty_metrics(total)
+        if not lead:
+            sink, progress = None, NoProgressMeter()
+        task = f"sweep {formulation}"
+        progress.start(task, speeds.size, f"chunk 1/{n_chunks}: "
+                       f"{len(set(padded_idx[:chunk].tolist()))} speeds "
+                       f"{speeds[padded_idx[:chunk]].min():.4g}-"
+                       f"{speeds[padded_idx[:chunk]].max():.4g} rad/s, compiling and integrating")
+        t_start = time.perf_counter()
+        n_done = n_unconverged = 0  # so far, as the progress line says
+        for c in range(n_chunks):
+            sel = padded_idx[c * chunk:(c + 1) * chunk]
+            w = jnp.asarray(speeds[sel])
+            if n_dev > 1:
+                w = _global_speeds(np.asarray(speeds[sel]), devices)
+            t0 = time.perf_counter()
+            out = fn(compiled, w, sim_kwargs)
+            if multi_process and n_dev > 1:
+                from jax.experimental import multihost_utils
+
+                out = multihost_utils.process_allgather(out, tiled=True)
+            out = jax.device_get(out)
+            dt = time.perf_counter() - t0
+            for f, v in zip(METRIC_FIELDS, out):
+                results[f][c * chunk:(c + 1) * chunk] = np.asarray(v, dtype=float)
+            # rows of the real (non-padded) speeds of this chunk, in sorted-speed order
+            first = {}
+            for j, i in enumerate(sel):
+                first.setdefault(int(i), c * chunk + j)
+            real_rows = sorted(first.values(), key=lambda k: padded_idx[k])
+            if sink is not None:
+                sink(_gather(results, formulation, real_rows))
+            n_done += len(first)
+            conv = np.asarray(out[METRIC_FIELDS.index("converged")], dtype=bool)
+            real = np.asarray(list(first.values())) - c * chunk
+            n_unconverged += int(np.sum(~conv[real]))
+            progress.update(
+                task, n_done, speeds.size,
+                f"chunk {c + 1}/{n_chunks}: {len(first)} speeds {speeds[sel].min():.4g}-"
+                f"{speeds[sel].max():.4g} rad/s in {dt:.2f} s"
+                f"{' incl. compile' if c == 0 else ''}, {n_unconverged} not converged",
+                elapsed_s=time.perf_counter() - t_start)
+        # back to the caller's order: the first padded slot holding each speed index
+        where = np.empty(speeds.size, dtype=int)
+        seen = np.zeros(speeds.size, dtype=bool)
+        for k, i in enumerate(padded_idx):
+            if not seen[i]:
+                where[i] = k
+                seen[i] = True
+        res = _gather(results, formulation, where)
+        failed = ~res.solver_ok.astype(bool)
+        if np.any(failed):
+            progress.note(task, f"integration failed (step limit or non-finite state) at "
+                          f"{int(failed.sum())} speed(s): {speeds[failed][:10].tolist()} "
+                          "rad/s; their metrics are NaN and converged=False")
+        return res
+
+
+class Auto(AbstractPeriodicSolver):
+    """The cheapest solver that is exact for the model (:meth:`choose`), at the relative
+    accuracy ``rtol`` of the metrics (:func:`tolerance_options`; None: every solver's
+    defaults).
+
+    The rule, by measurement (``benchmarks/results/code_notes.md``, section
+    gearjax.dynamics.sweep.auto_method): the accelerated transient beat the frequency-domain
+    solver plus its transient fallback on the sdof and the 3D rigs, so every model takes
+    :class:`Transient`; a model whose initial state is already its periodic orbit
+    (:attr:`~gearjax.models.base.AbstractGearModel.periodic_start`) is measured from there
+    without a transient."""
+
+    rtol: float | None = None
+
+    def transient(self, model) -> Transient:
+        """The transient at ``rtol`` for ``model`` (from its periodic start where it has
+        one)."""
+        options = tolerance_options(self.rtol)
+        if model.periodic_start:
+            options.update(n_transient_periods=0, start="initial")
+        return Transient(**options)
+
+    def choose(self, model) -> AbstractPeriodicSolver:
+        """The solver :meth:`sweep` uses for ``model``."""
+        return self.transient(model)
+
+    def solved(self, result: SweepResult) -> np.ndarray:
+        return np.ones(np.shape(result.speed_rad_s), dtype=bool)
+
+    def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> SweepResult:
+        """:meth:`choose`'s solver; where it refuses the model (a
+        :class:`~gearjax.errors.SimulationError` on ``model``, e.g. a vector field the
+        frequency-domain split does not fit), every speed by the transient."""
+        chosen = self.choose(model)
+        try:
+            return chosen.sweep(model, speeds, run)
+        except SimulationError as exc:
+            if exc.field != "model" or isinstance(chosen, Transient):
+                raise
+            run.progress.note(f"sweep {model.formulation}", f"{type(chosen).__name__} not "
+                              f"applicable ({exc}); every speed by the transient solver")
+            return self.transient(model).sweep(model, speeds, run)
+
+
 def sweep(
     model,
     speeds_rad_s,
+    solver: AbstractPeriodicSolver = Auto(),
+    *,
     chunk_size: int | None = None,
     progress: AbstractProgressMeter = NoProgressMeter(),
     out_csv: str | os.PathLike | None = None,
-    devices=None,
-    method: str = "transient",
     orders_csv: str | os.PathLike | None = None,
-    **simulate_kwargs,
+    devices=None,
 ) -> SweepResult:
-    """Steady-state response over pinion speeds (one compiled call per chunk).
+    """Steady-state response over pinion speeds: the one entry point of every periodic
+    solver (:mod:`gearjax.dynamics.solvers`).
 
     Parameters
     ----------
-    model : a model with the simulation interface (see :mod:`gearjax.dynamics.simulate`).
+    model : a gear model (:class:`gearjax.models.base.AbstractGearModel`).
     speeds_rad_s : (n,) pinion speeds Omega1 (rad/s), finite and > 0.
-    chunk_size : speeds per compiled call (default :func:`default_chunk_size`: on a CPU
-        16-64 speeds per device by the model's size, on accelerators as many as
-        :func:`memory_chunk` allows in the device's own memory; rounded up to a multiple
-        of the device count).
-        Smaller chunks give earlier progress/CSV output; chunks are padded so that every
-        call has the same shape (one compilation).
+    solver : :class:`Auto` (default), :class:`Transient`,
+        :class:`gearjax.dynamics.steady.Shooting`,
+        :class:`gearjax.dynamics.harmonic_sweep.HarmonicBalance`, or a
+        :class:`gearjax.dynamics.solvers.Fallback` of them (e.g. the frequency domain where
+        contact holds, the transient elsewhere).
+    chunk_size : speeds per compiled call (default: the solver's rule; for the transient
+        :func:`default_chunk_size`: on a CPU 16-64 speeds per device by the model's size, on
+        accelerators as many as :func:`memory_chunk` allows in the device's own memory).
+        Chunks are padded so that every call has the same shape (one compilation).
     progress : the meter told of the sweep's start and of every chunk done
         (:class:`~gearjax.dynamics.progress.AbstractProgressMeter`; default none; e.g.
         :class:`gearjax.TextProgressMeter`).
-    out_csv : append one row per speed (columns :data:`CSV_COLUMNS`) as chunks complete.
-    devices : list of JAX devices to shard the speed axis over; ``None`` uses one device
-        (the default device), ``"all"`` every device of the default backend.
-    method : ``"auto"``: :func:`auto_method` (the transient, measured cheapest for every
-        model). ``"harmonic"``:
-        :func:`gearjax.dynamics.harmonic_sweep.harmonic_sweep` (the periodic orbit of the linear
-        equations in the frequency domain, no integration), kept at the speeds where it is
-        the model's orbit (contact holds over the period, harmonics converged, stability
-        proven by the small-gain bound or, for models of at most
-        :data:`HARMONIC_FLOQUET_MAX_STATES` states, the Floquet radius); the other speeds
-        go to the transient solver with ``**simulate_kwargs`` (returns a
-        :class:`MethodSweepResult`; ``devices`` must be None, the CSV is written when
-        the sweep ends). ``"transient"`` (default): :func:`gearjax.dynamics.simulate.simulate` at every speed
-        (diffrax from the start of :func:`gearjax.dynamics.simulate.transient_start`, automatic
-        transient). ``"steady"``: :func:`gearjax.dynamics.steady.steady_sweep` (periodic orbit by
-        shooting; the reference formulation is continued by ``simulate`` with
-        ``**simulate_kwargs`` at speeds with contact loss or no stable orbit); returns a
-        :class:`gearjax.dynamics.steady.SteadySweepResult` (a ``SweepResult`` with
-        ``spectral_radius`` and ``continued``); ``devices`` must be None, the CSV is
-        written when the sweep ends, and of ``**simulate_kwargs`` the transient options
-        (``n_transient_periods``, ``transient_decay``, ``min/max_transient_mesh_periods``,
-        ``start``) go to the continuation only. See ``benchmarks/results/README.md`` for
-        which is faster where.
+    out_csv : append one row per speed (columns :data:`CSV_COLUMNS`) as speeds finish.
     orders_csv : append one row per speed of mesh-order amplitudes (columns
-        :data:`gearjax.dynamics.results.ORDER_COLUMNS`) when ``out_csv`` gets its rows.
-    **simulate_kwargs : options of :func:`gearjax.dynamics.simulate.simulate` (static).
+        :data:`gearjax.dynamics.results.ORDER_COLUMNS`) before ``out_csv`` gets it.
+    devices : list of JAX devices to shard the speed axis over (the transient only);
+        ``None`` uses one device (the default device), ``"all"`` every device of the
+        default backend.
 
     Returns
     -------
-    SweepResult (NumPy arrays, caller's order).
+    SweepResult (NumPy arrays, caller's order; ``solver`` names the solver per speed).
 
     Raises
     ------
     SimulationError
-        for empty, non-finite or non-positive speeds or a bad chunk size.
+        for empty, non-finite or non-positive speeds, a bad chunk size, or a model the
+        solver cannot take.
     """
     check_float64()
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
@@ -183,96 +317,26 @@ def sweep(
         raise SimulationError(
             "speeds_rad_s", speeds[bad][:5].tolist(), "pinion speeds must be finite and > 0 (rad/s)"
         )
-    if method not in METHODS:
-        raise SimulationError("method", method, f"must be one of {', '.join(METHODS)}")
+    if not isinstance(solver, AbstractPeriodicSolver):
+        raise SimulationError("solver", solver, "must be a periodic solver "
+                              "(gearjax.dynamics.solvers.AbstractPeriodicSolver: Auto(), "
+                              "Transient(), Shooting(), HarmonicBalance(), Fallback(...))")
+    check_meter(progress)
     model.require_structure()
-    auto = method == "auto"
-    if auto:  # the frequency-domain solver runs on one device of one process
-        one = devices is None and jax.process_count() == 1
-        method = auto_method(model) if one else "transient"
-    if method == "steady":
-        return _steady(model, speeds, chunk_size, progress, (out_csv, orders_csv), devices,
-                       simulate_kwargs)
-    if method == "harmonic":
-        try:
-            return _harmonic(model, speeds, chunk_size, progress, (out_csv, orders_csv), devices,
-                             simulate_kwargs)
-        except SimulationError as exc:
-            if not (auto and exc.field == "model"):
-                raise
-            # auto: a model the frequency-domain split does not fit
-            progress.note(f"sweep {model.formulation}", f"harmonic balance not applicable "
-                          f"({exc}); every speed by the transient solver")
-            method = "transient"
-    multi_process = jax.process_count() > 1
-    lead = jax.process_index() == 0  # the process that prints and writes
-    fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, sim_kwargs = _plan(
-        model, speeds, chunk_size, devices, simulate_kwargs)
-    total = n_chunks * chunk
-    formulation = model.formulation
 
-    results = empty_metrics(total)
-    if not lead:
-        out_csv, orders_csv, progress = None, None, NoProgressMeter()
-    task = f"sweep {formulation}"
-    progress.start(task, speeds.size, f"chunk 1/{n_chunks}: "
-                   f"{len(set(padded_idx[:chunk].tolist()))} speeds "
-                   f"{speeds[padded_idx[:chunk]].min():.4g}-"
-                   f"{speeds[padded_idx[:chunk]].max():.4g} rad/s, compiling and integrating")
-    t_start = time.perf_counter()
-    n_done = n_unconverged = 0  # so far, as the progress line says
-    for c in range(n_chunks):
-        sel = padded_idx[c * chunk:(c + 1) * chunk]
-        w = jnp.asarray(speeds[sel])
-        if n_dev > 1:
-            w = _global_speeds(np.asarray(speeds[sel]), devices)
-        t0 = time.perf_counter()
-        out = fn(compiled, w, sim_kwargs)
-        if multi_process and n_dev > 1:
-            from jax.experimental import multihost_utils
+    def write(finished: SweepResult) -> None:  # rows in speed order
+        order = np.argsort(np.asarray(finished.speed_rad_s), kind="stable")
+        if orders_csv is not None:  # before results.csv, which --resume reads
+            rows = finished.order_rows()
+            append_rows(orders_csv, ORDER_COLUMNS, [rows[i] for i in order])
+        if out_csv is not None:
+            rows = finished.rows()
+            append_rows(out_csv, CSV_COLUMNS, [rows[i] for i in order])
 
-            out = multihost_utils.process_allgather(out, tiled=True)
-        out = jax.device_get(out)
-        dt = time.perf_counter() - t0
-        for f, v in zip(METRIC_FIELDS, out):
-            results[f][c * chunk:(c + 1) * chunk] = np.asarray(v, dtype=float)
-        # rows of the real (non-padded) speeds of this chunk, in sorted-speed order
-        first = {}
-        for j, i in enumerate(sel):
-            first.setdefault(int(i), c * chunk + j)
-        real_rows = sorted(first.values(), key=lambda k: padded_idx[k])
-        if out_csv is not None or orders_csv is not None:
-            chunk_res = _gather(results, formulation, real_rows)
-            if orders_csv is not None:  # before results.csv, which --resume reads
-                append_rows(orders_csv, ORDER_COLUMNS, chunk_res.order_rows())
-            if out_csv is not None:
-                append_rows(out_csv, CSV_COLUMNS, chunk_res.rows())
-        n_done += len(first)
-        conv = np.asarray(out[METRIC_FIELDS.index("converged")], dtype=bool)
-        real = np.asarray(list(first.values())) - c * chunk
-        n_unconverged += int(np.sum(~conv[real]))
-        progress.update(
-            task, n_done, speeds.size,
-            f"chunk {c + 1}/{n_chunks}: {len(first)} speeds {speeds[sel].min():.4g}-"
-            f"{speeds[sel].max():.4g} rad/s in {dt:.2f} s{' incl. compile' if c == 0 else ''}"
-            f", {n_unconverged} not converged", elapsed_s=time.perf_counter() - t_start)
-    # back to the caller's order: the first padded slot holding each speed index
-    where = np.empty(speeds.size, dtype=int)
-    seen = np.zeros(speeds.size, dtype=bool)
-    for k, i in enumerate(padded_idx):
-        if not seen[i]:
-            where[i] = k
-            seen[i] = True
-    res = _gather(results, formulation, where)
-    failed = ~res.solver_ok.astype(bool)
-    if np.any(failed):
-        progress.note(task, f"integration failed (step limit or non-finite state) at "
-                      f"{int(failed.sum())} speed(s): {speeds[failed][:10].tolist()} rad/s; "
-                      "their metrics are NaN and converged=False")
-    return res
+    sink = write if (out_csv is not None or orders_csv is not None) else None
+    run = SweepRun(chunk_size=chunk_size, devices=devices, progress=progress, sink=sink)
+    return solver.sweep(model, speeds, run)
 
-
-METHODS = ("transient", "steady", "harmonic", "auto")
 
 # share of the machine's memory that one chunk's saved states may take (memory_chunk)
 CHUNK_MEMORY_FRACTION = 0.4
@@ -329,18 +393,22 @@ def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
     return fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, sim_kwargs
 
 
-def lower_sweep(model, speeds_rad_s, chunk_size: int | None = None, devices=None,
-                **simulate_kwargs):
-    """The program that ``sweep(model, speeds_rad_s, chunk_size, devices=devices,
-    method="transient", **simulate_kwargs)`` will call, traced and lowered but not
-    compiled (a ``jax.stages.Lowered``): its ``compile()`` releases the GIL, so a thread
-    can compile the next formulation's program while another sweep traces, compiles and
-    integrates (the command line's te program during the reference sweep, tracing being
-    Python's and so done first). The executable reaches that later call through JAX's
-    compilation caches (in memory, and the persistent cache where one is set)."""
+def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(),
+                chunk_size: int | None = None, devices=None):
+    """The program that ``sweep(model, speeds_rad_s, solver, chunk_size=chunk_size,
+    devices=devices)`` will call, traced and lowered but not compiled (a
+    ``jax.stages.Lowered``): its ``compile()`` releases the GIL, so a thread can compile the
+    next formulation's program while another sweep traces, compiles and integrates (the
+    command line's te program during the reference sweep). The executable reaches that
+    later call through JAX's compilation caches (in memory, and the persistent cache where
+    one is set). ``solver``: a :class:`Transient`, or :class:`Auto` (its choice)."""
+    if isinstance(solver, Auto):
+        solver = solver.choose(model)
+    if not isinstance(solver, Transient):
+        raise SimulationError("solver", solver, "only the transient's program is lowered ahead")
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     fn, compiled, devices, n_dev, chunk, _, padded_idx, sim_kwargs = _plan(
-        model, speeds, chunk_size, devices, simulate_kwargs)
+        model, speeds, chunk_size, devices, solver.simulate_options())
     sel = padded_idx[:chunk]
     w = (_global_speeds(np.asarray(speeds[sel]), devices) if n_dev > 1
          else jnp.asarray(speeds[sel]))
@@ -443,89 +511,10 @@ def tolerance_options(rtol: float | None) -> dict:
                 convergence_tol=min(1e-3, 1e5 * r))
 
 
-HARMONIC_FLOQUET_MAX_STATES = 32  # above: the transient is cheaper than a monodromy
-
-
-class MethodSweepResult(SweepResult):
-    """:class:`SweepResult` of ``sweep(method="harmonic")``: per speed, ``method`` is
-    ``"harmonic"`` or ``"transient"`` (the speeds where the linear orbit is not the
-    model's: contact lost, unconverged harmonics, unstable or unproven stability)."""
-
-    method: np.ndarray
-
-
-def auto_method(model) -> str:
-    """The cheapest method that is exact for the model, by measurement: ``"transient"``
-    for every model (the accelerated transient of :func:`gearjax.dynamics.simulate.simulate`
-    beat the frequency-domain solver plus its transient fallback on the sdof and 3D rigs,
-    the two agreeing to 1e-6 in the dynamic factor: ``benchmarks/results/code_notes.md``,
-    section gearjax.dynamics.sweep.auto_method; ``method="harmonic"`` stays, as an
-    independent check and for linear studies). The reference formulation is nonlinear:
-    transient (or ``"steady"``) only."""
-    del model  # every model: see above
-    return "transient"
-
-
-def _write_csv(paths, res, speeds):
-    """Rows of ``res`` in speed order: ``results.csv`` and ``orders.csv`` (``paths``, each
-    may be None)."""
-    out_csv, orders_csv = paths
-    order = np.argsort(speeds, kind="stable")
-    if orders_csv is not None:
-        rows = res.order_rows()
-        append_rows(orders_csv, ORDER_COLUMNS, [rows[i] for i in order])
-    if out_csv is not None:
-        rows = res.rows()
-        append_rows(out_csv, CSV_COLUMNS, [rows[i] for i in order])
-
-
-def _harmonic(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs):
-    from .harmonic_sweep import harmonic_sweep
-
-    if devices is not None or jax.process_count() > 1:
-        raise SimulationError("devices", devices, 'method="harmonic" runs on one device of one '
-                              'process; use method="transient" to shard over devices or hosts')
-    t0 = time.perf_counter()
-    hb = harmonic_sweep(model, speeds, rtol=simulate_kwargs.get("rtol", 1e-6), progress=progress,
-                        floquet=model.state_size <= HARMONIC_FLOQUET_MAX_STATES)
-    keep = hb.converged & hb.contact_holds & hb.stable & hb.stability_known  # converged: ok
-    fields = {f: np.array(getattr(hb, f), copy=True) for f in METRIC_FIELDS}
-    fields["contact_loss"] = np.zeros(speeds.size, dtype=bool)
-    method = np.where(keep, "harmonic", "transient")
-    progress.note(f"sweep {model.formulation}",
-                  f"harmonic balance: {int(keep.sum())}/{speeds.size} speeds in "
-                  f"{time.perf_counter() - t0:.2f} s (incl. compile); {int((~keep).sum())} to "
-                  f"the transient solver ({int((~hb.contact_holds).sum())} lose contact, "
-                  f"{int((~(hb.stable & hb.stability_known)).sum())} not proven stable)")
-    if np.any(~keep):
-        n_rest = int((~keep).sum())  # a larger chunk would integrate padding copies
-        rest = sweep(model, speeds[~keep], progress=progress, method="transient",
-                     chunk_size=None if chunk_size is None else min(chunk_size, n_rest),
-                     **simulate_kwargs)
-        for f in METRIC_FIELDS:
-            fields[f][~keep] = getattr(rest, f)
-    res = MethodSweepResult(**fields, formulation=model.formulation, method=method)
-    _write_csv(out_csv, res, speeds)
-    return res
-
-
-def _steady(model, speeds, chunk_size, progress, out_csv, devices, simulate_kwargs):
-    from .steady import shooting_options, steady_sweep
-
-    if devices is not None or jax.process_count() > 1:
-        raise SimulationError("devices", devices, 'method="steady" runs on one device of one '
-                              'process; use method="transient" to shard over devices or hosts')
-    steady_kw = shooting_options(simulate_kwargs)
-    res = steady_sweep(model, speeds, chunk_size=chunk_size, progress=progress,
-                       continuation_kwargs=dict(simulate_kwargs), **steady_kw)
-    _write_csv(out_csv, res, speeds)
-    return res
-
-
 def _gather(results, formulation, idx):
     idx = np.asarray(idx, dtype=int)
     kw = {f: results[f][idx] for f in METRIC_FIELDS}
     for f in ("contact_loss", "converged", "solver_ok"):
         kw[f] = kw[f].astype(bool)
     kw["n_steps"] = kw["n_steps"].astype(np.int64)
-    return SweepResult(**kw, formulation=formulation)
+    return SweepResult(**kw, formulation=formulation, solver=np.full(idx.size, "transient"))

@@ -1,0 +1,114 @@
+"""Every periodic solver of :mod:`gearjax.dynamics.solvers` gives the same steady orbit of
+the linear te and perturbation formulations while contact holds (as diffrax's tests run
+every solver on one problem): :class:`Transient` (diffrax from the quasi-static start,
+automatic transient), :class:`Shooting` (Newton on the periodicity residual) and
+:class:`HarmonicBalance` (the frequency domain, no integration) are three independent
+methods, each compared here with a tightly converged shooting reference to its own
+accuracy, on the sdof model and on the 3D rig."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gearjax import Mesh, baud_velex_pair, table1_relief
+from gearjax.dynamics.harmonic_sweep import HarmonicBalance
+from gearjax.dynamics.solvers import AbstractPeriodicSolver, Fallback
+from gearjax.dynamics.steady import Shooting
+from gearjax.dynamics.sweep import Auto, Transient, sweep, tolerance_options
+from gearjax.models.torsional import TorsionalModel
+from gearjax.rigs import baud_velex_rig, build_model
+
+# each solver at its default accuracy, and the tolerance on the dynamic factor it meets
+# (the transient's periodicity test stops at 1e-3 of the extrema's change per period,
+# extrapolated; the harmonic truncation at rtol 1e-6; the shooting at rtol 1e-9)
+SOLVERS = {
+    "transient": (Transient(), 1e-4),
+    "shooting": (Shooting(), 1e-6),
+    "harmonic": (HarmonicBalance(), 1e-5),
+}
+REFERENCE = Shooting(rtol=1e-11, atol=1e-13, measure_rtol=1e-11, measure_atol=1e-13)
+
+
+@pytest.fixture(scope="module")
+def sdof():
+    mesh = Mesh.build(baud_velex_pair(False))
+    return {f: TorsionalModel.build(mesh, table1_relief("short"), formulation=f,
+                                    damping_ratio=0.1) for f in ("te", "perturbation")}
+
+
+def _agree(model, solver, tol, speeds):
+    ref = sweep(model, speeds, REFERENCE)
+    res = sweep(model, speeds, solver)
+    assert np.all(ref.converged) and not np.any(ref.contact_loss)  # the linear regime
+    assert np.all(res.converged) and not np.any(res.contact_loss)
+    np.testing.assert_allclose(res.dynamic_factor, ref.dynamic_factor, rtol=0, atol=tol)
+    np.testing.assert_allclose(res.dte_ptp_m, ref.dte_ptp_m, rtol=10 * tol)
+    # a mesh-order amplitude (the fundamental) agrees like the peak
+    f_s = float(model.static_force_N)
+    np.testing.assert_allclose(res.mesh_force_orders_N[:, 0], ref.mesh_force_orders_N[:, 0],
+                               rtol=0, atol=tol * f_s)
+    return res
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+@pytest.mark.parametrize("formulation", ["te", "perturbation"])
+def test_every_solver_gives_the_linear_orbit_sdof(sdof, name, formulation):
+    solver, tol = SOLVERS[name]
+    res = _agree(sdof[formulation], solver, tol, np.array([300.0, 520.0]))
+    assert set(res.solver) == {"harmonic" if name == "harmonic" else
+                               "steady" if name == "shooting" else "transient"}
+
+
+@pytest.mark.slow  # three 3D programs compile (~1 min on 2 cores); sdof above in the default run
+@pytest.mark.parametrize("name", SOLVERS)
+def test_every_solver_gives_the_linear_orbit_3d(name):
+    model = build_model(baud_velex_rig(False), table1_relief("short"), formulation="te",
+                        damping_ratio=0.1, max_frequency_hz=6000.0, cells_per_line=4,
+                        n_table=64)
+    solver, tol = SOLVERS[name]
+    _agree(model, solver, tol, np.array([500.0]))
+
+
+def test_fallback_hands_on_only_what_the_first_did_not_solve(sdof):
+    """Near the tooth critical speed the sdof te orbit loses contact: the frequency domain
+    keeps the speeds where its linear orbit is the model's, the transient takes the rest,
+    and each speed says which solver gave it; the composition is itself a solver."""
+    model = sdof["te"]
+    speeds = np.array([400.0, 700.0])
+    both = sweep(model, speeds, Fallback(HarmonicBalance(), Transient()))
+    alone = sweep(model, speeds, Transient())
+    lost = alone.contact_loss
+    assert lost.tolist() == [False, True]
+    assert both.solver.tolist() == ["harmonic", "transient"]
+    np.testing.assert_allclose(both.max_mesh_force_N, alone.max_mesh_force_N, rtol=1e-4)
+    assert isinstance(Fallback(Shooting(), Transient()), AbstractPeriodicSolver)
+
+
+def test_auto_is_a_rule_of_the_model():
+    """Auto picks the transient (measured cheapest) and starts a model whose initial state
+    is already its periodic orbit there, without a transient."""
+    class Plain:
+        periodic_start = False
+
+    class Periodic:
+        periodic_start = True
+
+    assert Auto(rtol=1e-9).choose(Plain()) == Transient(**tolerance_options(1e-9))
+    assert Auto().choose(Plain()) == Transient()
+    chosen = Auto().choose(Periodic())
+    assert chosen.n_transient_periods == 0 and chosen.start == "initial"
+
+
+def test_sweep_refuses_a_string_solver_and_a_boolean_progress(sdof):
+    """Solvers and meters are objects: the strings and booleans of earlier versions get a
+    one-line error naming the argument, before anything compiles."""
+    from gearjax.dynamics.steady import steady_sweep
+    from gearjax.errors import SimulationError
+
+    with pytest.raises(SimulationError, match="solver"):
+        sweep(sdof["te"], [300.0], "transient")
+    for run in (lambda: sweep(sdof["te"], [300.0], progress=False),
+                lambda: steady_sweep(sdof["te"], [300.0], progress=True)):
+        with pytest.raises(SimulationError, match="progress meter"):
+            run()
