@@ -17,7 +17,8 @@ How each kind of block is exercised:
     ``tests/test_cli*.py``.
 * ``bibtex`` blocks must agree with the paper reference in ``CITATION.cff``.
 
-The README's shape is checked too: at most 200 lines, no commit hash, no date.
+The README's shape is checked too: at most 200 lines, no commit hash, no date, and every
+relative link names a file of the checkout.
 """
 
 from __future__ import annotations
@@ -122,3 +123,14 @@ def test_readme_python_block_runs(index, tmp_path):
         assert any(tmp_path.glob("*.png"))
     if "ev.grad" in code:  # the gradient was printed and is finite
         assert "gradient" in proc.stdout and "nan" not in proc.stdout.lower()
+
+
+def test_readme_links_resolve():
+    """Every relative link and image of README.md names a file or folder of the checkout
+    (the README is read on GitHub and in the sdist, before any site is built)."""
+    text = README.read_text()
+    targets = re.findall(r"\]\(([^)\s]+)\)", text)
+    local = [t.split("#")[0] for t in targets if "://" not in t and not t.startswith("#")]
+    assert len(local) >= 10
+    missing = [t for t in local if not (ROOT / t).exists()]
+    assert not missing, missing
