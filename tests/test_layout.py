@@ -1,4 +1,4 @@
-"""The package layout keeps its promises (README "Architecture"): imports flow one way
+"""The package layout keeps its promises (docs/development.md, "Architecture"): imports flow one way
 down the layers, no import cycles, no private name imported across modules, no model
 probed with hasattr/getattr, and no module grows into a monolith.
 

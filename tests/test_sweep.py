@@ -250,7 +250,7 @@ _SHARDED = textwrap.dedent(
 
 def test_sharding_over_cpu_devices_warns_on_a_jaxlib_that_crashed_there(monkeypatch):
     """jaxlib 0.11.2's XLA:CPU segfaulted compiling the 3D sweep sharded over CPU devices
-    (README, Known problems): such a sweep says so before it compiles; jaxlib 0.10, the
+    (docs/limitations.md): such a sweep says so before it compiles; jaxlib 0.10, the
     version measured sound, and a single device stay silent."""
     import warnings
 

@@ -87,7 +87,52 @@ def _parser() -> argparse.ArgumentParser:
                 "--stall-timeout", type=float, default=default, metavar="SECONDS",
                 help="end with a one-line message (exit 3) when no sweep chunk / optimiser "
                      f"step completes for this long ({what})")
+    for name, examples in _COMMAND_EXAMPLES.items():  # every command's --help ends with them
+        sub.choices[name].epilog = examples
+        sub.choices[name].formatter_class = _ExamplesFormatter
     return ap
+
+
+class _ExamplesFormatter(argparse.RawDescriptionHelpFormatter):
+    """Text laid out on several lines (the examples) is printed as written, as
+    RawDescriptionHelpFormatter does; a one-line description is wrapped as usual."""
+
+    def _fill_text(self, text, width, indent):
+        if "\n" in text:
+            return super()._fill_text(text, width, indent)
+        return argparse.HelpFormatter._fill_text(self, text, width, indent)
+
+
+# The examples that end each command's --help (tests/test_cli_help.py parses every one).
+_COMMAND_EXAMPLES = {
+    "info": """examples:
+  gearjax info                            the spur rig: geometry, mesh, natural frequencies
+  gearjax info --rig examples/rigs/two_shafts.toml --json
+                                          a rig file of your own, as JSON""",
+    "quasistatic": """examples:
+  gearjax quasistatic --relief long --plot te.png
+                                          TE_S, NLTE and load sharing, Table 1's long relief
+  gearjax quasistatic --relief-amplitude 20e-6 --relief-extent 0.4 --csv te.csv
+                                          your relief, written as a --te-file for sweep""",
+    "sweep": """examples:
+  gearjax sweep                           the paper's spur case (Fig. 9): 3D rig, 45 speeds
+  gearjax sweep --model torsional --damping 0.03 --speeds 300:900:25 --out sdof
+                                          the sdof model; then sdof/response_curves.png""",
+    "stability": """examples:
+  gearjax stability --model torsional --speeds 300:900:13
+                                          Floquet spectral radius per speed (te)
+  gearjax stability --model 3d --damping 0.03 --speeds 600:900:7 --json""",
+    "optimise": """examples:
+  gearjax optimise                        sdof te, peak mesh force over 660-900 rad/s
+  gearjax optimise --model 3d --speeds 330:480:2 --objective dynamic-factor --out opt3d""",
+    "harris-map": """examples:
+  gearjax harris-map --amplitudes 0:30e-6:7 --extents 0.1:0.7:7 --out map
+                                          peak mesh force over a relief grid (map.png)""",
+    "paper": """examples:
+  gearjax paper                           every Section 6.3 case into docs/paper
+  gearjax paper --cases fig08,fig09 --out paper-check
+                                          two cases into another folder""",
+}
 
 
 # Default --stall-timeout (s) of the long commands (gearjax.runtime.watchdog): sweep and
