@@ -45,6 +45,7 @@ import jax
 import numpy as np
 
 import gearjax  # noqa: F401  (x64)
+from gearjax.cli.design import design_solver
 from gearjax.design import DynamicObjective, ReliefSpace
 from gearjax.gears.mesh import Mesh
 from gearjax.rigs.registry import get_rig
@@ -85,7 +86,8 @@ def main():
     kw = dict(model="3d", rig=rig, damping_ratio=0.1) if args.model == "3d" else {}
     if args.method == "steady":
         args.no_reverse = True  # the shooting is forward mode only
-    fwd = DynamicObjective(mesh, space, speeds, "peak-force", method=args.method, **kw)
+    solver = design_solver(args.method, None)
+    fwd = DynamicObjective(mesh, space, speeds, "peak-force", solver=solver, **kw)
     fwd.model = fwd.build(x)
     rows = []
     c, r, ev = _time(lambda: fwd(x, grad=False).smooth, args.repeat)
@@ -93,13 +95,13 @@ def main():
     c, r, ev_f = _time(lambda: fwd(x, grad=True).grad, args.repeat)
     rows.append((f"jacfwd + ForwardMode ({space.size} vars)", c, r, ev_f))
     if not args.no_reverse:
-        rev = DynamicObjective(mesh, space, speeds, "peak-force", method=args.method,
+        rev = DynamicObjective(mesh, space, speeds, "peak-force", solver=solver,
                                adjoint=diffrax.RecursiveCheckpointAdjoint(), **kw)
         rev.model = fwd.model
         c, r, ev_r = _time(lambda: rev(x, grad=True).grad, args.repeat)
         rows.append(("jacrev + RecursiveCheckpointAdjoint", c, r, ev_r))
     base = rows[0][2]
-    print(f"# {rig.name}, {args.model} {fwd.method}, {fwd.formulation}, {args.speeds} speeds 330-480 rad/s, {space.size} design variables, "
+    print(f"# {rig.name}, {args.model} {args.method}, {fwd.formulation}, {args.speeds} speeds 330-480 rad/s, {space.size} design variables, "
           f"build {fwd.build_time_s:.2f} s, {jax.device_count()} {jax.devices()[0].platform} device(s)")
     print(f"{'what':40s} {'compile [s]':>12s} {'run [s]':>10s} {'run / forward':>14s}")
     for name, c, r, _ in rows:

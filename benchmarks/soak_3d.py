@@ -69,8 +69,8 @@ def child(args) -> int:
                       measure_rtol=args.rtol, measure_atol=args.rtol * 1e-2)
     obj = DynamicObjective(mesh, ReliefSpace(), speeds, "peak-force", model="3d", rig=rig,
                            formulation=args.formulation, damping_ratio=0.1,
-                           sim_kwargs=sim_kwargs, max_frequency_hz=args.max_frequency,
-                           method="steady")  # the shooting soaked for the hang
+                           solver=gj.Shooting(**sim_kwargs),  # the shooting soaked for the hang
+                           max_frequency_hz=args.max_frequency)
     x0 = np.array([13.3e-6, 0.2])
     model = obj.build(x0)
     speeds_j = jnp.asarray(speeds)

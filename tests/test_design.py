@@ -31,7 +31,9 @@ from gearjax.gears.modifications import ToothModifications
 from gearjax.gears.quasistatic import quasi_static, static_mesh_force
 from gearjax.rigs.registry import get_rig
 from gearjax.dynamics.simulate import simulate
-from gearjax.dynamics.sweep import sweep
+from gearjax.dynamics.harmonic_sweep import HarmonicBalance
+from gearjax.dynamics.steady import Shooting
+from gearjax.dynamics.sweep import Auto, Transient, sweep, tolerance_options
 
 RIG = get_rig("baud-velex-spur")
 
@@ -509,10 +511,10 @@ def test_3d_dynamic_objective_gradients(formulation):
     differences of the same objective. Measured 1e-5 (te), 4e-6 (perturbation; before its
     TE_S kinks followed the design the extent derivative had the wrong sign)."""
     mesh = Mesh.build(RIG.pair)
-    tight = dict(rtol=1e-11, atol=1e-13, measure_rtol=1e-11, measure_atol=1e-13)
+    tight = Shooting(rtol=1e-11, atol=1e-13, measure_rtol=1e-11, measure_atol=1e-13)
     obj = DynamicObjective(mesh, ReliefSpace(), [300.0, 500.0], "peak-force", model="3d",
-                           rig=RIG, formulation=formulation, damping_ratio=0.1, sim_kwargs=tight,
-                           max_frequency_hz=3000.0, method="steady")
+                           rig=RIG, formulation=formulation, damping_ratio=0.1, solver=tight,
+                           max_frequency_hz=3000.0)
     _check_3d_objective_gradients(obj)
 
 
@@ -529,13 +531,13 @@ def test_3d_dynamic_objective_by_the_transient(formulation):
     mesh = Mesh.build(RIG.pair)
     common = dict(model="3d", rig=RIG, formulation=formulation, damping_ratio=0.1,
                   max_frequency_hz=3000.0)
-    obj = DynamicObjective(mesh, ReliefSpace(), [300.0, 500.0], "peak-force", rtol=1e-10,
-                           **common)
-    assert obj.method == "transient" and obj.sim_kwargs["rtol"] == 1e-10
+    obj = DynamicObjective(mesh, ReliefSpace(), [300.0, 500.0], "peak-force",
+                           solver=Auto(rtol=1e-10), **common)
+    assert isinstance(obj.solver, Transient) and obj.solver.rtol == 1e-10
     x, ex = _check_3d_objective_gradients(obj)
-    tight = dict(rtol=1e-11, atol=1e-13, measure_rtol=1e-11, measure_atol=1e-13)
+    tight = Shooting(rtol=1e-11, atol=1e-13, measure_rtol=1e-11, measure_atol=1e-13)
     shoot = DynamicObjective(mesh, ReliefSpace(), [300.0, 500.0], "peak-force",
-                             method="steady", sim_kwargs=tight, **common)
+                             solver=tight, **common)
     np.testing.assert_allclose(ex, shoot.all_metrics(x, grad=False)[1], rtol=1e-7)
 
 
@@ -556,7 +558,7 @@ def test_dynamic_objective_gradients(mesh_iso, shared):
     at h = 10 / 3 / 1 / 0.33 nm against 2.2319e9 by jacfwd (the right-hand slope)."""
     space = ReliefSpace(shared=shared)
     obj = DynamicObjective(mesh_iso, space, [680.0, 880.0], "peak-force", formulation="te",
-                           sim_kwargs=dict(rtol=1e-10, atol=1e-12))
+                           solver=Transient(rtol=1e-10, atol=1e-12))
     x = np.array([13.3e-6, 0.35]) if shared else np.array([13.3e-6, 12e-6, 0.35, 0.4])
     sm, ex, jac = obj.all_metrics(x)
     assert np.all(sm >= ex * (1 - 1e-12)) and np.all(np.isfinite(jac))  # upper bound (to round-off)
@@ -689,20 +691,20 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
     monkeypatch.setattr(design, "make_objective", stop)
     base = ["optimise", "--speeds", "300:400:2", "--out", str(tmp_path / "o"), "--json"]
     assert main(base) == 130
-    assert seen["method"] == "auto" and seen["rtol"] is None
+    assert seen["solver"] == Auto()  # the solvers' own tolerances
     assert main(base + ["--model", "3d", "--method", "steady", "--rtol", "1e-9"]) == 130
-    assert seen["method"] == "steady" and seen["rtol"] == 1e-9 and seen["model"] == "3d"
+    assert seen["solver"] == Shooting.for_transient(Transient(**tolerance_options(1e-9)))
+    assert seen["model"] == "3d"
     mesh = Mesh.build(RIG.pair)
     for model in DESIGN_MODELS:
         obj = DynamicObjective(mesh, ReliefSpace(), [300.0], model=model, rig=RIG)
-        assert obj.method == "transient" and obj.sim_kwargs == {}
+        assert obj.solver == Transient()
     # one reading of --rtol with the shooting: what `sweep --method steady --rtol R` passes
     # to the shooting sweep (its transient-only options aside); the shooting's own 1e-9
     # is tightened by a tighter request, never loosened
     import gearjax.dynamics.steady as steady
+    from gearjax.cli.design import design_solver
     from gearjax.cli.dynamics import solver_for
-    from gearjax.dynamics.steady import Shooting
-    from gearjax.dynamics.sweep import tolerance_options
 
     def capture(model, speeds, **kw):
         seen.clear()
@@ -714,15 +716,15 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
     built = types.SimpleNamespace(require_structure=lambda: None, periodic_start=False)
     for r, shoot_rtol in ((1e-4, None), (1e-11, 1e-11)):
         shoot = DynamicObjective(mesh, ReliefSpace(), [300.0], model="3d", rig=RIG,
-                                 method="steady", rtol=r)
+                                 solver=design_solver("steady", r))
         with pytest.raises(KeyboardInterrupt):
             sweep(built, [300.0], solver_for("steady", built, r, tolerance_options(r)))
         assert Shooting(**{k: v for k, v in seen.items() if k not in (
-            "chunk_size", "progress", "continuation")}) == Shooting(**shoot.sim_kwargs)
-        assert shoot.sim_kwargs.get("rtol") == shoot_rtol
-        assert shoot.sim_kwargs["measure_rtol"] == r
-    with pytest.raises(DesignError, match="method"):
-        DynamicObjective(mesh, ReliefSpace(), [300.0], method="harmonic")
+            "chunk_size", "progress", "continuation")}) == shoot.solver
+        assert shoot.solver.rtol == shoot_rtol
+        assert shoot.solver.measure_rtol == r
+    with pytest.raises(DesignError, match="solver"):
+        DynamicObjective(mesh, ReliefSpace(), [300.0], solver=HarmonicBalance())
 
 
 @pytest.mark.parametrize("argv,needle", [

@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from ..runtime import HostProgressMeter, watchdog
-from ..design.objectives import DESIGN_METHODS, DynamicObjective, method_tolerances
+from ..design.objectives import DynamicObjective
 from ..errors import DesignError
 from .scenario import add_nlte_reaction, linspace_option, nlte_reaction_of
 
@@ -106,10 +106,7 @@ def _setup(args, separate=False):
         raise DesignError(f"--method/--rtol: the quasi-static objective {args.objective} "
                           "solves no dynamics (they set peak-force, dynamic-factor, dte-ptp)")
     if args.objective in _DYNAMIC:
-        try:
-            method_tolerances(args.method, args.rtol)
-        except DesignError:
-            raise DesignError(f"--rtol={args.rtol!r}: must lie in [1e-13, 1e-2]") from None
+        solver = design_solver(args.method, args.rtol)
     reaction = nlte_reaction_of(args)
     prepare_output_dir("--out", args.out)  # before any computing: created and writable
     speeds = _range(args.speeds, "--speeds", 1e-6, 1e6, "rad/s")
@@ -131,7 +128,7 @@ def _setup(args, separate=False):
     kw = {}
     if args.objective in _DYNAMIC:
         kw = dict(formulation=args.formulation, damping_ratio=args.damping,
-                  model=args.model, method=args.method, rtol=args.rtol)
+                  model=args.model, solver=solver)
         if args.model == "3d":
             kw.update(rig=rig, max_frequency_hz=("auto" if args.max_frequency is None
                                                  else args.max_frequency or None))
@@ -166,7 +163,7 @@ def _cmd_harris_map(args) -> int:
            "extents": exts.tolist(), "exact": hmap.exact.tolist(), "smooth": hmap.smooth.tolist(),
            "best_amplitude_m": float(amps[i]), "best_extent": float(exts[j]),
            "best_objective": float(hmap.exact[i, j]), "wall_time_s": hmap.wall_time_s,
-           "map_png": fig, **_solver(obj)}
+           "map_png": fig, **_solver(obj, args)}
     with open(os.path.join(args.out, "harris_map.json"), "w") as fh:
         json.dump(out, fh, indent=2)
     if args.json:
@@ -228,7 +225,7 @@ def _cmd_optimise(args) -> int:
     os.makedirs(args.out, exist_ok=True)
     out = {"rig": rig.name, "model": args.model, "objective": args.objective,
            "nlte_reaction": args.nlte_reaction, "shape": args.shape, "shared": not args.separate,
-           **_solver(obj)}
+           **_solver(obj, args)}
     out.update(best.as_dict(obj.space))
     if rebuilt is not None:
         out["objective_after_rebuilt"] = rebuilt
@@ -246,7 +243,7 @@ def _cmd_optimise(args) -> int:
         print(json.dumps(out, indent=2))
         return 0
     names = obj.space.names
-    how = f", {obj.method}" if isinstance(obj, DynamicObjective) else ""
+    how = f", {args.method}" if isinstance(obj, DynamicObjective) else ""
     print(f"  {rig.name}: {args.objective} ({args.model}{how}, {args.shape} relief, NLTE'' "
           f"reaction at the {args.nlte_reaction}), {len(runs)} starts")
     for n in names:
@@ -260,11 +257,37 @@ def _cmd_optimise(args) -> int:
     return 0
 
 
-def _solver(obj) -> dict:
-    """The solver of a dynamic objective for the JSON outputs (method, requested rtol)."""
+def _solver(obj, args) -> dict:
+    """The solver of a dynamic objective for the JSON outputs (``--method``, ``--rtol``)."""
     if not isinstance(obj, DynamicObjective):
         return {}
-    return {"method": obj.method, "rtol": obj.rtol}
+    return {"method": args.method, "rtol": args.rtol}
+
+
+# --method of the dynamic objectives: the command line's names of their one-speed solvers
+DESIGN_METHODS = ("auto", "transient", "steady")
+
+
+def design_solver(method: str, rtol: float | None):
+    """The one-speed solver of ``--method`` at ``--rtol``: ``auto`` :class:`~gearjax.Auto`
+    (the transient), ``transient`` the transient, ``steady`` the shooting, each at the
+    accuracy ``--rtol`` asks (:func:`gearjax.dynamics.sweep.tolerance_options`, read by
+    the shooting as ``sweep --method steady`` reads it:
+    :meth:`gearjax.dynamics.steady.Shooting.for_transient`). Raises :class:`DesignError`
+    for an ``--rtol`` outside [1e-13, 1e-2]."""
+    from ..dynamics.simulate import SimulationError
+    from ..dynamics.steady import Shooting
+    from ..dynamics.sweep import Auto, Transient, tolerance_options
+
+    try:
+        options = tolerance_options(rtol)
+    except SimulationError:
+        raise DesignError(f"--rtol={rtol!r}: must lie in [1e-13, 1e-2]") from None
+    if method == "auto":
+        return Auto(rtol=rtol)
+    if method == "transient":
+        return Transient(**options)
+    return Shooting.for_transient(Transient(**options))
 
 
 def _fail(msg: str) -> int:

@@ -46,7 +46,6 @@ from .maps import harris_curves as harris_curves
 from .maps import harris_map as harris_map
 from .objectives import DEFAULT_SHARPNESS as DEFAULT_SHARPNESS
 from .objectives import DESIGN_INERTIAS as DESIGN_INERTIAS
-from .objectives import DESIGN_METHODS as DESIGN_METHODS
 from .objectives import DESIGN_MODELS as DESIGN_MODELS
 from .objectives import DYNAMIC_OBJECTIVES as DYNAMIC_OBJECTIVES
 from .objectives import OBJECTIVES as OBJECTIVES
@@ -55,7 +54,6 @@ from .objectives import Evaluation as Evaluation
 from .objectives import QuasiStaticObjective as QuasiStaticObjective
 from .objectives import design_inertias as design_inertias
 from .objectives import make_objective as make_objective
-from .objectives import method_tolerances as method_tolerances
 from .objectives import smooth_max as smooth_max
 from .optimise import OptimisationResult as OptimisationResult
 from .optimise import coarse_starts as coarse_starts
@@ -67,10 +65,8 @@ __all__ = [
     "OBJECTIVES",
     "DEFAULT_SHARPNESS",
     "DESIGN_INERTIAS",
-    "DESIGN_METHODS",
     "DESIGN_MODELS",
     "design_inertias",
-    "method_tolerances",
     "DesignError",
     "ReliefSpace",
     "smooth_max",

@@ -15,18 +15,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..dynamics.batching import over_speeds, sequential_for
+from ..dynamics.sweep import Transient
 from ..errors import DesignError
 from ..gears.mesh import Mesh
 from ..gears.quasistatic import quasi_static, static_mesh_force
 from .spaces import ReliefSpace
 
-__all__ = ["OBJECTIVES", "DYNAMIC_OBJECTIVES", "DESIGN_MODELS", "DESIGN_METHODS", "DEFAULT_SHARPNESS", "method_tolerances", "DESIGN_INERTIAS", "design_inertias", "smooth_max", "Evaluation", "QuasiStaticObjective", "DynamicObjective", "make_objective"]
+__all__ = ["OBJECTIVES", "DYNAMIC_OBJECTIVES", "DESIGN_MODELS", "DEFAULT_SHARPNESS", "DESIGN_INERTIAS", "design_inertias", "smooth_max", "Evaluation", "QuasiStaticObjective", "DynamicObjective", "make_objective"]
 
 
 OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
 DYNAMIC_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp")
 DESIGN_MODELS = ("torsional", "3d")
-DESIGN_METHODS = ("auto", "transient", "steady")  # "auto": the transient (DynamicObjective)
 DEFAULT_SHARPNESS = 200.0
 MODELS_KEPT = 8  # earlier models of other structures a DynamicObjective may return to
 DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (:mod:`gearjax.design`)
@@ -48,26 +48,26 @@ def design_inertias(mesh: Mesh, inertias_kg_m2=DESIGN_INERTIAS) -> tuple:
     return (float(j[0]), float(j[1]))
 
 
-def method_tolerances(method: str, rtol: float | None) -> dict:
-    """Solver options of a dynamic objective for one requested relative accuracy ``rtol``
-    of its metrics (None: the solvers' own defaults). ``"transient"``:
-    :func:`gearjax.dynamics.sweep.tolerance_options` (integrator rtol, atol rtol/100,
-    transient decay and periodicity test, as ``sweep --rtol``); ``"steady"``: the
-    measured periods' tolerances and the periodicity test, the shooting's tightened only
-    below its own (:func:`gearjax.dynamics.steady.shooting_options`, as ``sweep --method
-    steady --rtol``)."""
-    from ..dynamics.sweep import tolerance_options
+def _orbit_solver(solver):
+    """The one-speed solver of a dynamic objective: :class:`~gearjax.Auto` (None) is the
+    transient at its ``rtol`` (an objective's models never start on their periodic orbit);
+    a :class:`~gearjax.dynamics.solvers.AbstractOrbitSolver` as given. Raises
+    :class:`DesignError` for a bad ``rtol`` or another solver."""
+    from ..dynamics.solvers import AbstractOrbitSolver
+    from ..dynamics.sweep import Auto, tolerance_options
     from ..errors import SimulationError
 
-    try:
-        kw = tolerance_options(rtol)
-    except SimulationError as exc:
-        raise DesignError("rtol", rtol, "must lie in [1e-13, 1e-2]") from exc
-    if method != "steady" or not kw:
-        return kw
-    from ..dynamics.steady import shooting_options
-
-    return shooting_options(kw)
+    solver = Auto() if solver is None else solver
+    if isinstance(solver, Auto):
+        try:
+            return Transient(**tolerance_options(solver.rtol))
+        except SimulationError as exc:
+            raise DesignError("rtol", solver.rtol, "must lie in [1e-13, 1e-2]") from exc
+    if not isinstance(solver, AbstractOrbitSolver):
+        raise DesignError("solver", type(solver).__name__,
+                          "a design objective differentiates one speed at a time: Auto(), "
+                          "Transient(...) or Shooting(...)")
+    return solver
 
 
 def smooth_max(v, sharpness: float = DEFAULT_SHARPNESS, scale=1.0):
@@ -230,22 +230,24 @@ class DynamicObjective:
         ``"auto"``: :func:`gearjax.models.geared3d.default_max_frequency_hz` of the highest
         speed (3 mesh harmonics x 1.5, at least 6 kHz: 16.8 kHz up to 900 rad/s on the
         Baud-Velex rig, whose mesh modes lie at 3.4-3.5 kHz).
-    method : ``"auto"`` (default) or ``"transient"``: :func:`gearjax.dynamics.simulate.simulate`
-        (transient then measured periods; on the 3D model the transient is cut short by
-        the periodic estimate after every period, so its slow shaft-line modes cost no
-        long transient); ``"steady"``: the periodic steady state by shooting
-        (:func:`gearjax.dynamics.steady.steady_state`; forward mode only). The transient
-        is the default because it is far cheaper for equal values (see
+    solver : the periodic solver of every speed, one that differentiates one speed at a time
+        (:class:`~gearjax.dynamics.solvers.AbstractOrbitSolver`): :class:`~gearjax.Auto`
+        (default; its ``rtol`` the requested relative accuracy of the metrics: the
+        transient), :class:`~gearjax.Transient` (transient then measured periods; on the 3D
+        model cut short by the periodic estimate after every period) or
+        :class:`~gearjax.Shooting` (the periodic orbit by Newton; forward mode only). The
+        transient is the default because it is far cheaper for equal values (see
         ``benchmarks/results/code_notes.md``, section gearjax.design.objectives).
-    rtol : requested relative accuracy of the metrics (None: the solvers' defaults, rtol
-        1e-7 and periodicity 1e-3): :func:`method_tolerances`, merged under ``sim_kwargs``.
     sharpness : beta of the smooth maximum over speeds (:mod:`gearjax.design`).
     n_table : table knots per mesh period of the model.
-    sim_kwargs : options of :func:`gearjax.dynamics.simulate.simulate` (or of
-        :func:`gearjax.dynamics.steady.steady_state`) (static).
     adjoint : diffrax adjoint for the gradient (default ``diffrax.ForwardMode()`` with
-        ``jax.jacfwd``; a ``RecursiveCheckpointAdjoint`` uses ``jax.jacrev``, transient
-        method only: the shooting is forward mode).
+        ``jax.jacfwd``; a ``RecursiveCheckpointAdjoint`` uses ``jax.jacrev``, the transient
+        only: the shooting is forward mode).
+
+    Raises
+    ------
+    DesignError
+        for a bad kind, model, solver, adjoint or speeds.
     """
 
     def __init__(self, mesh: Mesh, space: ReliefSpace, speeds_rad_s, kind: str = "peak-force", *,
@@ -253,9 +255,8 @@ class DynamicObjective:
                  formulation: str = "te", pinion_torque_Nm: float = 254.8,
                  inertias_kg_m2=DESIGN_INERTIAS, damping_ratio: float = 0.03,
                  nlte_reaction: str = "drive", max_frequency_hz: float | str | None = "auto",
-                 method: str | None = "auto", rtol: float | None = None,
-                 sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
-                 sim_kwargs: dict | None = None, adjoint=None):
+                 solver=None, sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
+                 adjoint=None):
         if kind not in DYNAMIC_OBJECTIVES:
             raise DesignError("objective", kind, f"dynamic objectives are {DYNAMIC_OBJECTIVES}")
         if model not in DESIGN_MODELS:
@@ -266,12 +267,11 @@ class DynamicObjective:
             from ..rigs.factory import NLTE_REACTION_3D
 
             raise DesignError("nlte_reaction", nlte_reaction, NLTE_REACTION_3D)
-        if method not in DESIGN_METHODS + (None,):
-            raise DesignError("method", method, f"must be one of {DESIGN_METHODS}")
-        method = "transient" if method in ("auto", None) else method
-        if method == "steady" and isinstance(adjoint, diffrax.RecursiveCheckpointAdjoint):
+        solver = _orbit_solver(solver)
+        if isinstance(adjoint, diffrax.RecursiveCheckpointAdjoint) and not isinstance(
+                solver, Transient):
             raise DesignError("adjoint", type(adjoint).__name__,
-                              "the steady (shooting) method differentiates in forward mode only")
+                              "the shooting differentiates in forward mode only")
         speeds = np.atleast_1d(np.asarray(speeds_rad_s, dtype=float))
         if speeds.ndim != 1 or not np.all(np.isfinite(speeds)) or np.any(speeds <= 0):
             raise DesignError("speeds_rad_s", speeds.tolist(), "need finite pinion speeds > 0 (rad/s)")
@@ -279,7 +279,7 @@ class DynamicObjective:
         self.mesh, self.space, self.kind = mesh, space, kind
         self.speeds = speeds
         self.formulation = formulation
-        self.model_type, self.rig, self.method = model, rig, method
+        self.model_type, self.rig, self.solver = model, rig, solver
         if model == "torsional":
             self.model_kwargs = dict(pinion_torque_Nm=float(pinion_torque_Nm),
                                      inertias_kg_m2=design_inertias(mesh, inertias_kg_m2),
@@ -294,8 +294,6 @@ class DynamicObjective:
                                      damping_ratio=float(damping_ratio), formulation=formulation,
                                      max_frequency_hz=max_frequency_hz, n_table=int(n_table))
         self.sharpness = float(sharpness)
-        self.rtol = rtol
-        self.sim_kwargs = {**method_tolerances(method, rtol), **(sim_kwargs or {})}
         self.adjoint = diffrax.ForwardMode() if adjoint is None else adjoint
         self.static_force_N = static_mesh_force(mesh.pair, pinion_torque_Nm)
         cos_bb = math.cos(mesh.pair.base_helix_angle_rad)
@@ -306,7 +304,7 @@ class DynamicObjective:
         self.n_builds = 0
         self.build_time_s = 0.0
         self._static = (space, tuple(float(v) for v in self._scales()), self.sharpness,
-                        tuple(sorted(self.sim_kwargs.items())), method)
+                        solver)
 
     # model management
     def build(self, x, frozen: bool = False):
@@ -431,20 +429,10 @@ class DynamicObjective:
 
 def _dyn_values_impl(model, x, speeds, static, adjoint=None):
     """Smooth and exact maxima over ``speeds`` of (max F_D, max F_D / F_S, DTE ptp)."""
-    from ..dynamics.simulate import simulate
-
-    space, scales, sharpness, sim_kw, method = static
+    space, scales, sharpness, solver = static
     m = model.with_modifications(space.mods(x))
-    kw = dict(sim_kw)
-    if method == "steady":
-        from ..dynamics.steady import steady_state
-
-        res = over_speeds(lambda w: steady_state(m, w, **kw).result, speeds,
-                          sequential=sequential_for(m))
-    else:
-        if adjoint is not None:
-            kw["adjoint"] = adjoint
-        res = over_speeds(lambda w: simulate(m, w, **kw), speeds, sequential=sequential_for(m))
+    res = over_speeds(lambda w: solver.orbit_metrics(m, w, adjoint), speeds,
+                      sequential=sequential_for(m))
     per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])
     sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
     ok = m.structure_ok & jnp.all(res.solver_ok)

@@ -24,7 +24,7 @@ import numpy as np
 from .progress import AbstractProgressMeter, NoProgressMeter
 from .results import SweepResult, merge_results
 
-__all__ = ["AbstractPeriodicSolver", "SweepRun", "Fallback"]
+__all__ = ["AbstractPeriodicSolver", "AbstractOrbitSolver", "SweepRun", "Fallback"]
 
 
 class SweepRun(eqx.Module):
@@ -59,6 +59,17 @@ class AbstractPeriodicSolver(eqx.Module):
     def solved(self, result: SweepResult) -> np.ndarray:
         """Per speed of ``result`` (this solver's), whether its orbit is the model's
         steady state as far as the solver can tell; :class:`Fallback` hands the others on."""
+
+
+class AbstractOrbitSolver(AbstractPeriodicSolver):
+    """A solver whose one-speed solve is a pure function of the model and the speed
+    (jit-, vmap- and differentiable): what a design objective differentiates."""
+
+    @abc.abstractmethod
+    def orbit_metrics(self, model, omega, adjoint=None):
+        """The :class:`~gearjax.dynamics.simulate.SimulationResult` at pinion speed
+        ``omega`` (rad/s, traceable); ``adjoint``: diffrax's, where the solver integrates
+        with one (None: forward mode)."""
 
 
 class Fallback(AbstractPeriodicSolver):

@@ -56,7 +56,7 @@ from .batching import over_speeds, sequential_for
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .integrate import integrate, jump_controller
 from .simulate import SimulationError, SimulationResult, simulate
-from .solvers import AbstractPeriodicSolver, SweepRun
+from .solvers import AbstractOrbitSolver, SweepRun
 from .stability import check_speeds
 
 __all__ = [
@@ -415,7 +415,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
                              solver=np.where(continued, "transient", "steady"))
 
 
-class Shooting(AbstractPeriodicSolver):
+class Shooting(AbstractOrbitSolver):
     """Newton shooting on the periodicity residual ``y(P) - y(0)`` (module docstring),
     then :func:`~gearjax.dynamics.simulate.simulate` over ``n_measured_periods`` from the
     periodic state: :func:`steady_sweep` without its continuation. A speed is solved where
@@ -450,6 +450,15 @@ class Shooting(AbstractPeriodicSolver):
     def options(self) -> dict:
         """:func:`steady_state`'s keyword arguments."""
         return {f: getattr(self, f) for f in _SHOOTING_FIELDS}
+
+    def orbit_metrics(self, model, omega, adjoint=None) -> SimulationResult:
+        """The metrics at one speed ``omega`` (rad/s) from the periodic orbit
+        (:func:`steady_state`); jit-, vmap- and differentiable in forward mode only.
+        Raises :class:`~gearjax.errors.SimulationError` for a reverse-mode ``adjoint``."""
+        if isinstance(adjoint, diffrax.RecursiveCheckpointAdjoint):
+            raise SimulationError("adjoint", type(adjoint).__name__,
+                                  "the shooting differentiates in forward mode only")
+        return steady_state(model, omega, **self.options()).result
 
     def solved(self, result: SweepResult) -> np.ndarray:
         rho = np.asarray(result.spectral_radius, dtype=float)

@@ -43,7 +43,7 @@ import numpy as np
 from ..errors import check_float64
 from .batching import over_speeds, sequential_on
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
-from .solvers import AbstractPeriodicSolver, SweepRun
+from .solvers import AbstractOrbitSolver, AbstractPeriodicSolver, SweepRun
 from .results import (CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, append_rows,
                       empty_metrics)
 from .simulate import SimulationError, SimulationResult, simulate
@@ -117,7 +117,7 @@ def _cost_order(speeds):
     return np.argsort(speeds, kind="stable")
 
 
-class Transient(AbstractPeriodicSolver):
+class Transient(AbstractOrbitSolver):
     """:func:`gearjax.dynamics.simulate.simulate` at every speed: diffrax from the model's
     quasi-static start (:meth:`~gearjax.models.base.AbstractGearModel.transient_start`)
     through a transient to the periodic steady state, then measured over
@@ -146,6 +146,12 @@ class Transient(AbstractPeriodicSolver):
     def simulate_options(self) -> dict:
         """The keyword arguments of :func:`~gearjax.dynamics.simulate.simulate` (static)."""
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    def orbit_metrics(self, model, omega, adjoint=None) -> SimulationResult:
+        """The metrics at one speed ``omega`` (rad/s): :func:`~gearjax.dynamics.simulate.
+        simulate` with these options; jit-, vmap- and differentiable (``adjoint``: diffrax's,
+        default forward mode)."""
+        return simulate(model, omega, adjoint=adjoint, **self.simulate_options())
 
     def solved(self, result: SweepResult) -> np.ndarray:
         return np.ones(np.shape(result.speed_rad_s), dtype=bool)  # the last resort
