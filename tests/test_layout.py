@@ -172,17 +172,22 @@ _SIDE_EFFECTS = {
 }
 
 
+def _library_trees():
+    """(module, syntax tree) of every module below the host layers (:data:`HOST_LAYERS`)."""
+    for mod, path in _modules().items():
+        parts = mod.split(".")
+        if len(parts) < 2 or parts[1] not in HOST_LAYERS:
+            yield mod, ast.parse(path.read_text())
+
+
 def test_library_has_no_side_effects():
     """Below the host layers (:data:`HOST_LAYERS`) no module prints, reads or writes the
     environment, starts threads, clears JAX's caches, touches equinox's private state or
     ends the process (issue 47): those belong to :mod:`gearjax.runtime` and the command
     line; the library reports progress through the meter it is given."""
     bad = []
-    for mod, path in _modules().items():
-        parts = mod.split(".")
-        if len(parts) > 1 and parts[1] in HOST_LAYERS:
-            continue
-        for node in ast.walk(ast.parse(path.read_text())):
+    for mod, tree in _library_trees():
+        for node in ast.walk(tree):
             for what, hit in _SIDE_EFFECTS.items():
                 if hit(node):
                     bad.append(f"{mod}:{node.lineno} {what}")
@@ -252,11 +257,8 @@ def test_no_solver_chosen_by_a_string_below_the_command_line():
     solver too), the entry point ``sweep`` takes no ``**kwargs``, and nothing calls it with a
     ``**kwargs`` tunnel."""
     bad = []
-    for mod, path in _modules().items():
-        parts = mod.split(".")
-        if len(parts) > 1 and parts[1] in HOST_LAYERS:
-            continue
-        for node in ast.walk(ast.parse(path.read_text())):
+    for mod, tree in _library_trees():
+        for node in ast.walk(tree):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 names = [a.arg for a in node.args.args + node.args.kwonlyargs]
                 # ROSS's own keyword for its shear-coefficient formula, mirrored: no solver
