@@ -202,11 +202,11 @@ def test_mapped_batch_equals_the_vmapped_one(model, monkeypatch):
     the teeth."""
     speeds = [700.0, 90.0, 1200.0, 310.0, 520.0, 860.0, 150.0]
     sw = np.asarray(speeds)
-    assert sweep_mod._plan(model, sw, 4, None, OPTS)[0] is sweep_mod._batched  # 2 states
+    assert sweep_mod._plan(model, sw, 4, None, TR)[0] is sweep_mod._batched  # 2 states
     res = {}
     for mapped, fn in ((True, sweep_mod._sequential), (False, sweep_mod._batched)):
         monkeypatch.setattr(sweep_mod, "sequential_on", lambda platform, n, m=mapped: m)
-        assert sweep_mod._plan(model, sw, 4, None, OPTS)[0] is fn
+        assert sweep_mod._plan(model, sw, 4, None, TR)[0] is fn
         res[mapped] = sweep(model, speeds, chunk_size=4, solver=TR)
     a, b = res[True], res[False]
     assert a.speed_rad_s.tolist() == b.speed_rad_s.tolist() == speeds

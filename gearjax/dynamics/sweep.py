@@ -52,21 +52,21 @@ __all__ = ["sweep", "Transient", "Auto", "SweepResult", "CSV_COLUMNS", "toleranc
            "lower_sweep", "default_chunk_size", "memory_chunk"]
 
 
-def _over_speeds(model, speeds, sim_kwargs, sequential: bool):
-    """The metrics of ``simulate`` at every speed of ``speeds``, mapped or vmapped
-    (:func:`gearjax.dynamics.batching.over_speeds`)."""
-    return over_speeds(lambda w: _metrics_only(simulate(model, w, **dict(sim_kwargs))), speeds,
+def _over_speeds(model, speeds, solver, sequential: bool):
+    """The metrics of ``solver`` (a :class:`Transient`, static) at every speed of
+    ``speeds``, mapped or vmapped (:func:`gearjax.dynamics.batching.over_speeds`)."""
+    return over_speeds(lambda w: _metrics_only(solver.orbit_metrics(model, w)), speeds,
                        sequential=sequential)
 
 
 @partial(eqx.filter_jit, donate="none")
-def _batched(model, speeds, sim_kwargs):
-    return _over_speeds(model, speeds, sim_kwargs, sequential=False)
+def _batched(model, speeds, solver):
+    return _over_speeds(model, speeds, solver, sequential=False)
 
 
 @partial(eqx.filter_jit, donate="none")
-def _sequential(model, speeds, sim_kwargs):
-    return _over_speeds(model, speeds, sim_kwargs, sequential=True)
+def _sequential(model, speeds, solver):
+    return _over_speeds(model, speeds, solver, sequential=True)
 
 
 def _metrics_only(res: SimulationResult):
@@ -82,11 +82,11 @@ def _make_sharded(devices, sequential: bool):
     dmesh = DeviceMesh(np.asarray(devices), ("speed",))
 
     @partial(eqx.filter_jit, donate="none")
-    def run(model, speeds, sim_kwargs):
+    def run(model, speeds, solver):
         dyn, static = eqx.partition(model, eqx.is_array)
 
         def body(dyn_, w):
-            return _over_speeds(eqx.combine(dyn_, static), w, sim_kwargs, sequential)
+            return _over_speeds(eqx.combine(dyn_, static), w, solver, sequential)
 
         f = jax.shard_map(
             body, mesh=dmesh, in_specs=(P(), P("speed")), out_specs=P("speed"), check_vma=False
@@ -160,8 +160,8 @@ class Transient(AbstractOrbitSolver):
         progress, sink = run.progress, run.sink
         multi_process = jax.process_count() > 1
         lead = jax.process_index() == 0  # the process that reports and writes
-        fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, sim_kwargs = _plan(
-            model, speeds, run.chunk_size, run.devices, self.simulate_options())
+        fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx = _plan(
+            model, speeds, run.chunk_size, run.devices, self)
         total = n_chunks * chunk
         formulation = model.formulation
 
@@ -181,7 +181,7 @@ class Transient(AbstractOrbitSolver):
             if n_dev > 1:
                 w = _global_speeds(np.asarray(speeds[sel]), devices)
             t0 = time.perf_counter()
-            out = fn(compiled, w, sim_kwargs)
+            out = fn(compiled, w, self)
             if multi_process and n_dev > 1:
                 from jax.experimental import multihost_utils
 
@@ -354,9 +354,9 @@ CHUNK_MEMORY_FRACTION = 0.4
 _BYTES_PER_ENTRY = 20 * 8
 
 
-def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
-    """How :func:`sweep`'s transient runs ``speeds``: the compiled function, the model it
-    takes, the devices, the chunk and the speeds' padded, cost-sorted order."""
+def _plan(model, speeds, chunk_size, devices, solver: Transient):
+    """How ``solver`` (a :class:`Transient`) runs ``speeds``: the compiled function, the
+    model it takes, the devices, the chunk and the speeds' padded, cost-sorted order."""
     if devices is None and jax.process_count() > 1:
         devices = "all"
     if devices == "all":
@@ -367,14 +367,13 @@ def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
     first = devices[0] if devices else jax.devices()[0]
     sequential = sequential_on(first.platform, model.state_size)
     if chunk_size is None:
-        chunk_size = default_chunk_size(model, speeds.size, n_dev, simulate_kwargs,
+        chunk_size = default_chunk_size(model, speeds.size, n_dev, solver.simulate_options(),
                                         first.platform, device_memory_bytes(first))
     if int(chunk_size) != chunk_size or chunk_size < 1:
         raise SimulationError("chunk_size", chunk_size, "must be a positive integer")
     chunk = int(math.ceil(int(chunk_size) / n_dev) * n_dev)
     n_chunks = int(math.ceil(speeds.size / chunk))
     total = n_chunks * chunk
-    sim_kwargs = tuple(sorted(simulate_kwargs.items()))
     compiled = model.compiled_form()  # 3D te and perturbation: one program for both
 
     # order: the whole sweep sorted by cost (speed), chunks of consecutive speeds, each chunk
@@ -396,7 +395,7 @@ def _plan(model, speeds, chunk_size, devices, simulate_kwargs):
         fn = _SHARDED_CACHE[key]
     else:
         fn = _sequential if sequential else _batched
-    return fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, sim_kwargs
+    return fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx
 
 
 def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(),
@@ -413,12 +412,12 @@ def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(
     if not isinstance(solver, Transient):
         raise SimulationError("solver", solver, "only the transient's program is lowered ahead")
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
-    fn, compiled, devices, n_dev, chunk, _, padded_idx, sim_kwargs = _plan(
-        model, speeds, chunk_size, devices, solver.simulate_options())
+    fn, compiled, devices, n_dev, chunk, _, padded_idx = _plan(
+        model, speeds, chunk_size, devices, solver)
     sel = padded_idx[:chunk]
     w = (_global_speeds(np.asarray(speeds[sel]), devices) if n_dev > 1
          else jnp.asarray(speeds[sel]))
-    return fn.lower(compiled, w, sim_kwargs)
+    return fn.lower(compiled, w, solver)
 
 
 def memory_chunk(model, simulate_kwargs: dict | None = None,
