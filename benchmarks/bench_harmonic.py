@@ -45,7 +45,7 @@ import gearjax  # noqa: F401  (x64, CPU flags)
 from gearjax import (Mesh, ToothModifications, baud_velex_pair, static_mesh_force,
                      table1_relief)
 from gearjax.dynamics.harmonic_sweep import harmonic_sweep
-from gearjax.dynamics.steady import steady_sweep
+from gearjax.dynamics.steady import Shooting, steady_sweep
 from gearjax.dynamics.sweep import sweep
 from gearjax.models.torsional import TorsionalModel
 
@@ -125,8 +125,8 @@ def main():
             hf, hf_c, hf_r = _timed(lambda: harmonic_sweep(model, speeds, rtol=args.rtol,
                                                            floquet=True), args.repeat)
             sh, sh_c, sh_r = _timed(lambda: steady_sweep(
-                model, speeds, rtol=1e-10, atol=1e-12, measure_rtol=1e-10,
-                measure_atol=1e-12), 1)
+                model, speeds, Shooting(rtol=1e-10, atol=1e-12, measure_rtol=1e-10,
+                                        measure_atol=1e-12)), 1)
             ref = sh.max_mesh_force_N
             err = lambda r: np.max(np.abs(r.max_mesh_force_N - ref)) / f_s  # noqa: E731
             n_tr = tr.transient_periods + 3
@@ -173,8 +173,8 @@ def three_d(speeds, args, subset=(2, 22, 42)):
         hs, _, hs_r = _timed(lambda: harmonic_sweep(model, sub, rtol=args.rtol,
                                                     floquet=False), 1)
         tr, tr_c, tr_r = _timed(lambda: sweep(model, sub), 1)
-        sh = steady_sweep(model, sub, rtol=1e-10, atol=1e-12,
-                          measure_rtol=1e-10, measure_atol=1e-12)
+        sh = steady_sweep(model, sub, Shooting(rtol=1e-10, atol=1e-12,
+                                                measure_rtol=1e-10, measure_atol=1e-12))
         idx = np.asarray(subset)
         e_hb = np.max(np.abs(hb.max_mesh_force_N[idx] - sh.max_mesh_force_N)) / f_s
         e_tr = np.max(np.abs(tr.max_mesh_force_N - sh.max_mesh_force_N)) / f_s

@@ -127,7 +127,7 @@ def main():
     st = steady_sweep(model, speeds)
     first = time.perf_counter() - t0
     t0 = time.perf_counter()
-    jax.block_until_ready(steady_mod._steady_batch(model, jnp.asarray(speeds), ()))  # cached
+    jax.block_until_ready(steady_mod._steady_batch(model, jnp.asarray(speeds), steady_mod.Shooting()))  # cached
     run_st = time.perf_counter() - t0
     rows["steady"] = (st, max(first - run_st, 0.0), run_st)
     say(f"steady sweep: compile {max(first - run_st, 0.0):.1f} s, run {run_st:.1f} s "
@@ -136,8 +136,8 @@ def main():
 
     idx = np.unique(np.round(np.linspace(0, speeds.size - 1, args.check)).astype(int))
     t0 = time.perf_counter()
-    ref = steady_sweep(model, speeds[idx], rtol=1e-10, atol=1e-12,
-                       measure_rtol=1e-10, measure_atol=1e-12)
+    ref = steady_sweep(model, speeds[idx], steady_mod.Shooting(
+        rtol=1e-10, atol=1e-12, measure_rtol=1e-10, measure_atol=1e-12))
     say(f"reference (shooting rtol 1e-10) at {speeds[idx].round(1).tolist()} rad/s in "
         f"{time.perf_counter() - t0:.1f} s")
     say("\n| method | speeds | compile s | run s | s/speed | max err DF | max rel err DTE ptp | converged |")

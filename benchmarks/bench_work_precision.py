@@ -52,7 +52,7 @@ from gearjax import Mesh, baud_velex_pair, table1_relief
 from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import simulate
-from gearjax.dynamics.steady import steady_sweep
+from gearjax.dynamics.steady import Shooting, steady_sweep
 from gearjax.dynamics.harmonic_sweep import harmonic_sweep
 from gearjax.dynamics.sweep import sweep
 
@@ -142,8 +142,8 @@ def run_simulate(model, speeds, solver, rtol, atol, **kw):
 
 def run_steady(model, speeds, rtol):
     def f():
-        return steady_sweep(model, speeds, rtol=rtol, atol=rtol / 100,
-                            measure_rtol=rtol, measure_atol=rtol / 100)
+        return steady_sweep(model, speeds, Shooting(rtol=rtol, atol=rtol / 100,
+                                                    measure_rtol=rtol, measure_atol=rtol / 100))
     res, run, comp = timed(f)
     return res.max_mesh_force_N, res.dte_ptp_m, run, comp
 

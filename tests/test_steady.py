@@ -26,6 +26,7 @@ from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import SimulationError, simulate
 from gearjax.dynamics.stability import spectral_radius
 from gearjax.dynamics.steady import (
+    Shooting,
     periodic_state,
     spectral_radius_of,
     steady_state,
@@ -125,7 +126,7 @@ def _agrees_with_long_transient(model, speeds, n_transient):
     long = eqx.filter_jit(eqx.filter_vmap(
         lambda m, w: simulate(m, w, n_transient_periods=n_transient, n_measured_periods=2,
                               rtol=1e-10, atol=1e-12), in_axes=(None, 0)))(model, jnp.asarray(speeds))
-    st = steady_sweep(model, speeds, measure_rtol=1e-10, measure_atol=1e-12)
+    st = steady_sweep(model, speeds, Shooting(measure_rtol=1e-10, measure_atol=1e-12))
     assert isinstance(st, SweepResult)
     cl = np.asarray(long.contact_loss)
     for name in ("max_mesh_force_N", "min_mesh_force_N", "dte_ptp_m"):
@@ -181,7 +182,7 @@ def test_helical_te_agrees_with_long_transient(helical):
     rho = math.exp(-0.03 * w_n * model.period_rad / w)
     n = 120
     assert rho**n < 1e-9
-    st = steady_sweep(model, [w], measure_rtol=1e-10, measure_atol=1e-12)
+    st = steady_sweep(model, [w], Shooting(measure_rtol=1e-10, measure_atol=1e-12))
     assert st.spectral_radius[0] == pytest.approx(rho, rel=1e-8)
     long = eqx.filter_jit(lambda m, w: simulate(m, w, n_transient_periods=n,
                                                 n_measured_periods=2, rtol=1e-10,
@@ -286,7 +287,7 @@ def test_3d_te_agrees_with_long_transient(helical, n_transient):
                                                   n_measured_periods=2, rtol=1e-10,
                                                   atol=1e-12))
     long = run(model, jnp.asarray(w), n_transient)
-    st = steady_sweep(model, [w], measure_rtol=1e-10, measure_atol=1e-12)
+    st = steady_sweep(model, [w], Shooting(measure_rtol=1e-10, measure_atol=1e-12))
     assert st.converged[0] and bool(long.solver_ok) and st.spectral_radius[0] < 1
     # the Floquet radius is the decay of the slowest mode over one period
     assert abs(st.spectral_radius[0] / math.exp(-zeta * w_min * t_period) - 1) < 1e-3

@@ -391,13 +391,13 @@ def test_3d_slow_mode_transient_is_right_or_flagged():
     converged=False (the convergence measure extrapolates the slow mode's decay), or be
     right to 1e-4."""
     from gearjax.rigs.registry import get_rig
-    from gearjax.dynamics.steady import steady_sweep
+    from gearjax.dynamics.steady import Shooting, steady_sweep
 
     model = build_model(baud_velex_rig(False), get_rig("baud-velex-spur").modifications("short"),
                                      formulation="te", damping_ratio=0.1,
                                      max_frequency_hz=6000.0)
     speeds = np.array([700.0, 840.0])
-    ref = steady_sweep(model, speeds, rtol=1e-10, atol=1e-12)
+    ref = steady_sweep(model, speeds, Shooting(rtol=1e-10, atol=1e-12))
     assert np.all(ref.converged)
     auto = sweep(model, speeds)
     assert np.all(auto.converged)

@@ -57,6 +57,7 @@ from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .integrate import integrate, jump_controller
 from .simulate import SimulationError, SimulationResult, simulate
 from .solvers import AbstractOrbitSolver, SweepRun
+from .sweep import Transient
 from .stability import check_speeds
 
 __all__ = [
@@ -159,7 +160,7 @@ def _solver_options(solver, rtol, atol):
 
 
 # simulate() options of its transient only: a shooting sweep passes them to its
-# continuation (steady_sweep's continuation_kwargs), not to the shooting
+# continuation (steady_sweep's continuation, a Transient), not to the shooting
 _TRANSIENT_ONLY = ("n_transient_periods", "transient_decay", "min_transient_mesh_periods",
                    "max_transient_mesh_periods", "start")
 
@@ -305,9 +306,9 @@ class SteadySweepResult(SweepResult):
 
 
 @eqx.filter_jit
-def _steady_batch(model, speeds, kwargs):
+def _steady_batch(model, speeds, shooting):
     def one(w):
-        out = steady_state(model, w, **dict(kwargs))
+        out = steady_state(model, w, **shooting.options())
         r = out.result
         return tuple(getattr(r, f) for f in METRIC_FIELDS) + (out.periodic.spectral_radius,
                                                                out.periodic.y0)
@@ -315,16 +316,17 @@ def _steady_batch(model, speeds, kwargs):
 
 
 @eqx.filter_jit
-def _continue_batch(model, speeds, y0s, kwargs):
+def _continue_batch(model, speeds, y0s, transient):
     def one(w, y0):
-        r = simulate(model, w, y0=y0, **dict(kwargs))
+        r = simulate(model, w, y0=y0, **transient.simulate_options())
         return tuple(getattr(r, f) for f in METRIC_FIELDS)
     return over_speeds(one, speeds, y0s, sequential=sequential_for(model))
 
 
-def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress: AbstractProgressMeter = NoProgressMeter(),
-                 continuation: bool = True, continuation_kwargs: dict | None = None,
-                 **steady_kwargs) -> SteadySweepResult:
+def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
+                 chunk_size: int | None = None,
+                 progress: AbstractProgressMeter = NoProgressMeter(),
+                 continuation: Transient | None = Transient()) -> SteadySweepResult:
     """Steady state over pinion speeds by shooting (one compilation per chunk shape; the
     speeds of a chunk mapped on a CPU, vmapped elsewhere: :mod:`gearjax.dynamics.batching`),
     returning the :class:`~gearjax.dynamics.results.SweepResult` fields of
@@ -334,8 +336,8 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     unstable (``spectral_radius >= 1``) or was not found (Newton not converged, or the
     one-step te/perturbation orbit not periodic because the contact law cut its force),
     the metrics are replaced by a :func:`gearjax.dynamics.simulate.simulate` run from the
-    quasi-static start with its automatic transient (``continuation_kwargs`` go to it), so
-    that those speeds are exactly what ``sweep`` computes (after contact loss several
+    quasi-static start by ``continuation`` (a :class:`~gearjax.dynamics.sweep.Transient`;
+    None: no continuation), so that those speeds are exactly what ``sweep`` computes (after contact loss several
     attractors can coexist; a continuation started on the unstable orbit reached another
     one). Inside a parametric instability zone of the linear te equation the transient
     grows until the teeth separate and the contact law bounds it.
@@ -346,9 +348,11 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     section gearjax.dynamics.steady); on a CPU, where the speeds are mapped, it sets how
     often progress is printed.
 
+    ``shooting``: the :class:`Shooting` options (None: its defaults).
     ``transient_periods`` is 0 for shooting speeds and the transient used for continued
     ones; ``n_steps`` counts shooting and measuring steps.
     """
+    shooting = Shooting() if shooting is None else shooting
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)  # and float64
     model.require_structure()
@@ -364,7 +368,6 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     n_chunks = int(math.ceil(speeds.size / chunk))
     order = np.argsort(speeds, kind="stable")
     padded = np.concatenate([order, np.full(n_chunks * chunk - speeds.size, order[-1])])
-    kw = tuple(sorted(steady_kwargs.items()))
     out = empty_metrics(speeds.size)
     rho = np.full(speeds.size, np.nan)
     y0s = None
@@ -374,7 +377,7 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     for c in range(n_chunks):
         sel = padded[c * chunk:(c + 1) * chunk]
         t0 = time.perf_counter()
-        res = jax.device_get(_steady_batch(model, jnp.asarray(speeds[sel]), kw))
+        res = jax.device_get(_steady_batch(model, jnp.asarray(speeds[sel]), shooting))
         for f, v in zip(METRIC_FIELDS, res[:len(METRIC_FIELDS)]):
             out[f][sel] = np.asarray(v, dtype=float)
         rho[sel] = np.asarray(res[-2], dtype=float)
@@ -388,7 +391,8 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
     out["transient_periods"][:] = 0.0
     continued = np.zeros(speeds.size, dtype=bool)
     formulation = model.formulation
-    if continuation:  # te/perturbation too: with the contact law they are nonlinear there
+    if continuation is not None:  # te/perturbation too: with the contact law they are
+        # nonlinear there
         need = ((out["contact_loss"] > 0) | ~(rho < 1.0) | ~(out["converged"] > 0))
         idx = np.flatnonzero(need)
         if idx.size:
@@ -396,10 +400,9 @@ def steady_sweep(model, speeds_rad_s, *, chunk_size: int | None = None, progress
             # attractors can coexist (the orbit's own continuation may reach another
             # branch), and the sweep must give sweep()'s answer
             start = np.asarray(_initial_states(model, jnp.asarray(speeds[idx])))
-            ckw = tuple(sorted((continuation_kwargs or {}).items()))
             t0 = time.perf_counter()
             res = jax.device_get(_continue_batch(model, jnp.asarray(speeds[idx]),
-                                                 jnp.asarray(start), ckw))
+                                                 jnp.asarray(start), continuation))
             for f, v in zip(METRIC_FIELDS, res):
                 out[f][idx] = np.asarray(v, dtype=float)
             continued[idx] = True
@@ -469,8 +472,8 @@ class Shooting(AbstractOrbitSolver):
         if run.devices is not None or jax.process_count() > 1:
             raise SimulationError("devices", run.devices, "shooting runs on one device of one "
                                   "process; use Transient() to shard over devices or hosts")
-        res = steady_sweep(model, speeds, chunk_size=run.chunk_size, progress=run.progress,
-                           continuation=False, **self.options())
+        res = steady_sweep(model, speeds, self, chunk_size=run.chunk_size,
+                           progress=run.progress, continuation=None)
         if run.sink is not None:
             run.sink(res)
         return res
