@@ -158,8 +158,17 @@ RIG_CASES = [
     # issue 16: gear data ranges
     (("z1 = 26", "z1 = 1000000000"), ["gear_pair.z1=1000000000", "above 2000"]),
     # issue 16: values range-checked before the rigid-body analysis
-    (("k_S_N_per_m = 1e9", "k_S_N_per_m = 1e14"), ["bearing[0].k_S_N_per_m=", "physical range"]),
-    (("k_S_N_per_m = 1e9", "k_S_N_per_m = 1e15"), ["bearing[0].k_S_N_per_m=", "physical range"]),
+    # issue 52: "rigid" supports (1e14 N/m) read (test_rigid_supports_are_accepted); the
+    # limit is where float64 eigenvalues lose the soft modes, and the message states it
+    (("k_S_N_per_m = 1e9", "k_S_N_per_m = 1e17"),
+     ["bearing[0].k_S_N_per_m=1e+17", "physical range", "1e+16] N/m"]),
+    # issue 52: face widths in millimetres typed as metres (k_m x 1000), pointed teeth
+    (("face_width1_m = 0.050", "face_width1_m = 50"),
+     ["gear_pair.face_width1_m=50", "millimetres typed as metres", "0.05"]),
+    (("face_width2_m = 0.040", "face_width2_m = 25.0"),
+     ["gear_pair.face_width2_m=25.0", "millimetres typed as metres", "0.025"]),
+    (("profile_shift1 = 0.16\nprofile_shift2 = -0.16", "profile_shift1 = 1.2\nprofile_shift2 = 0.0"),
+     ["gear_pair.profile_shift1=1.2", "pointed", "m_n"]),
     (("k_torsion_Nm_per_rad = 5e4", "k_torsion_Nm_per_rad = 1e300"),
      ["coupling[0].k_torsion_Nm_per_rad=1e+300", "physical range"]),
     (("outer_diameter_m = 0.060\naxis", "outer_diameter_m = 1e6\naxis"),
@@ -180,6 +189,29 @@ def test_bad_rig_file(capsys, tmp_path, edit, words):
     assert "Traceback" not in err + out and "missing bearings" not in err
     for w in words:
         assert w in err, (w, err)
+
+
+def test_rigid_supports_are_accepted(capsys, tmp_path):
+    # every bearing at 1e14 N/m, as users write "rigid" (issue 52): once refused above 1e13
+    # N/m; the soft modes (the resisting load's torsion near 9.8 Hz) stay resolved
+    path = _rig(tmp_path, "k_S_N_per_m = 1e9\nk_T_N_per_m = 1e9",
+                "k_S_N_per_m = 1e14\nk_T_N_per_m = 1e14", every=True)
+    assert EXAMPLE_TEXT.count("k_S_N_per_m = 1e9\nk_T_N_per_m = 1e9") >= 2
+    code, out, err = _run(capsys, ["info", "--rig", path, "--model", "3d", "--json"])
+    assert code == 0, err
+    stiff = json.loads(out)["natural_frequencies_hz"]
+    code, out, _ = _run(capsys, ["info", "--rig", EXAMPLE, "--model", "3d", "--json"])
+    soft = json.loads(out)["natural_frequencies_hz"]
+    assert stiff[0] == pytest.approx(soft[0], rel=1e-3)  # the torsional mode, not zeroed
+    assert stiff[0] > 1.0
+
+
+def test_rig_file_with_byte_order_mark_reads(capsys, tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + EXAMPLE_TEXT.encode())
+    code, out, err = _run(capsys, ["info", "--rig", path, "--model", "torsional", "--json"])
+    assert code == 0 and "Traceback" not in err, err
+    assert json.loads(out)["tooth_numbers"] == [26, 157]
 
 
 def test_node_on_two_shaft_lines_is_refused(capsys, tmp_path):

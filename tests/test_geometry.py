@@ -76,6 +76,12 @@ def test_inverse_involute_roundtrip():
           "dedendum_coeff2": 2.0}, "addendum_coeff1", "pointed"),
         ({"z1": 10, "profile_shift1": 1.2, "addendum_coeff1": 1.4}, "profile_shift1", "inconsistent"),
         ({"normal_pressure_angle_rad": 20.0}, "normal_pressure_angle_rad", "degrees"),
+        # issue 52: 25 mm typed as 25 (m): k_m x 1000 without a word before
+        ({"normal_module_m": 3e-3, "z1": 20, "z2": 45, "face_width1_m": 25.0,
+          "face_width2_m": 25.0}, "face_width1_m", "millimetres typed as metres"),
+        # issue 52: x1 = 1.2 on z1 = 20: tip thickness 0.05 mm (0.017 m_n), once accepted
+        ({"normal_module_m": 3e-3, "z1": 20, "z2": 45, "profile_shift1": 1.2},
+         "profile_shift1", "pointed"),
     ],
 )
 def test_bad_geometry_names_field_and_reason(kwargs, field, words):

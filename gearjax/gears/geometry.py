@@ -25,10 +25,17 @@ import numpy as np
 from ..errors import GeometryError
 
 __all__ = ["GearPair", "GeometryError", "involute", "inverse_involute", "solid_cylinder_inertias",
+           "MAX_FACE_WIDTH_MODULES", "MIN_TIP_THICKNESS_MODULES",
            "STEEL_DENSITY_KG_M3"]
 
 
 MAX_TEETH = 2000  # tooth-number range checked by GearPair
+# A face width above this many normal modules is no real gear (wide turbo gears reach
+# about 100 m_n): most likely millimetres typed as metres, which multiplies k_m by 1000.
+MAX_FACE_WIDTH_MODULES = 200.0
+# Minimum tip thickness as a fraction of the normal module: below it the tooth is
+# (nearly) pointed, its tip breaks off under load (usual design rule s_a >= 0.2-0.4 m_n).
+MIN_TIP_THICKNESS_MODULES = 0.2
 
 
 def involute(alpha: float) -> float:
@@ -76,9 +83,11 @@ class GearPair:
     Raises
     ------
     GeometryError
-        non-positive module or width, fewer than 5 teeth, undercut/interference at the start
-        of contact, pointed tips, negative tip clearance from inconsistent shifts,
-        transverse contact ratio below 1.
+        non-positive module or width, a face width above :data:`MAX_FACE_WIDTH_MODULES`
+        normal modules (a unit slip: millimetres typed as metres), fewer than 5 teeth,
+        undercut/interference at the start of contact, pointed tips (tip thickness below
+        :data:`MIN_TIP_THICKNESS_MODULES` normal modules), negative tip clearance from
+        inconsistent shifts, transverse contact ratio below 1.
     """
 
     normal_module_m: float
@@ -102,6 +111,15 @@ class GearPair:
                                 "above 0.1 m (100 mm): beyond any real gear; the module is in metres")
         _positive("face_width1_m", self.face_width1_m)
         _positive("face_width2_m", self.face_width2_m)
+        mn = float(self.normal_module_m)
+        for k in (1, 2):
+            b = float(getattr(self, f"face_width{k}_m"))
+            if b > MAX_FACE_WIDTH_MODULES * mn:
+                raise GeometryError(
+                    f"face_width{k}_m", b,
+                    f"{b / mn:.0f} normal modules wide (m_n = {mn * 1e3:g} mm), above "
+                    f"{MAX_FACE_WIDTH_MODULES:g}: millimetres typed as metres? Widths are in "
+                    f"metres ({b:g} mm is {b * 1e-3:g})")
         for name in ("z1", "z2"):
             z = getattr(self, name)
             if int(z) != z or z < 5:
@@ -295,12 +313,23 @@ class GearPair:
                 "interference: the pinion tip meets the gear below its base circle; "
                 "add gear profile shift or teeth",
             )
+        mn = self.normal_module_m
         for k in (1, 2):
             sa = self.tip_thickness_m(k)
             if sa <= 0.0:
                 raise GeometryError(
                     f"addendum_coeff{k}", getattr(self, f"addendum_coeff{k}"),
                     f"pointed tip on gear {k} (tip thickness {sa:.3g} m <= 0)",
+                )
+            if sa < MIN_TIP_THICKNESS_MODULES * mn:
+                x = getattr(self, f"profile_shift{k}")
+                field, value = ((f"profile_shift{k}", x) if x > 0.0
+                                else (f"addendum_coeff{k}", getattr(self, f"addendum_coeff{k}")))
+                raise GeometryError(
+                    field, value,
+                    f"(nearly) pointed teeth on gear {k}: tip thickness {sa * 1e3:.3g} mm = "
+                    f"{sa / mn:.3f} m_n, below {MIN_TIP_THICKNESS_MODULES:g} m_n; reduce the "
+                    "profile shift or the addendum",
                 )
         if self.transverse_contact_ratio < 1.0:
             raise GeometryError(
