@@ -42,7 +42,7 @@ def linspace_option(text: str, option: str, *, example: str, lo: float = 0.0,
     return np.linspace(a, b, n)
 
 
-MAX_ECCENTRICITY_UM = 1000.0  # above 1 mm: a unit mistake (the option is in micrometres)
+MAX_ECCENTRICITY_M = 1e-3  # above 1 mm: a unit mistake (the option is in metres)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,7 +126,9 @@ def scenario_modifications(rig, args) -> Scenario:
     ecc = eccentricity_of(args)
     if ecc is not None:
         mods = mods.with_eccentricity(*ecc)
-    source = base + (" with " + ", ".join(changed) if changed else "")
+    # an --eccentricity is a command-line value, not the rig file's: the source says so
+    given = changed + (["--eccentricity"] if ecc is not None else [])
+    source = base + (" with " + ", ".join(given) if given else "")
     if not changed and file_mods is None:
         label = f"relief {relief}" + (f" ({shape})" if shape != "linear" else "")
         key = relief if shape == "linear" else f"{relief}-{shape}"
@@ -135,7 +137,7 @@ def scenario_modifications(rig, args) -> Scenario:
         a = f"{um[0]:.3g}" if um[0] == um[1] else f"{um[0]:.3g}/{um[1]:.3g}"
         e = f"{ext[0]:.3g}" if ext[0] == ext[1] else f"{ext[0]:.3g}/{ext[1]:.3g}"
         label = f"relief {a} um x {e} {shape}" + (" (rig file)" if file_mods is not None
-                                                   and not changed else "")
+                                                   and not changed else "")  # the relief's
         key = ("file" if file_mods is not None and not changed
                else f"relief{amp[0]:g}x{ext[0]:g}" + ("" if shape == "linear" else f"-{shape}"))
     if ecc is not None:
@@ -190,11 +192,13 @@ def nlte_options_of(args) -> dict:
 
 
 def add_eccentricity(p) -> None:
-    """Add ``--eccentricity E1[,E2]`` (um) and ``--eccentricity-phase P1[,P2]`` (rad)."""
+    """Add ``--eccentricity E1[,E2]`` (m, as every length option) and
+    ``--eccentricity-phase P1[,P2]`` (rad)."""
     p.add_argument("--eccentricity", default=None, metavar="E1[,E2]",
-                   help="eccentricities of the pinion and the gear in micrometres (one value: "
-                        "pinion only); the excitation period becomes a revolution of each "
-                        "eccentric body (gear: z2 mesh periods); replaces a rig file's")
+                   help="eccentricities of the pinion and the gear in metres, as every length "
+                        "option (e.g. 20e-6; one value: pinion only); the excitation period "
+                        "becomes a revolution of each eccentric body (gear: z2 mesh periods); "
+                        "replaces a rig file's")
     p.add_argument("--eccentricity-phase", default=None, metavar="P1[,P2]",
                    help="phases lambda_1, lambda_2 of the eccentricities (rad, default 0)")
 
@@ -214,10 +218,11 @@ def _pair_of(flag: str, text: str, what: str) -> np.ndarray:
 
 
 def eccentricity_of(args):
-    """``(e (2,) m, lambda (2,) rad)`` of ``--eccentricity`` (micrometres; one value: the
-    pinion's, the gear's 0) and ``--eccentricity-phase`` (rad, default 0), or None without
-    ``--eccentricity``. Raises :class:`gearjax.errors.GearjaxError` for a negative, non
-    finite or absurd (> 1 mm) eccentricity, or a phase without an eccentricity."""
+    """``(e (2,) m, lambda (2,) rad)`` of ``--eccentricity`` (metres, as every length
+    option; one value: the pinion's, the gear's 0) and ``--eccentricity-phase`` (rad,
+    default 0), or None without ``--eccentricity``. Raises
+    :class:`gearjax.errors.GearjaxError` for a negative, non finite or absurd (> 1 mm: a
+    value in micrometres) eccentricity, or a phase without an eccentricity."""
     from ..errors import GearjaxError
 
     text, ph = getattr(args, "eccentricity", None), getattr(args, "eccentricity_phase", None)
@@ -225,12 +230,12 @@ def eccentricity_of(args):
         if ph is not None:
             raise GearjaxError("--eccentricity-phase", ph, "needs --eccentricity")
         return None
-    um = _pair_of("--eccentricity", text, "eccentricities (um)")
-    if np.any(um < 0):
-        raise GearjaxError("--eccentricity", text, "eccentricities must be >= 0 (um; the "
+    e = _pair_of("--eccentricity", text, "eccentricities (m)")
+    if np.any(e < 0):
+        raise GearjaxError("--eccentricity", text, "eccentricities must be >= 0 (m; the "
                            "direction is the phase)")
-    if np.any(um > MAX_ECCENTRICITY_UM):
-        raise GearjaxError("--eccentricity", text, f"above {MAX_ECCENTRICITY_UM:g} um = 1 mm; "
-                           "the values are in micrometres (20 um is 20)")
+    if np.any(e > MAX_ECCENTRICITY_M):
+        raise GearjaxError("--eccentricity", text, f"above {MAX_ECCENTRICITY_M:g} m = 1 mm; "
+                           "the values are in metres like every length option (20 um is 20e-6)")
     phase = np.zeros(2) if ph is None else _pair_of("--eccentricity-phase", ph, "phases (rad)")
-    return um / 1e6, phase
+    return e, phase
