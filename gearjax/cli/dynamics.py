@@ -57,14 +57,16 @@ from ..dynamics.stability import STABILITY_METHODS
 from ..dynamics.sweep import HARMONIC_FLOQUET_MAX_STATES, METHODS, tolerance_options
 from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv
+from ..gears.quasistatic import static_mesh_force
 from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
 from .ahead import Ahead, build_and_compile_ahead
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
 from .signals import last_mesh_period_signals, write_order_tracks, write_signals
-from .scenario import (add_nlte_reaction, add_nlte_switches, linspace_option, nlte_options_of,
-                       nlte_reaction_of)
+from .scenario import (add_nlte_reaction, add_nlte_switches, add_speeds, add_torque,
+                       input_digests, linspace_option, missed_critical_speed, nlte_options_of,
+                       nlte_reaction_of, rig_notes, rig_of, speeds_of)
 
 __all__ = ["register", "parse_speeds", "case_name", "default_max_frequency_hz", "modal_cutoff"]
 
@@ -102,13 +104,13 @@ def register(sub, add_rig, add_scenario):
     sw.add_argument("--formulations", default=None,
                     help="comma-separated subset of reference,te,perturbation (default all; "
                          "te,perturbation with --te-file)")
-    sw.add_argument("--speeds", default="20:900:45", metavar="A:B:N",
-                    help="N pinion speeds from A to B rad/s (default 20:900:45)")
+    add_speeds(sw, "sweep")
     sw.add_argument("--signals", default=None, metavar="SPEEDS",
                     help="comma-separated pinion speeds (rad/s) whose mesh force over the last "
                          "mesh period is also written and plotted (Fig. 11), e.g. 100,400,800")
     sw.add_argument("--out", default=None, metavar="DIR",
-                    help="output folder (default ./gearjax-out/<case>/); a folder holding an "
+                    help="output folder (default ./gearjax-out/<case>/, whose earlier run a "
+                         "plain re-run replaces, saying so); a given folder holding an "
                          "earlier run is refused unless --resume or --overwrite")
     sw.add_argument("--resume", action="store_true",
                     help="continue an interrupted sweep in its --out folder: same options "
@@ -160,8 +162,7 @@ def register(sub, add_rig, add_scenario):
     st.add_argument("--formulation", default="te", choices=["te", "perturbation"],
                     help="linear formulation to analyse (default te; the reference linearised "
                          "about the quasi-static contact is the te equation)")
-    st.add_argument("--speeds", default="100:1500:15", metavar="A:B:N",
-                    help="N pinion speeds from A to B rad/s (default 100:1500:15)")
+    add_speeds(st, "stability")
     st.add_argument("--method", default="auto", choices=STABILITY_METHODS,
                     help="steady: the spectral radius of the monodromy matrix (one period "
                          "of n columns, as the shooting's; ~20 s per speed for the 3D rig); "
@@ -178,7 +179,9 @@ def register(sub, add_rig, add_scenario):
 def _add_dynamics(p: argparse.ArgumentParser):
     p.add_argument("--model", default="3d", choices=["torsional", "3d"],
                    help="3d (default: shafts, bearings, pinion-gear element, Eqs. (14), (42), "
-                        "(48a)) or torsional (sdof, Eqs. (16), (20), (47a))")
+                        "(48a)) or torsional (sdof, Eqs. (16), (20), (47a); solid gear bodies, "
+                        "not the rig's discs)")
+    add_torque(p)
     add_nlte_reaction(p)
     p.add_argument("--damping", type=float, default=0.1, metavar="ZETA",
                    help="modal damping factor (default 0.1; the paper also uses 0.03)")
@@ -196,8 +199,12 @@ def _add_dynamics(p: argparse.ArgumentParser):
                         "6000 Hz)")
 
 
-def parse_speeds(text: str) -> np.ndarray:
-    """The pinion speeds of ``--speeds A:B:N`` (rad/s): ``0 < A <= B``, ``N >= 1``."""
+def parse_speeds(text: str | None) -> np.ndarray:
+    """The pinion speeds of ``--speeds A:B:N`` (rad/s): ``0 < A <= B``, ``N >= 1``; None
+    (no ``--speeds``: the rig's default, :func:`gearjax.cli.scenario.speeds_of`) gives the
+    paper's 20:900:45, which has the default's count of speeds."""
+    if text is None:
+        text = "20:900:45"
     return linspace_option(text, "--speeds", example="20:900:60", unit="rad/s")
 
 
@@ -312,7 +319,6 @@ def _tolerances(args) -> dict:
 
 
 def cmd_sweep(args) -> int:
-    from ..rigs.registry import get_rig
     from ..dynamics.results import CSV_COLUMNS, ORDER_COLUMNS, check_header
     from ..dynamics.sweep import sweep
     from .outputs import prepare_output_dir
@@ -326,7 +332,8 @@ def cmd_sweep(args) -> int:
                          "start a new --out folder)")
     check_direction(args)
     lead = init_distributed(args)
-    speeds = parse_speeds(args.speeds)
+    if args.speeds is not None:
+        parse_speeds(args.speeds)  # a bad range is reported before the rig is read
     forms = _forms(args.formulations or ("te,perturbation" if args.te_file
                                          else "reference,te,perturbation"))
     _check_te_file(args, forms)
@@ -343,12 +350,18 @@ def cmd_sweep(args) -> int:
     if tolerances and args.direction != "independent":
         raise ValueError(f"--rtol={args.rtol!r}: for independent sweeps (the continuation of "
                          "--direction keeps its shooting tolerances)")
-    rig = get_rig(args.rig)
+    rig = rig_of(args)
+    spec = speeds_of(args, rig, "sweep", law=args.stiffness, model=args.model,
+                     damping=args.damping)
+    speeds = spec.rad_s
     scen = scenario_modifications(rig, args)
     mods = scen.mods
     te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
     case = case_name(args, scen)
     out = args.out or os.path.join("gearjax-out", case)
+    # a plain re-run (no --out) replaces the earlier run of its own default folder
+    replace = (args.out is None and not args.resume and not args.overwrite
+               and any(os.path.exists(os.path.join(out, n)) for n in RESULT_FILES))
     csv_path = os.path.join(out, "results.csv")
     orders_path = os.path.join(out, "orders.csv")  # mesh orders 1-5 (gearjax.dynamics.orders)
     cutoff_hz, cutoff_source = (modal_cutoff(args, rig, np.concatenate([speeds, sig_speeds]))
@@ -364,7 +377,10 @@ def cmd_sweep(args) -> int:
         **({"nlte_inertia": False} if args.no_nlte_terms else {}),
         "encoders": args.encoders, "max_frequency_hz": cutoff_hz, "formulations": forms,
         **({"te_file": os.path.abspath(args.te_file)} if args.te_file else {}),
-        "speeds_rad_s": [float(w) for w in speeds],
+        # the rig and TE files' contents, not only their names: an edited file is another case
+        **input_digests(args), "pinion_torque_Nm": rig.pinion_torque_Nm,
+        # the specification, not the speeds (ten million of them are 231 MB of JSON)
+        **{k: v for k, v in spec.record().items() if k != "speeds_source"},
     }
     if args.rtol is not None:
         record["rtol"] = float(args.rtol)
@@ -373,7 +389,11 @@ def cmd_sweep(args) -> int:
     done: dict = {}
     if lead:  # every output problem is reported now, before any computing
         prepare_output_dir("--out", out, results=RESULT_FILES, resume=args.resume,
-                           overwrite=args.overwrite)
+                           overwrite=args.overwrite or replace)
+        if replace:
+            print(f"gearjax sweep: replacing the earlier run in {out} (this case's default "
+                  "folder; --resume continues it instead, --out DIR keeps both)",
+                  file=sys.stderr, flush=True)
         if args.resume:
             check_resume(out, record)
             for path, columns in ((csv_path, CSV_COLUMNS), (orders_path, ORDER_COLUMNS)):
@@ -383,6 +403,13 @@ def cmd_sweep(args) -> int:
         write_case(out, record)
     devices = sweep_devices(args.method)
     nlte = nlte_options_of(args)
+    notes = rig_notes(rig, args.model)
+    estimate = work_estimate(args.model, speeds.size, len(forms))
+    if estimate:
+        notes.append(estimate)
+    if lead:
+        for note in notes:
+            print(f"gearjax sweep: note: {note}", file=sys.stderr, flush=True)
     summary = {
         "case": case, "rig": rig.name, "model": args.model,
         "stiffness_law": args.stiffness, "relief": args.relief or scen.key, **scen.summary(),
@@ -391,9 +418,14 @@ def cmd_sweep(args) -> int:
         "nlte_reaction": reaction, "encoders": args.encoders, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "rtol": args.rtol, "devices": device_count(devices),
-        "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
+        "pinion_torque_Nm": rig.pinion_torque_Nm,
+        "static_mesh_force_N": static_mesh_force(rig.pair, rig.pinion_torque_Nm),
+        **spec.record(),
+        **({"excitation": _excitation(args, te, scen)} if te is not None else {}),
         "formulations": {},
         **({"warnings": [warning]} if warning else {}),
+        **({"notes": notes} if notes else {}),
+        **({"replaced_earlier_run": True} if replace else {}),
     }
     if done:
         summary["resumed"] = {f: len(v) for f, v in done.items()}
@@ -410,8 +442,9 @@ def cmd_sweep(args) -> int:
                                max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te,
                                moving_events=False)  # forward only
 
-        def todo_of(form):
-            return np.array([w for w in speeds if float(w) not in done.get(form, ())])
+        def todo_of(form):  # vectorised: ten million speeds in well under a second
+            got = np.fromiter(done.get(form, ()), dtype=float)
+            return speeds[~np.isin(speeds, got)] if got.size else speeds
 
         def sweep_options(model):
             size = None if args.chunk is None else min(args.chunk, todo_of(model.formulation).size)
@@ -443,6 +476,11 @@ def cmd_sweep(args) -> int:
                 linear = model
             if "predicted" not in summary:
                 summary["predicted"] = predicted_critical_speeds(model)
+                missed = missed_critical_speed(summary["predicted"], speeds)
+                if missed:
+                    summary.setdefault("warnings", []).append(missed)
+                    if lead:
+                        print(f"gearjax sweep: warning: {missed}", file=sys.stderr, flush=True)
                 if args.model == "3d":
                     summary["n_modes"] = int(model.n_modes)
                     summary["w_x0_m"] = float(model.w_x0)
@@ -493,7 +531,8 @@ def cmd_sweep(args) -> int:
                             "median_rel_diff_max_mesh_force": float(np.nanmedian(rel))}
         summary["agreement_with_reference"] = agree
     summary["results_csv"] = csv_path
-    title = (f"{rig.name}, {args.model}, {scen.label}"
+    title = (f"{rig.name}, {args.model}, "
+             f"{summary['excitation'] if te is not None else scen.label}"
              f"{', pitch errors' if scen.pitch_errors else ''}, damping {args.damping}"
              + (", NLTE = 0" if args.zero_nlte else ", NLTE'' = 0" if args.no_nlte_terms else "")
              + f"{' (interrupted)' if interrupted else ''}")
@@ -525,6 +564,35 @@ def cmd_sweep(args) -> int:
     return 0
 
 
+# Measured cost of one speed of one formulation after compiling (2 CPU cores; 3D:
+# benchmarks/results/scaling_3d.md, 22-24 ms per speed; torsional: sdof_exact_2000.md,
+# 1.6 s for 2000 speeds): the estimate announced before a long sweep.
+SECONDS_PER_SPEED = {"3d": 0.024, "torsional": 0.001}
+ANNOUNCE_S = 600.0  # sweeps estimated to take longer are announced with their estimate
+
+
+def work_estimate(model: str, n_speeds: int, n_forms: int) -> str | None:
+    """A one-line estimate of a sweep's computing time where it exceeds
+    :data:`ANNOUNCE_S` (speeds x formulations x :data:`SECONDS_PER_SPEED`), else None."""
+    t = SECONDS_PER_SPEED[model] * n_speeds * n_forms
+    if t < ANNOUNCE_S:
+        return None
+    when = f"{t / 3600:.1f} h" if t >= 3600 else f"{t / 60:.0f} min"
+    return (f"{n_speeds:,} speeds x {n_forms} formulation(s): about {when} of computing at "
+            f"the measured ~{SECONDS_PER_SPEED[model] * 1e3:g} ms per speed of the {model} "
+            "model on 2 CPU cores; rows are written as they finish, Ctrl-C keeps them and "
+            "--resume continues")
+
+
+def _excitation(args, te, scen) -> str:
+    """What excites a --te-file sweep: the file (and the relief only where the file has
+    no stiffness column: the model's own mesh stiffness)."""
+    name = os.path.basename(args.te_file)
+    if te.has_stiffness:
+        return f"TE file {name} (TE_S, NLTE, stiffness)"
+    return f"TE file {name} (TE_S, NLTE; mesh stiffness from {scen.label})"
+
+
 def _listed(speeds, tags=None) -> str:
     """The first 8 speeds (rad/s, with their tags) and how many more."""
     tags = tags or [""] * len(speeds)
@@ -535,16 +603,21 @@ def _listed(speeds, tags=None) -> str:
 def _print_summary(rig, summary, out):
     pred = summary["predicted"]
     print(f"\n  {rig.description}")
-    print(f"  {summary['model']} model, {summary['relief_label']} [{summary['relief_source']}], "
+    excitation = summary.get("excitation") or (f"{summary['relief_label']} "
+                                               f"[{summary['relief_source']}]")
+    print(f"  {summary['model']} model, {excitation}, "
           f"damping {summary['damping']}, NLTE'' reaction at the {summary['nlte_reaction']}, "
+          f"torque {summary['pinion_torque_Nm']:g} N m, law {summary['stiffness_law']}, "
           f"speeds {summary['speeds_rad_s'][0]:.0f}-{summary['speeds_rad_s'][1]:.0f} rad/s "
-          f"({summary['speeds_rad_s'][2]})")
+          f"({summary['speeds_rad_s'][2]}; {summary['speeds_source']})")
     if summary["model"] == "3d":
         fc = summary["max_frequency_hz"]
         print(f"  modes {'below %.0f Hz' % fc if fc else 'all'} ({summary['max_frequency_source']})"
               f": {summary['n_modes']} modes")
-        for w in summary.get("warnings", ()):
-            print(f"  warning: {w}")
+    for w in summary.get("warnings", ()):
+        print(f"  warning: {w}")
+    for n in summary.get("notes", ()):
+        print(f"  note: {n}")
     print(f"  predicted main tooth critical speed {pred['critical_speed_rad_s']:.0f} rad/s (peak of "
           f"the mesh receptance; mode with most mesh energy: {pred['mode_frequency_hz']:.0f} Hz, "
           f"{100 * pred['mesh_energy_share']:.0f} %, i.e. {pred['mode_critical_speed_rad_s']:.0f} rad/s)")
@@ -577,20 +650,26 @@ def _print_summary(rig, summary, out):
 
 
 def cmd_stability(args) -> int:
-    from ..rigs.registry import get_rig
     from ..dynamics.harmonic import small_gain_bounds
     from ..dynamics.small_gain import SMALL_GAIN_MARGIN
     from ..dynamics.stability import spectral_radius
 
     from .scenario import scenario_modifications
 
-    speeds = parse_speeds(args.speeds)
+    if args.speeds is not None:
+        parse_speeds(args.speeds)  # a bad range is reported before the rig is read
     _check_damping(args.damping)
     _check_te_file(args, [args.formulation])
     # the monodromy's integrator takes --rtol (atol R/100): the accuracy of rho
     tols = {k: v for k, v in _tolerances(args).items() if k in ("rtol", "atol")}
     reaction = nlte_reaction_of(args)
-    rig = get_rig(args.rig)
+    rig = rig_of(args)
+    spec = speeds_of(args, rig, "stability", law=args.stiffness, model=args.model,
+                     damping=args.damping)
+    speeds = spec.rad_s
+    notes = rig_notes(rig, args.model)
+    for note in notes:
+        print(f"gearjax stability: note: {note}", file=sys.stderr, flush=True)
     scen = scenario_modifications(rig, args)
     mods = scen.mods
     te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
@@ -628,6 +707,8 @@ def cmd_stability(args) -> int:
         "rig": rig.name, "model": args.model, "formulation": args.formulation,
         "relief": args.relief or scen.key, **scen.summary(), "damping": args.damping,
         "stiffness_law": args.stiffness, "nlte_reaction": reaction, "te_file": args.te_file,
+        "pinion_torque_Nm": rig.pinion_torque_Nm, **spec.record(),
+        **({"notes": notes} if notes else {}),
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "method": method, "rtol": args.rtol, "monodromies": int(need.size),
         "wall_time_s": time.perf_counter() - t0,

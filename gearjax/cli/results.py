@@ -21,6 +21,7 @@ __all__ = ["RESULT_FILES", "CASE_FILE", "write_case", "check_resume", "read_rows
            "done_speeds", "summarise_rows", "method_counts"]
 
 CASE_FILE = "case.json"
+MAX_LISTED = 1000  # speeds listed by name in summary.json (counts are always whole)
 # files a sweep writes in its folder (an earlier run is recognised by any of them)
 RESULT_FILES = ("results.csv", "summary.json", CASE_FILE, "response_curves.png",
                 "signals.csv", "mesh_force_signals.png", "orders.csv", "order_tracks.png")
@@ -49,6 +50,13 @@ def check_resume(out: str, record: dict) -> None:
     diff = [k for k in sorted(set(old) | set(record)) if old.get(k) != record.get(k)]
     if diff:
         k = diff[0]
+        if k.endswith("_file_sha256"):
+            what = k[: -len("_file_sha256")].replace("te", "TE")
+            raise GearjaxError("--resume", out, f"the folder holds another case: the {what} "
+                                                f"file's contents changed since that run "
+                                                f"({k} was {_short(old.get(k))}, now "
+                                                f"{_short(record.get(k))}); resume with the same "
+                                                "file, or use --overwrite or another --out")
         raise GearjaxError("--resume", out, f"the folder holds another case: {k} was "
                                             f"{_short(old.get(k))}, now {_short(record.get(k))}; resume with "
                                             "the same options, or use --overwrite or another --out")
@@ -101,7 +109,8 @@ def done_speeds(rows: list[dict]) -> dict[str, set[float]]:
 def summarise_rows(rows: list[dict], formulation: str, speeds: np.ndarray) -> dict:
     """Summary of one formulation's rows. The peak dynamic factor is taken over converged
     speeds only (an unconverged run's maximum is not a steady-state response; those speeds
-    are listed, and the peak is NaN when none converged)."""
+    are listed, and the peak is NaN when none converged). The speeds not yet computed are
+    counted and the first :data:`MAX_LISTED` listed; the time is linear in the speeds."""
     rs = sorted((r for r in rows if r["formulation"] == formulation),
                 key=lambda r: float(r["speed_rad_s"]))
     w = np.array([float(r["speed_rad_s"]) for r in rs])
@@ -114,14 +123,17 @@ def summarise_rows(rows: list[dict], formulation: str, speeds: np.ndarray) -> di
     finite = np.isfinite(df)
     ok = conv & finite
     i = int(np.argmax(np.where(ok, df, -np.inf))) if ok.any() else None
-    missing = [float(v) for v in speeds if not np.any(w == v)]
+    # linear in the speeds (a Ctrl-C of ten million speeds summarises in seconds); the list
+    # is cut at MAX_LISTED, the count is whole
+    missing = np.asarray(speeds, dtype=float)[~np.isin(speeds, w)]
     return {
         "peak_dynamic_factor": float(df[i]) if i is not None else float("nan"),
         "critical_speed_rad_s": float(w[i]) if i is not None else float("nan"),
         "peak_over": "converged speeds only",
         "max_mesh_force_N": float(np.max(fmax[ok])) if ok.any() else float("nan"),
         "speeds_done": int(w.size),
-        "missing_speeds": missing,
+        "missing_speeds": [float(v) for v in missing[:MAX_LISTED]],
+        "missing_speeds_count": int(missing.size),
         "contact_loss_speeds": [float(v) for v in w[loss]],
         "unconverged_speeds": [float(v) for v in w[~conv]],
         # of those, the sub-harmonic orbits: speed -> period in excitation periods
