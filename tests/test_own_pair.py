@@ -278,3 +278,49 @@ def test_optimise_band_and_check_command_follow_the_rig(own_rig, tmp_path):
     assert sw.torque == 200.0 and sw.damping == args.damping and sw.stiffness == "iso6336"
     assert sw.speeds == spec.spec and sw.relief_amplitude == 12.5e-6 and sw.relief_extent == 0.35
     assert sw.formulations == "reference,te"
+
+
+# ------------------------------------------------------------------------ figures
+def test_figures_say_micrometres_and_show_every_start(monkeypatch, tmp_path):
+    """µm, not "um"; the Harris map's axes hold every start, path and end (one star was
+    outside the map's grid, hence off the plot), its legend on a dark box (white paths);
+    history.png names every start by its design, with the line styles explained."""
+    import dataclasses
+
+    import matplotlib.figure
+
+    from gearjax.design.maps import HarrisMap
+    from gearjax.design.optimise import OptimisationResult
+    from gearjax.plotting import ORDER_TRACK_PANELS, _mu, plot_design_map, plot_history
+
+    figs = []
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", lambda self, *a, **k: figs.append(self))
+
+    def run(x0, x1, n):
+        xs = np.linspace(x0, x1, n)
+        hist = [{"iteration": i, "x": x, "exact": 2e4 - 1e3 * i, "smooth": 2e4 - 1e3 * i}
+                for i, x in enumerate(xs)]
+        return OptimisationResult(x=xs[-1], smooth=hist[-1]["smooth"], exact=hist[-1]["exact"],
+                                  x0=xs[0], smooth0=2e4, exact0=2e4, history=hist,
+                                  iterations=n, stop_reason="max-iter", wall_time_s=1.0)
+
+    runs = [run([10e-6, 0.3], [25e-6, 0.5], 5), run([30e-6, 0.6], [38e-6, 0.9], 4)]
+    amps, exts = np.linspace(2e-6, 30e-6, 5), np.linspace(0.1, 0.8, 5)
+    grid = np.add.outer(amps * 1e9, exts * 1e4)
+    hmap = HarrisMap(amplitudes_m=amps, extents=exts, smooth=grid, exact=grid,
+                     objective="te-ptp", wall_time_s=1.0)
+    plot_design_map(hmap, str(tmp_path / "m.png"), results=runs, title="rig, relief 10 um x 0.2")
+    ax = figs[-1].axes[0]
+    assert ax.get_xlim()[1] > 0.9 and ax.get_ylim()[1] > 38.0  # the end at (0.9, 38 µm)
+    assert "µm" in ax.get_ylabel() and ax.get_title() == "rig, relief 10 µm x 0.2"
+    leg = ax.get_legend()
+    assert {t.get_text() for t in leg.get_texts()} == {"optimiser paths", "starts", "ends"}
+    assert leg.get_frame().get_facecolor()[0] < 0.5  # dark box behind the white paths
+    plot_history(runs, str(tmp_path / "h.png"), "peak-force")
+    ax = figs[-1].axes[0]
+    texts = [t.get_text() for lg in ax.findobj(matplotlib.legend.Legend) for t in lg.get_texts()]
+    assert any(t.startswith("start 1: P$_c$ 10 µm, L$_c$ 0.3") for t in texts)
+    assert any(t.startswith("start 2: P$_c$ 30 µm") for t in texts)
+    assert "exact maximum" in texts and "smoothed (descended)" in texts
+    assert all("um]" not in p[1] and "\n" in p[1] for p in ORDER_TRACK_PANELS)
+    assert _mu("2/3 um, sum um") == "2/3 µm, sum um"
