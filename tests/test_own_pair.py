@@ -324,3 +324,20 @@ def test_figures_say_micrometres_and_show_every_start(monkeypatch, tmp_path):
     assert "exact maximum" in texts and "smoothed (descended)" in texts
     assert all("um]" not in p[1] and "\n" in p[1] for p in ORDER_TRACK_PANELS)
     assert _mu("2/3 um, sum um") == "2/3 µm, sum um"
+
+
+def test_te_file_sweep_names_the_file_as_its_excitation(capsys, tmp_path):
+    """The sweep header named the rig's relief while a TE file drove it."""
+    te = tmp_path / "te.csv"
+    code, _, err = _run(capsys, ["quasistatic", "--relief", "long", "--positions", "32",
+                                 "--csv", te, "--json"])
+    assert code == 0, err
+    out = tmp_path / "tef"
+    code, stdout, err = _run(capsys, TORSIONAL + ["--te-file", te, "--speeds", "400:500:2",
+                                                  "--out", out])
+    assert code == 0, err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["excitation"] == "TE file te.csv (TE_S, NLTE, stiffness)"
+    header = [ln for ln in stdout.splitlines() if "torsional model," in ln][0]
+    assert "TE file te.csv" in header and "relief short" not in header
+    assert len(json.loads((out / "case.json").read_text())["te_file_sha256"]) == 64
