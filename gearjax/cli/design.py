@@ -119,8 +119,6 @@ def _setup(args, separate=False):
     except ValueError as exc:  # GearjaxError / range errors: the commands' DesignError
         raise DesignError(str(exc)) from None
     speeds = spec.rad_s
-    for note in rig_notes(rig, args.model):
-        print(f"gearjax {args.command}: note: {note}", file=sys.stderr, flush=True)
     amps = _range(args.amplitudes, "--amplitudes", 0.0, 40e-6, "m")
     if args.max_frequency is not None and not (math.isfinite(args.max_frequency)
                                                and args.max_frequency >= 0):
@@ -153,6 +151,8 @@ def _setup(args, separate=False):
             else _range(args.extents, "--extents", float(obj.space.lower[-1]), top, ""))
     if args.objective in _DYNAMIC:
         args.speeds_record = spec.record()
+    for note in rig_notes(rig, args.model):  # after every input check
+        print(f"gearjax {args.command}: note: {note}", file=sys.stderr, flush=True)
     return rig, obj, amps, exts
 
 

@@ -667,9 +667,6 @@ def cmd_stability(args) -> int:
     spec = speeds_of(args, rig, "stability", law=args.stiffness, model=args.model,
                      damping=args.damping)
     speeds = spec.rad_s
-    notes = rig_notes(rig, args.model)
-    for note in notes:
-        print(f"gearjax stability: note: {note}", file=sys.stderr, flush=True)
     scen = scenario_modifications(rig, args)
     mods = scen.mods
     te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
@@ -678,6 +675,9 @@ def cmd_stability(args) -> int:
     warning = cutoff_warning(args, rig, cutoff_hz, speeds)
     if warning:
         print(f"gearjax stability: warning: {warning}", file=sys.stderr, flush=True)
+    notes = rig_notes(rig, args.model)  # after every input check: an error stays one line
+    for note in notes:
+        print(f"gearjax stability: note: {note}", file=sys.stderr, flush=True)
     model = build_model(rig, mods, model=args.model, formulation=args.formulation,
                         law=args.stiffness, damping_ratio=args.damping,
                         encoder_position=args.encoders,
