@@ -153,16 +153,29 @@ def test_3d_prediction_searches_the_rigs_own_range(own_rig):
 
 
 @pytest.mark.slow
-def test_3d_default_sweep_peaks_at_the_predicted_critical_speed(capsys, tmp_path, own_rig):
+@pytest.mark.parametrize("damping", [0.03, 0.1])
+def test_3d_default_sweep_peaks_at_the_predicted_critical_speed(capsys, tmp_path, own_rig,
+                                                                 damping):
+    """The prediction is the first mesh harmonic's resonance (the receptance peak): the
+    order-1 force track peaks within 5 % of it at either damping, and so does the peak
+    K_v at zeta 0.03. At zeta 0.1 the peak K_v, which adds the higher harmonics' broad
+    responses, sits lower (measured: 2,222 against 2,529 rad/s; order 1 at 2,491)."""
+    import csv
+
     out = tmp_path / "own3d"
     code, _, err = _run(capsys, ["sweep", "--rig", own_rig, "--formulations", "te",
-                                 "--out", out])
+                                 "--damping", damping, "--out", out])
     assert code == 0, err
     s = json.loads((out / "summary.json").read_text())
     wc = s["predicted"]["critical_speed_rad_s"]
     assert wc > 1500.0 and s["speeds_rad_s"][0] < wc < s["speeds_rad_s"][1]
+    rows = list(csv.DictReader(open(out / "orders.csv")))
+    order1 = max(rows, key=lambda r: float(r["order1_force_N"]))
+    assert abs(float(order1["speed_rad_s"]) - wc) <= 0.05 * wc, (order1["speed_rad_s"], wc)
     peak = s["formulations"]["te"]["critical_speed_rad_s"]
-    assert abs(peak - wc) <= 0.05 * wc, (peak, wc)
+    if damping == 0.03:
+        assert abs(peak - wc) <= 0.05 * wc, (peak, wc)
+    assert "outside the swept" not in err
 
 
 # ------------------------------------------------------------------- torque and rpm
