@@ -192,7 +192,14 @@ def test_torque_and_rpm_options(capsys, tmp_path, own_rig):
     rb1 = get_rig(str(own_rig)).pair.base_radii_m[0]
     assert s["static_mesh_force_N"] == pytest.approx(120.0 / rb1, rel=1e-12)
     code, _, err = _run(capsys, TORSIONAL + ["--speeds", "1:2:2", "--speeds-rpm", "1:2:2"])
-    assert code == 2 and "not both" in err and "Traceback" not in err
+    assert code == 2 and "not both --speeds and --speeds-rpm" in err and "Traceback" not in err
+    from gearjax.cli.scenario import speeds_of
+
+    # mesh frequency f_m = z1 Omega1 / (2 pi): 6,000 Hz on z1 = 20 is 1,885 rad/s
+    spec = speeds_of(argparse.Namespace(speeds=None, speeds_rpm=None, speeds_mesh_hz="6000:7000:3"),
+                     get_rig(str(own_rig)), "sweep", law="iso6336", model="3d", damping=0.1)
+    assert spec.rad_s[0] == pytest.approx(2 * math.pi * 6000 / 20, rel=1e-14)
+    assert spec.spec == "6000:7000:3 mesh-Hz" and spec.source == "--speeds-mesh-hz"
     code, _, err = _run(capsys, TORSIONAL + ["--torque", "-5"])
     assert code == 2 and "--torque=-5.0" in err
 

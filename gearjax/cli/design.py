@@ -180,7 +180,8 @@ def check_command(args, rig, x: dict) -> tuple[str, str | None]:
     amp = x.get("amplitude_m", x.get("amplitude1_m"))
     ext = x.get("extent", x.get("extent1"))
     spec = getattr(args, "speeds_record", {}).get("speeds_spec", "")
-    speeds = (["--speeds-rpm", spec.split()[0]] if spec.endswith("rpm") else
+    speeds = (["--speeds-rpm", spec.split()[0]] if spec.endswith(" rpm") else
+              ["--speeds-mesh-hz", spec.split()[0]] if spec.endswith(" mesh-Hz") else
               ["--speeds", spec])
     forms = "reference,te" if args.formulation == "te" else f"reference,{args.formulation}"
     argv = ["gearjax", "sweep", "--rig", args.rig, "--model", args.model,

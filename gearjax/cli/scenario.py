@@ -339,8 +339,9 @@ OWN_SPEEDS = {"sweep": (None, 1.2, 45), "stability": (None, 2.0, 15),
 
 
 def add_speeds(p, command: str, what: str = "pinion speeds") -> None:
-    """Add ``--speeds A:B:N`` (rad/s) and ``--speeds-rpm A:B:N`` (rev/min) to ``p``, the
-    defaults of ``command`` (:data:`PAPER_SPEEDS`, :data:`OWN_SPEEDS`)."""
+    """Add ``--speeds A:B:N`` (rad/s), ``--speeds-rpm A:B:N`` (rev/min) and
+    ``--speeds-mesh-hz A:B:N`` (mesh frequency, Hz) to ``p``, the defaults of ``command``
+    (:data:`PAPER_SPEEDS`, :data:`OWN_SPEEDS`)."""
     lo, hi, n = OWN_SPEEDS[command]
     own = (f"{lo:g}-{hi:g} x" if lo else f"up to {hi:g} x") + f" its predicted main critical speed, {n} speeds"
     p.add_argument("--speeds", default=None, metavar="A:B:N",
@@ -348,6 +349,9 @@ def add_speeds(p, command: str, what: str = "pinion speeds") -> None:
                         f"Baud-Velex rigs, the paper's; on any other rig {own})")
     p.add_argument("--speeds-rpm", default=None, metavar="A:B:N",
                    help="the same in rev/min of the pinion (instead of --speeds)")
+    p.add_argument("--speeds-mesh-hz", default=None, metavar="A:B:N",
+                   help="the same as mesh frequencies f_m = z1 Omega1 / (2 pi) in Hz "
+                        "(instead of --speeds)")
 
 
 def _nice(x: float) -> float:
@@ -362,8 +366,16 @@ def speeds_of(args, rig, command: str, *, law: str, model: str, damping: float) 
     from ..errors import GearjaxError
 
     text, rpm = getattr(args, "speeds", None), getattr(args, "speeds_rpm", None)
-    if text is not None and rpm is not None:
-        raise GearjaxError("--speeds-rpm", rpm, "give --speeds (rad/s) or --speeds-rpm, not both")
+    hz = getattr(args, "speeds_mesh_hz", None)
+    given = [o for o, v in (("--speeds", text), ("--speeds-rpm", rpm), ("--speeds-mesh-hz", hz))
+             if v is not None]
+    if len(given) > 1:
+        raise GearjaxError(given[1], rpm if given[1] == "--speeds-rpm" else hz,
+                           f"give one of --speeds (rad/s), --speeds-rpm, --speeds-mesh-hz, "
+                           f"not both {given[0]} and {given[1]}")
+    if hz is not None:
+        f = linspace_option(hz, "--speeds-mesh-hz", example="500:5000:40", unit="Hz")
+        return Speeds(f * (2.0 * math.pi / rig.pair.z1), f"{hz} mesh-Hz", "--speeds-mesh-hz")
     if rpm is not None:
         w = linspace_option(rpm, "--speeds-rpm", example="1000:9000:40", unit="rev/min")
         return Speeds(w * (2.0 * math.pi / 60.0), f"{rpm} rpm", "--speeds-rpm")
