@@ -32,7 +32,7 @@ import numpy as np  # noqa: E402
 
 import gearjax  # noqa: F401,E402  (float64)
 import jax
-from gearjax.cli.dynamics import periodic_start_options
+from gearjax.cli.solvers import periodic_start_options
 from gearjax.models.geared3d import default_max_frequency_hz
 from gearjax.rigs.factory import build_model
 from gearjax.rigs.registry import get_rig

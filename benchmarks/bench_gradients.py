@@ -45,7 +45,7 @@ import jax
 import numpy as np
 
 import gearjax  # noqa: F401  (x64)
-from gearjax.cli.design import design_solver
+from gearjax.cli.solvers import design_solver
 from gearjax.design import DynamicObjective, ReliefSpace
 from gearjax.gears.mesh import Mesh
 from gearjax.rigs.registry import get_rig

@@ -17,6 +17,13 @@ __all__ = ["plot_quasistatic", "plot_response_curves", "plot_order_tracks", "plo
            "plot_design_map", "plot_history", "plot_harris"]
 
 
+def _mu(text: str) -> str:
+    """Micrometres as ``µm`` in a figure's text (titles built from CLI labels say ``um``)."""
+    import re
+
+    return re.sub(r"(?<=[0-9]) um\b", " µm", text or "")
+
+
 def _pyplot():
     import matplotlib
 
@@ -37,7 +44,7 @@ def plot_quasistatic(result, mesh, path: str, title: str = ""):
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, constrained_layout=True)
     ax1.plot(t, np.asarray(result.te_s_m) * 1e6, label="TE$_S$ (under load)", lw=1.6)
     ax1.plot(t, np.asarray(result.nlte_m) * 1e6, label="NLTE (no load)", lw=1.2, ls="--")
-    ax1.set_ylabel("transmission error on base plane [um]")
+    ax1.set_ylabel("transmission error on base plane [µm]")
     ax1.legend(loc="best")
     ax1.grid(alpha=0.3)
     loads, idx = result.pair_loads(mesh.n_slots)
@@ -52,7 +59,7 @@ def plot_quasistatic(result, mesh, path: str, title: str = ""):
     ax2.legend(loc="best")
     ax2.grid(alpha=0.3)
     if title:
-        fig.suptitle(title)
+        fig.suptitle(_mu(title))
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
@@ -69,7 +76,7 @@ def plot_response_curves(csv_path: str, path: str, title: str = ""):
     forms = list(dict.fromkeys(r["formulation"] for r in rows))
     has_acc = any(r["accel_ptp_m_s2"] not in ("", "nan") for r in rows)
     panels = [("max_mesh_force_N", "max dynamic tooth load [N]", 1.0),
-              ("dte_ptp_m", "peak-to-peak DTE [um]", 1e6)]
+              ("dte_ptp_m", "peak-to-peak DTE [µm]", 1e6)]
     if has_acc:
         panels.append(("accel_ptp_m_s2", "p-p pinion acceleration S [m/s$^2$]", 1.0))
     fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 2.6 * len(panels) + 0.6), sharex=True,
@@ -88,21 +95,23 @@ def plot_response_curves(csv_path: str, path: str, title: str = ""):
     np.atleast_1d(axes)[0].legend(loc="best", fontsize=8)
     np.atleast_1d(axes)[-1].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
     if title:
-        fig.suptitle(title)
+        fig.suptitle(_mu(title))
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
 
 # order-track panels: (column stem, y label, dB reference in the column's SI unit)
-ORDER_TRACK_PANELS = (("dte_m", "DTE [dB re 1 um]", 1e-6),
-                      ("force_N", "dynamic mesh force [dB re 1 N]", 1.0),
-                      ("accel_m_s2", "pinion-centre acceleration [dB re 1e-6 m/s$^2$]", 1e-6))
+# (two-line labels: one line of the acceleration's was taller than its panel and ran into
+# the next panel's label)
+ORDER_TRACK_PANELS = (("dte_m", "DTE\n[dB re 1 µm]", 1e-6),
+                      ("force_N", "dynamic mesh force\n[dB re 1 N]", 1.0),
+                      ("accel_m_s2", "pinion-centre accel.\n[dB re 1e-6 m/s$^2$]", 1e-6))
 
 
 def plot_order_tracks(csv_path: str, path: str, title: str = "", n_orders: int = 5):
     """Order tracks from a sweep's ``orders.csv``: the single-sided peak amplitude of mesh
     orders 1..``n_orders`` (k times the mesh frequency) in dB, ``20 log10(A / A_ref)``
-    (references in the axis labels: 1 um, 1 N, 1e-6 m/s^2), against pinion speed; one
+    (references in the axis labels: 1 µm, 1 N, 1e-6 m/s^2), against pinion speed; one
     panel per quantity (DTE, dynamic mesh force, and the acceleration where the model has
     one), one colour per order, one line style per formulation. A speed written twice
     (a resumed run) is drawn once, from its last row."""
@@ -141,8 +150,9 @@ def plot_order_tracks(csv_path: str, path: str, title: str = "", n_orders: int =
         if len(panels) == 1:
             axes[0, 0].add_artist(first)
     axes[-1, 0].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
+    fig.align_ylabels(axes[:, 0])
     if title:
-        fig.suptitle(title)
+        fig.suptitle(_mu(title))
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
@@ -166,7 +176,7 @@ def plot_branches(csv_path: str, path: str, title: str = ""):
     val = lambda r, k: float(r[k]) if r.get(k, "") not in ("",) else np.nan  # noqa: E731
     forms = list(dict.fromkeys(r["formulation"] for r in rows))
     panels = [("max_mesh_force_N", "max dynamic tooth load [N]", 1.0),
-              ("dte_ptp_m", "peak-to-peak DTE [um]", 1e6)]
+              ("dte_ptp_m", "peak-to-peak DTE [µm]", 1e6)]
     fig, axes = plt.subplots(2, 1, figsize=(7.5, 5.8), sharex=True, constrained_layout=True)
     marks = {"up": "^", "down": "v"}
     for ax, (key, ylabel, scale) in zip(axes, panels):
@@ -203,7 +213,7 @@ def plot_branches(csv_path: str, path: str, title: str = ""):
     axes[0].legend(loc="best", fontsize=8)
     axes[-1].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
     if title:
-        fig.suptitle(title)
+        fig.suptitle(_mu(title))
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
@@ -231,7 +241,7 @@ def plot_mesh_force_signals(signals: dict, path: str, title: str = ""):
     axes[0, 0].set_ylabel("total mesh force [N]")
     axes[0, 0].legend(loc="best", fontsize=8)
     if title:
-        fig.suptitle(title)
+        fig.suptitle(_mu(title))
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
@@ -239,9 +249,9 @@ def plot_mesh_force_signals(signals: dict, path: str, title: str = ""):
 # ---------------------------------------------------------------------------- design
 _UNITS = {"peak-force": ("peak dynamic mesh force", 1e-3, "kN"),
           "dynamic-factor": ("peak dynamic factor", 1.0, "-"),
-          "dte-ptp": ("peak DTE peak-to-peak", 1e6, "um"),
-          "te-ptp": ("TE$_S$ peak-to-peak", 1e6, "um"),
-          "te-rms": ("TE$_S$ RMS fluctuation", 1e6, "um")}
+          "dte-ptp": ("peak DTE peak-to-peak", 1e6, "µm"),
+          "te-ptp": ("TE$_S$ peak-to-peak", 1e6, "µm"),
+          "te-rms": ("TE$_S$ RMS fluctuation", 1e6, "µm")}
 
 
 def plot_design_map(hmap: HarrisMap, path: str, results=(), marks: dict | None = None,
@@ -255,42 +265,71 @@ def plot_design_map(hmap: HarrisMap, path: str, results=(), marks: dict | None =
     cs = ax.contourf(hmap.extents, hmap.amplitudes_m * 1e6, hmap.exact * f, levels=24,
                      cmap="viridis")
     fig.colorbar(cs, ax=ax, label=f"{label} [{unit}]")
+    pts = [(float(hmap.extents[0]), float(hmap.amplitudes_m[0]) * 1e6),
+           (float(hmap.extents[-1]), float(hmap.amplitudes_m[-1]) * 1e6)]
     for k, r in enumerate(results):
         xs = np.array([h["x"] for h in r.history])
         ax.plot(xs[:, 1], xs[:, 0] * 1e6, "w.-", lw=1.0, ms=3,
                 label="optimiser paths" if k == 0 else None)
-        ax.plot(xs[-1, 1], xs[-1, 0] * 1e6, "r*", ms=10)
+        ax.plot(xs[0, 1], xs[0, 0] * 1e6, "wo", ms=5, label="starts" if k == 0 else None)
+        ax.plot(xs[-1, 1], xs[-1, 0] * 1e6, "r*", ms=10, label="ends" if k == 0 else None)
+        pts += [(float(e), float(a) * 1e6) for a, e in xs[:, :2]]
     for name, (a, e) in (marks or {}).items():
         ax.plot(e, a * 1e6, "o", mfc="none", mec="w", ms=9)
         ax.annotate(name, (e, a * 1e6), color="w", xytext=(5, 5), textcoords="offset points")
+        pts.append((e, a * 1e6))
+    # every start, path and end inside the axes (the map's grid may be smaller than the
+    # optimiser's bounds; outside it the background is blank)
+    pe, pa = np.array(pts).T
+    mx, my = 0.03 * np.ptp(pe) + 1e-3, 0.03 * np.ptp(pa) + 1e-3
+    ax.set_xlim(pe.min() - mx, pe.max() + mx)
+    ax.set_ylim(pa.min() - my, pa.max() + my)
     ax.set_xlabel("relief extent L$_c$ [fraction of path of contact]")
-    ax.set_ylabel("relief amplitude P$_c$ [um]")
-    ax.set_title(title or f"Harris map: {label}")
-    if results:
-        ax.legend(loc="upper right")
+    ax.set_ylabel("relief amplitude P$_c$ [µm]")
+    ax.set_title(_mu(title) or f"Harris map: {label}")
+    if results:  # white paths: a dark legend box, so that they read
+        ax.legend(loc="best", facecolor="0.3", edgecolor="0.3", labelcolor="w",
+                  framealpha=0.85)
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
 
 
+def _start_label(k: int, x) -> str:
+    x = np.asarray(x, dtype=float)
+    if x.size == 2:
+        return f"start {k + 1}: P$_c$ {x[0] * 1e6:.3g} µm, L$_c$ {x[1]:.3g}"
+    return (f"start {k + 1}: P$_c$ {x[0] * 1e6:.3g}/{x[1] * 1e6:.3g} µm, "
+            f"L$_c$ {x[2]:.3g}/{x[3]:.3g}")
+
+
 def plot_history(results, path: str, objective: str = "", title: str = ""):
-    """Smoothed and exact objective against iteration for one or several runs."""
+    """Exact (solid) and smoothed (dashed) objective against iteration, one colour per
+    optimiser start (labelled with its starting design; the best run's end starred)."""
+    from matplotlib.lines import Line2D
+
     plt = _pyplot()
     if isinstance(results, OptimisationResult):
         results = [results]
     label, f, unit = _UNITS.get(objective, (objective or "objective", 1.0, ""))
-    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(7.5, 4.8), constrained_layout=True)
+    best = int(np.argmin([r.exact for r in results])) if results else -1
     for k, r in enumerate(results):
         it = [h["iteration"] for h in r.history]
-        (ln,) = ax.plot(it, [h["exact"] * f for h in r.history], "-", lw=1.4,
-                        label="exact" if k == 0 else None)
-        ax.plot(it, [h["smooth"] * f for h in r.history], "--", lw=1.0, color=ln.get_color(),
-                label="smoothed" if k == 0 else None)
+        (ln,) = ax.plot(it, [h["exact"] * f for h in r.history], "-", lw=1.4, marker=".",
+                        label=_start_label(k, r.x0) + (" (best)" if k == best else ""))
+        ax.plot(it, [h["smooth"] * f for h in r.history], "--", lw=1.0, color=ln.get_color())
+        if k == best:
+            ax.plot(it[-1], r.history[-1]["exact"] * f, "*", color=ln.get_color(), ms=12)
     ax.set_xlabel("iteration")
     ax.set_ylabel(f"{label} [{unit}]")
     ax.grid(alpha=0.3)
-    ax.legend()
-    ax.set_title(title or "optimisation history")
+    first = ax.legend(loc="upper right", fontsize=8, title="colour: optimiser start")
+    ax.add_artist(first)
+    ax.legend([Line2D([], [], color="k", ls="-"), Line2D([], [], color="k", ls="--")],
+              ["exact maximum", "smoothed (descended)"], loc="lower left", fontsize=8)
+    ax.set_title(_mu(title) or f"optimisation history: {len(results)} start(s) on a coarse "
+                               "grid of the design space")
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
@@ -305,10 +344,10 @@ def plot_harris(curves: dict, path: str, title: str = ""):
         if name != "torques_Nm":
             ax.plot(t, np.asarray(v) * 1e6, "-o", ms=3, label=name)
     ax.set_xlabel("pinion torque C$_{m0}$ [N m]")
-    ax.set_ylabel("TE$_S$ peak-to-peak [um]")
+    ax.set_ylabel("TE$_S$ peak-to-peak [µm]")
     ax.grid(alpha=0.3)
     ax.legend()
-    ax.set_title(title or "Harris plot")
+    ax.set_title(_mu(title) or "Harris plot")
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path

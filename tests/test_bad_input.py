@@ -158,8 +158,17 @@ RIG_CASES = [
     # issue 16: gear data ranges
     (("z1 = 26", "z1 = 1000000000"), ["gear_pair.z1=1000000000", "above 2000"]),
     # issue 16: values range-checked before the rigid-body analysis
-    (("k_S_N_per_m = 1e9", "k_S_N_per_m = 1e14"), ["bearing[0].k_S_N_per_m=", "physical range"]),
-    (("k_S_N_per_m = 1e9", "k_S_N_per_m = 1e15"), ["bearing[0].k_S_N_per_m=", "physical range"]),
+    # issue 52: "rigid" supports (1e14 N/m) read (test_rigid_supports_are_accepted); the
+    # limit is where float64 eigenvalues lose the soft modes, and the message states it
+    (("k_S_N_per_m = 1e9", "k_S_N_per_m = 1e17"),
+     ["bearing[0].k_S_N_per_m=1e+17", "physical range", "1e+16] N/m"]),
+    # issue 52: face widths in millimetres typed as metres (k_m x 1000), pointed teeth
+    (("face_width1_m = 0.050", "face_width1_m = 50"),
+     ["gear_pair.face_width1_m=50", "millimetres typed as metres", "0.05"]),
+    (("face_width2_m = 0.040", "face_width2_m = 25.0"),
+     ["gear_pair.face_width2_m=25.0", "millimetres typed as metres", "0.025"]),
+    (("profile_shift1 = 0.16\nprofile_shift2 = -0.16", "profile_shift1 = 1.2\nprofile_shift2 = 0.0"),
+     ["gear_pair.profile_shift1=1.2", "pointed", "m_n"]),
     (("k_torsion_Nm_per_rad = 5e4", "k_torsion_Nm_per_rad = 1e300"),
      ["coupling[0].k_torsion_Nm_per_rad=1e+300", "physical range"]),
     (("outer_diameter_m = 0.060\naxis", "outer_diameter_m = 1e6\naxis"),
@@ -180,6 +189,29 @@ def test_bad_rig_file(capsys, tmp_path, edit, words):
     assert "Traceback" not in err + out and "missing bearings" not in err
     for w in words:
         assert w in err, (w, err)
+
+
+def test_rigid_supports_are_accepted(capsys, tmp_path):
+    # every bearing at 1e14 N/m, as users write "rigid" (issue 52): once refused above 1e13
+    # N/m; the soft modes (the resisting load's torsion near 9.8 Hz) stay resolved
+    path = _rig(tmp_path, "k_S_N_per_m = 1e9\nk_T_N_per_m = 1e9",
+                "k_S_N_per_m = 1e14\nk_T_N_per_m = 1e14", every=True)
+    assert EXAMPLE_TEXT.count("k_S_N_per_m = 1e9\nk_T_N_per_m = 1e9") >= 2
+    code, out, err = _run(capsys, ["info", "--rig", path, "--model", "3d", "--json"])
+    assert code == 0, err
+    stiff = json.loads(out)["natural_frequencies_hz"]
+    code, out, _ = _run(capsys, ["info", "--rig", EXAMPLE, "--model", "3d", "--json"])
+    soft = json.loads(out)["natural_frequencies_hz"]
+    assert stiff[0] == pytest.approx(soft[0], rel=1e-3)  # the torsional mode, not zeroed
+    assert stiff[0] > 1.0
+
+
+def test_rig_file_with_byte_order_mark_reads(capsys, tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + EXAMPLE_TEXT.encode())
+    code, out, err = _run(capsys, ["info", "--rig", path, "--model", "torsional", "--json"])
+    assert code == 0 and "Traceback" not in err, err
+    assert json.loads(out)["tooth_numbers"] == [26, 157]
 
 
 def test_node_on_two_shaft_lines_is_refused(capsys, tmp_path):
@@ -337,3 +369,35 @@ def test_ctrl_c_keeps_results_and_resume_finishes(tmp_path):
     assert sorted(got) == pytest.approx(np.linspace(100, 900, 40))
     summary = json.loads((out / "summary.json").read_text())
     assert "interrupted" not in summary and summary["formulations"]["te"]["speeds_done"] == 40
+
+
+@pytest.mark.slow
+def test_ctrl_c_of_ten_million_speeds_exits_within_seconds(tmp_path):
+    """Issue 52: --speeds 20:900:10000000 wrote a 231 MB case.json before computing, and
+    the first Ctrl-C then hung for minutes in the summary (quadratic in the speeds). Now
+    the case records the speed specification, the run is announced with its estimate, and
+    Ctrl-C ends with a summary of what finished within seconds."""
+    out = tmp_path / "big"
+    argv = [sys.executable, "-c", "import runpy, signal; signal.signal(signal.SIGINT, "
+            "signal.default_int_handler); runpy.run_module('gearjax.cli.main', "
+            "run_name='__main__')"] + SWEEP + ["--speeds", "20:900:10000000", "--out", str(out)]
+    env = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}
+    env.update(PYTHONUNBUFFERED="1", XDG_CACHE_HOME=str(tmp_path / "xdg"))
+    p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    csv_path = out / "results.csv"
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 300 and p.poll() is None:
+        if csv_path.exists() and len(csv_path.read_text().splitlines()) >= 3:
+            break
+        time.sleep(0.2)
+    assert p.poll() is None, p.communicate()
+    assert (out / "case.json").stat().st_size < 10_000
+    p.send_signal(signal.SIGINT)
+    t1 = time.monotonic()
+    _, stderr = p.communicate(timeout=120)
+    assert time.monotonic() - t1 < 30.0  # measured under load: 4.8 s
+    assert p.returncode == 130 and "Traceback" not in stderr
+    assert "10,000,000 speeds" in stderr and " h of computing" in stderr
+    summary = json.loads((out / "summary.json").read_text())
+    te = summary["formulations"]["te"]
+    assert summary["interrupted"] and te["missing_speeds_count"] == 10_000_000 - te["speeds_done"]

@@ -703,8 +703,8 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
     # to the shooting sweep (its transient-only options aside); the shooting's own 1e-9
     # is tightened by a tighter request, never loosened
     import gearjax.dynamics.steady as steady
-    from gearjax.cli.design import design_solver
-    from gearjax.cli.dynamics import solver_for
+    from gearjax.cli.solvers import design_solver
+    from gearjax.cli.solvers import solver_for
 
     def capture(model, speeds, shooting=None, **kw):
         seen.clear()
@@ -738,3 +738,31 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
 def test_cli_bad_input(argv, needle, capsys):
     assert main(argv) == 2
     assert needle in capsys.readouterr().err
+
+
+def test_objectives_take_the_rig_torque_never_the_papers_for_another_pair():
+    """Issue 52: built without a torque, a dynamic objective on another pair took the
+    paper's 254.8 N m (the static mesh force, hence every dynamic factor, of another load):
+    now the rig's torque, the paper's for its own pair only, else a DesignError. The
+    static force against F_S = C / (Rb1 cos b_b) by hand."""
+    import dataclasses
+    import math
+
+    from gearjax.design import make_objective
+    from gearjax.errors import DesignError
+    from gearjax.gears.geometry import GearPair
+
+    pair = GearPair(3e-3, 20, 45, face_width1_m=0.025, face_width2_m=0.025)
+    mesh = Mesh.build(pair)
+    with pytest.raises(DesignError, match="pinion_torque_Nm=None: give the pinion torque"):
+        DynamicObjective(mesh, ReliefSpace(), [300.0])
+    with pytest.raises(DesignError, match="torques_Nm=None"):
+        QuasiStaticObjective(mesh, ReliefSpace(), kind="te-rms")
+    rig = dataclasses.replace(RIG, pair=pair, pinion_torque_Nm=120.0)
+    obj = DynamicObjective(mesh, ReliefSpace(), [300.0], rig=rig)
+    rb1 = pair.base_radii_m[0]
+    assert obj.static_force_N == pytest.approx(120.0 / rb1, rel=1e-12)
+    assert obj.pinion_torque_Nm == 120.0
+    # the paper's pair keeps the paper's torque by default
+    assert DynamicObjective(Mesh.build(RIG.pair), ReliefSpace(), [300.0]).pinion_torque_Nm == 254.8
+    assert math.isclose(make_objective("te-rms", mesh, ReliefSpace(), rig=rig).torques_Nm[0], 120.0)

@@ -1,4 +1,4 @@
-"""Eccentricity on the command line (``--eccentricity E1[,E2]`` um, ``--eccentricity-phase``)
+"""Eccentricity on the command line (``--eccentricity E1[,E2]`` m, ``--eccentricity-phase``)
 and the eccentricity terms of Eq. (14), against hand derivations.
 
 Geometry (closed form): the centre of rigid gear k, eccentric by ``e_k`` with phase
@@ -53,10 +53,10 @@ def _run(tmp_path, name, *opts):
     return _csv(path)
 
 
-@pytest.mark.parametrize("ecc,phase", [("20", "0.3"), ("0,20", "0,0.3")],
+@pytest.mark.parametrize("ecc,phase", [("20e-6", "0.3"), ("0,20e-6", "0,0.3")],
                          ids=["pinion", "gear"])
 def test_quasistatic_nlte_is_the_once_per_revolution_sinusoid(tmp_path, capsys, ecc, phase):
-    e = np.array([float(v) for v in ecc.split(",")] + [0.0])[:2] * 1e-6
+    e = np.array([float(v) for v in ecc.split(",")] + [0.0])[:2]
     lam = np.array([float(v) for v in phase.split(",")] + [0.0])[:2]
     got = _run(tmp_path, "ecc", "--eccentricity", ecc, "--eccentricity-phase", phase)
     th = got["theta_rad"]
@@ -128,9 +128,10 @@ def test_eccentricity_local_vectors_against_the_mass_centre_acceleration():
 
 
 @pytest.mark.parametrize("ecc,phase,msg", [
-    ("-5", None, ">= 0"), ("nan", None, "finite"), ("2000", None, "micrometres"),
+    ("-5e-6", None, ">= 0"), ("nan", None, "finite"), ("2e-3", None, "metres"),
+    ("20", None, "20e-6"),  # issue 52: micrometres typed where metres are read
     ("1,2,3", None, "one or two"), ("abc", None, "one or two"), (None, "0.3", "needs"),
-    ("5", "x", "one or two")])
+    ("5e-6", "x", "one or two")])
 def test_bad_eccentricity_is_one_clear_error(ecc, phase, msg):
     args = argparse.Namespace(eccentricity=ecc, eccentricity_phase=phase)
     with pytest.raises(GearjaxError, match=msg):
@@ -138,8 +139,26 @@ def test_bad_eccentricity_is_one_clear_error(ecc, phase, msg):
 
 
 def test_eccentricity_option_values_in_si():
-    e, lam = eccentricity_of(argparse.Namespace(eccentricity="20", eccentricity_phase=None))
+    e, lam = eccentricity_of(argparse.Namespace(eccentricity="20e-6", eccentricity_phase=None))
     assert e.tolist() == [20e-6, 0.0] and lam.tolist() == [0.0, 0.0]
-    e, lam = eccentricity_of(argparse.Namespace(eccentricity="0,12.5", eccentricity_phase="0,1"))
+    e, lam = eccentricity_of(argparse.Namespace(eccentricity="0,12.5e-6", eccentricity_phase="0,1"))
     assert e.tolist() == [0.0, 12.5e-6] and lam.tolist() == [0.0, 1.0]
     assert main(["quasistatic", "--eccentricity", "-3"]) == 2
+    assert main(["quasistatic", "--eccentricity", "20"]) == 2  # 20 m: micrometres typed
+
+
+def test_eccentricity_option_is_named_as_the_source(tmp_path, capsys):
+    # issue 52: the header called a command-line eccentricity a rig-file value
+    rig = tmp_path / "rig.toml"
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "rigs" / "baud_velex_spur.toml"
+    rig.write_text(example.read_text())
+    capsys.readouterr()
+    assert main(["quasistatic", "--rig", str(rig), "--positions", "8", "--json",
+                 "--eccentricity", "20e-6"]) == 0
+    import json
+
+    s = json.loads(capsys.readouterr().out)
+    assert s["relief_source"] == "rig file [modifications] with --eccentricity"
+    assert s["eccentricity_m"] == [20e-6, 0.0]

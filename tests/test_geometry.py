@@ -76,6 +76,16 @@ def test_inverse_involute_roundtrip():
           "dedendum_coeff2": 2.0}, "addendum_coeff1", "pointed"),
         ({"z1": 10, "profile_shift1": 1.2, "addendum_coeff1": 1.4}, "profile_shift1", "inconsistent"),
         ({"normal_pressure_angle_rad": 20.0}, "normal_pressure_angle_rad", "degrees"),
+        # issue 52: 25 mm typed as 25 (m): k_m x 1000 without a word before
+        ({"normal_module_m": 3e-3, "z1": 20, "z2": 45, "face_width1_m": 25.0,
+          "face_width2_m": 25.0}, "face_width1_m", "millimetres typed as metres"),
+        # issue 52: x1 = 1.2 on z1 = 20: tip thickness 0.05 mm (0.017 m_n), once accepted
+        ({"normal_module_m": 3e-3, "z1": 20, "z2": 45, "profile_shift1": 1.2},
+         "profile_shift1", "pointed"),
+        # undercut by the generating rack with the start of contact still above the base
+        # circle (a short-addendum gear): no interference, yet the root is cut away
+        ({"z1": 30, "z2": 200, "profile_shift1": -1.0, "addendum_coeff2": 0.6},
+         "profile_shift1", "undercut"),
     ],
 )
 def test_bad_geometry_names_field_and_reason(kwargs, field, words):
@@ -85,3 +95,18 @@ def test_bad_geometry_names_field_and_reason(kwargs, field, words):
         GearPair(**base)
     assert field in str(exc.value)
     assert words in str(exc.value)
+
+
+def test_undercut_limit_is_the_classic_17_teeth():
+    """x_min = h_a0 - z sin^2(alpha) / 2 with the rack's straight flank h_a0 (ISO 53 A):
+    a standard spur pinion (x = 0, h_f* = 1.25, rho 0.38 m_n, alpha 20 deg) is free of
+    undercut from z = 2 h_a0 / sin^2(alpha), ~17 teeth for h_a0 = 1."""
+    import math
+
+    pair = GearPair(3e-3, 17, 60)
+    h_a0 = 1.25 - 0.38 * (1 - math.sin(math.radians(20.0)))
+    assert pair.undercut_limit(1) == pytest.approx(h_a0 - 17 * math.sin(math.radians(20.0)) ** 2 / 2,
+                                                   rel=1e-12)
+    z_free = 2 * h_a0 / math.sin(math.radians(20.0)) ** 2
+    assert 17.0 < z_free < 18.0
+

@@ -95,6 +95,15 @@ BAD = [  # (header, rows as text, words the one-line message must hold)
      ["te_s_m=2e-05", "row 6", "not periodic"]),
     ("mesh_cycle_fraction,te_s_m", ["0,1e-5", "0.5,1e-5", "0.5,1e-5", "0.5,1e-5", "0.75,1e-5"],
      ["row 5", "third row at one angle"]),
+    # issue 52: a mesh period exported in degrees under pinion_angle_rad (360/26 deg read
+    # as 57 mesh periods, K_v 1.29 instead of 2.28): questioned, with and without the
+    # closing row
+    ("pinion_angle_rad,te_s_m",
+     [f"{360 / 26 * i / 16!r},{1e-5 * (1 + math.sin(2 * math.pi * i / 16))!r}" for i in range(17)],
+     ["pinion_angle_rad=13.84", "row 18", "degrees", "1 whole mesh period"]),
+    ("pinion_angle_rad,te_s_m",
+     [f"{360 / 26 * i / 16!r},{1e-5 * (1 + math.sin(2 * math.pi * i / 16))!r}" for i in range(16)],
+     ["pinion_angle_rad=12.98", "row 17", "degrees"]),
 ]
 
 

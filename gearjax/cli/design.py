@@ -17,7 +17,9 @@ import numpy as np
 from ..runtime import HostProgressMeter, watchdog
 from ..design.objectives import DynamicObjective
 from ..errors import DesignError
-from .scenario import add_nlte_reaction, linspace_option, nlte_reaction_of
+from .solvers import DESIGN_METHODS, design_solver
+from .scenario import (add_nlte_reaction, add_speeds, add_torque, linspace_option,
+                       nlte_reaction_of, rig_notes, rig_of, speeds_of)
 
 __all__ = ["register"]
 
@@ -55,9 +57,8 @@ def _common(p, add_rig):
     p.add_argument("--objective", default="peak-force", choices=list(_OBJECTIVES),
                    help="peak-force (N), dynamic-factor, dte-ptp (m) over --speeds, or te-ptp / "
                         "te-rms (quasi-static TE_S fluctuation at the rig torque)")
-    p.add_argument("--speeds", default="660:900:8", metavar="A:B:N",
-                   help="pinion speeds (rad/s) of the dynamic objectives (default 660:900:8, "
-                        "around the main critical speed of the spur pair, 776 rad/s)")
+    add_speeds(p, "design", "pinion speeds of the dynamic objectives")
+    add_torque(p)
     p.add_argument("--inertias", default="bodies", metavar="J1,J2",
                    help="sdof inertias (kg m^2): 'bodies' (default: the gear bodies, solid "
                         "cylinders at the pitch radii) or two values, e.g. 4.48e-3,4.76")
@@ -96,8 +97,6 @@ def register(subparsers, add_rig, add_scenario):
 def _setup(args, separate=False):
     from ..design import ReliefSpace, make_objective
     from ..gears.mesh import Mesh
-    from ..rigs.registry import get_rig
-
     from .outputs import prepare_output_dir
 
     if not (0.0 <= args.damping < 1.0):
@@ -109,12 +108,19 @@ def _setup(args, separate=False):
         solver = design_solver(args.method, args.rtol)
     reaction = nlte_reaction_of(args)
     prepare_output_dir("--out", args.out)  # before any computing: created and writable
-    speeds = _range(args.speeds, "--speeds", 1e-6, 1e6, "rad/s")
+    try:
+        rig = rig_of(args)
+        spec = speeds_of(args, rig, "design", law=args.stiffness, model=args.model,
+                         damping=args.damping)
+    except DesignError:
+        raise
+    except ValueError as exc:  # GearjaxError / range errors: the commands' DesignError
+        raise DesignError(str(exc)) from None
+    speeds = spec.rad_s
     amps = _range(args.amplitudes, "--amplitudes", 0.0, 40e-6, "m")
     if args.max_frequency is not None and not (math.isfinite(args.max_frequency)
                                                and args.max_frequency >= 0):
         raise DesignError(f"--max-frequency={args.max_frequency!r}: need a cut-off >= 0 Hz (0: all modes)")
-    rig = get_rig(args.rig)
     mesh = Mesh.build(rig.pair, args.stiffness, pinion_torque_Nm=rig.pinion_torque_Nm)
     space = ReliefSpace(shape=args.shape, shared=not separate)
     inertias = args.inertias
@@ -141,7 +147,57 @@ def _setup(args, separate=False):
     top = float(obj.space.upper[-1])
     exts = (np.linspace(0.1, min(0.8, top), 7) if args.extents is None
             else _range(args.extents, "--extents", float(obj.space.lower[-1]), top, ""))
+    if args.objective in _DYNAMIC:
+        args.speeds_record = spec.record()
+    for note in rig_notes(rig, args.model):  # after every input check
+        print(f"gearjax {args.command}: note: {note}", file=sys.stderr, flush=True)
     return rig, obj, amps, exts
+
+
+def _case(args, rig) -> dict:
+    """What a design run used, for its JSON: rig (and file), model, formulation, torque,
+    stiffness law, damping, NLTE'' reaction, speeds."""
+    case = {"rig": rig.name, "rig_arg": args.rig, "model": args.model,
+            "formulation": args.formulation, "pinion_torque_Nm": rig.pinion_torque_Nm,
+            "stiffness_law": args.stiffness, "damping": args.damping,
+            "nlte_reaction": args.nlte_reaction, "objective": args.objective,
+            "inertias": args.inertias}
+    case.update(getattr(args, "speeds_record", {}))
+    notes = rig_notes(rig, args.model)
+    if notes:
+        case["notes"] = notes
+    return case
+
+
+def check_command(args, rig, x: dict) -> tuple[str, str | None]:
+    """The ``gearjax sweep`` command that checks an optimum ``x`` (``amplitude_m``,
+    ``extent``) by forward sweeps of the same model, damping, torque, law and speeds, and
+    a note on what it cannot reproduce (separate reliefs, explicit inertias), or None."""
+    import shlex
+
+    amp = x.get("amplitude_m", x.get("amplitude1_m"))
+    ext = x.get("extent", x.get("extent1"))
+    spec = getattr(args, "speeds_record", {}).get("speeds_spec", "")
+    speeds = (["--speeds-rpm", spec.split()[0]] if spec.endswith(" rpm") else
+              ["--speeds-mesh-hz", spec.split()[0]] if spec.endswith(" mesh-Hz") else
+              ["--speeds", spec])
+    forms = "reference,te" if args.formulation == "te" else f"reference,{args.formulation}"
+    argv = ["gearjax", "sweep", "--rig", args.rig, "--model", args.model,
+            "--formulations", forms, "--relief-amplitude", f"{amp:.6g}",
+            "--relief-extent", f"{ext:.6g}", "--relief-shape", args.shape,
+            "--damping", f"{args.damping:g}", "--torque", f"{rig.pinion_torque_Nm:g}",
+            "--stiffness", args.stiffness, *speeds]
+    if args.model == "torsional":
+        argv += ["--nlte-reaction", args.nlte_reaction]
+    if args.model == "3d" and args.max_frequency is not None:
+        argv += ["--max-frequency", f"{args.max_frequency:g}"]
+    argv += ["--out", os.path.join(args.out, "check")]
+    note = []
+    if "amplitude1_m" in x:
+        note.append("separate pinion/gear reliefs: the sweep applies the pinion's to both")
+    if args.inertias != "bodies":
+        note.append(f"--inertias {args.inertias}: the sweep's torsional model takes the bodies")
+    return " ".join(shlex.quote(a) for a in argv), "; ".join(note) or None
 
 
 def _cmd_harris_map(args) -> int:
@@ -158,8 +214,7 @@ def _cmd_harris_map(args) -> int:
                           marks={"short": (13.3e-6, 0.2), "long": (13.3e-6, 0.5)},
                           title=f"{rig.name}: {args.objective}")
     i, j = np.unravel_index(np.nanargmin(hmap.exact), hmap.exact.shape)
-    out = {"rig": rig.name, "model": args.model, "objective": args.objective,
-           "nlte_reaction": args.nlte_reaction, "amplitudes_m": amps.tolist(),
+    out = {**_case(args, rig), "amplitudes_m": amps.tolist(),
            "extents": exts.tolist(), "exact": hmap.exact.tolist(), "smooth": hmap.smooth.tolist(),
            "best_amplitude_m": float(amps[i]), "best_extent": float(exts[j]),
            "best_objective": float(hmap.exact[i, j]), "wall_time_s": hmap.wall_time_s,
@@ -223,10 +278,13 @@ def _cmd_optimise(args) -> int:
     slowest = max(np.diff(steps[1:]), default=steps[-1] - steps[0])
     watchdog.progress("optimiser done, Harris map next", expect_s=3.0 * amps.size * exts.size * slowest)
     os.makedirs(args.out, exist_ok=True)
-    out = {"rig": rig.name, "model": args.model, "objective": args.objective,
-           "nlte_reaction": args.nlte_reaction, "shape": args.shape, "shared": not args.separate,
+    out = {**_case(args, rig), "shape": args.shape, "shared": not args.separate,
            **_solver(obj, args)}
     out.update(best.as_dict(obj.space))
+    if args.objective in _DYNAMIC:  # everything a forward sweep of the optimum needs
+        out["check_command"], why = check_command(args, rig, out)
+        if why:
+            out["check_command_note"] = why
     if rebuilt is not None:
         out["objective_after_rebuilt"] = rebuilt
     out["runs"] = [r.as_dict(obj.space) for r in runs]
@@ -253,7 +311,11 @@ def _cmd_optimise(args) -> int:
     if "objective_after_rebuilt" in out:
         print(f"  on a model built at the optimum, as sweep builds it: "
               f"{out['objective_after_rebuilt']:.6g}")
-    print(f"  wrote {out['history_png']}" + (f", {out['map_png']}" if "map_png" in out else ""))
+    print(f"  wrote {out['history_png']}" + (f", {out['map_png']}" if "map_png" in out else "")
+          + f", {os.path.join(args.out, 'optimum.json')}")
+    if "check_command" in out:
+        print(f"  check the optimum by forward sweeps: {out['check_command']}"
+              + (f"  ({out['check_command_note']})" if "check_command_note" in out else ""))
     return 0
 
 
@@ -264,30 +326,6 @@ def _solver(obj, args) -> dict:
     return {"method": args.method, "rtol": args.rtol}
 
 
-# --method of the dynamic objectives: the command line's names of their one-speed solvers
-DESIGN_METHODS = ("auto", "transient", "steady")
-
-
-def design_solver(method: str, rtol: float | None):
-    """The one-speed solver of ``--method`` at ``--rtol``: ``auto`` :class:`~gearjax.Auto`
-    (the transient), ``transient`` the transient, ``steady`` the shooting, each at the
-    accuracy ``--rtol`` asks (:func:`gearjax.dynamics.sweep.tolerance_options`, read by
-    the shooting as ``sweep --method steady`` reads it:
-    :meth:`gearjax.dynamics.steady.Shooting.for_transient`). Raises :class:`DesignError`
-    for an ``--rtol`` outside [1e-13, 1e-2]."""
-    from ..dynamics.simulate import SimulationError
-    from ..dynamics.steady import Shooting
-    from ..dynamics.sweep import Auto, Transient, tolerance_options
-
-    try:
-        options = tolerance_options(rtol)
-    except SimulationError:
-        raise DesignError(f"--rtol={rtol!r}: must lie in [1e-13, 1e-2]") from None
-    if method == "auto":
-        return Auto(rtol=rtol)
-    if method == "transient":
-        return Transient(**options)
-    return Shooting.for_transient(Transient(**options))
 
 
 def _fail(msg: str) -> int:

@@ -58,14 +58,17 @@ from ..dynamics.harmonic_sweep import HARMONIC_FLOQUET_MAX_STATES
 from ..dynamics.sweep import tolerance_options
 from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv
+from ..gears.quasistatic import static_mesh_force
 from ..rigs.factory import build_model
 from ..rigs.figures import predicted_critical_speeds
 from .ahead import Ahead, build_and_compile_ahead
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
 from .signals import last_mesh_period_signals, write_order_tracks, write_signals
-from .scenario import (add_nlte_reaction, add_nlte_switches, linspace_option, nlte_options_of,
-                       nlte_reaction_of)
+from .solvers import METHODS, STABILITY_METHODS, solver_for
+from .scenario import (add_nlte_reaction, add_nlte_switches, add_speeds, add_torque,
+                       input_digests, linspace_option, missed_critical_speed, nlte_options_of,
+                       nlte_reaction_of, rig_notes, rig_of, speeds_of)
 
 __all__ = ["register", "parse_speeds", "case_name", "default_max_frequency_hz", "modal_cutoff"]
 
@@ -103,13 +106,13 @@ def register(sub, add_rig, add_scenario):
     sw.add_argument("--formulations", default=None,
                     help="comma-separated subset of reference,te,perturbation (default all; "
                          "te,perturbation with --te-file)")
-    sw.add_argument("--speeds", default="20:900:45", metavar="A:B:N",
-                    help="N pinion speeds from A to B rad/s (default 20:900:45)")
+    add_speeds(sw, "sweep")
     sw.add_argument("--signals", default=None, metavar="SPEEDS",
                     help="comma-separated pinion speeds (rad/s) whose mesh force over the last "
                          "mesh period is also written and plotted (Fig. 11), e.g. 100,400,800")
     sw.add_argument("--out", default=None, metavar="DIR",
-                    help="output folder (default ./gearjax-out/<case>/); a folder holding an "
+                    help="output folder (default ./gearjax-out/<case>/, whose earlier run a "
+                         "plain re-run replaces, saying so); a given folder holding an "
                          "earlier run is refused unless --resume or --overwrite")
     sw.add_argument("--resume", action="store_true",
                     help="continue an interrupted sweep in its --out folder: same options "
@@ -161,8 +164,7 @@ def register(sub, add_rig, add_scenario):
     st.add_argument("--formulation", default="te", choices=["te", "perturbation"],
                     help="linear formulation to analyse (default te; the reference linearised "
                          "about the quasi-static contact is the te equation)")
-    st.add_argument("--speeds", default="100:1500:15", metavar="A:B:N",
-                    help="N pinion speeds from A to B rad/s (default 100:1500:15)")
+    add_speeds(st, "stability")
     st.add_argument("--method", default="auto", choices=STABILITY_METHODS,
                     help="steady: the spectral radius of the monodromy matrix (one period "
                          "of n columns, as the shooting's; ~20 s per speed for the 3D rig); "
@@ -179,7 +181,9 @@ def register(sub, add_rig, add_scenario):
 def _add_dynamics(p: argparse.ArgumentParser):
     p.add_argument("--model", default="3d", choices=["torsional", "3d"],
                    help="3d (default: shafts, bearings, pinion-gear element, Eqs. (14), (42), "
-                        "(48a)) or torsional (sdof, Eqs. (16), (20), (47a))")
+                        "(48a)) or torsional (sdof, Eqs. (16), (20), (47a); solid gear bodies, "
+                        "not the rig's discs)")
+    add_torque(p)
     add_nlte_reaction(p)
     p.add_argument("--damping", type=float, default=0.1, metavar="ZETA",
                    help="modal damping factor (default 0.1; the paper also uses 0.03)")
@@ -197,8 +201,12 @@ def _add_dynamics(p: argparse.ArgumentParser):
                         "6000 Hz)")
 
 
-def parse_speeds(text: str) -> np.ndarray:
-    """The pinion speeds of ``--speeds A:B:N`` (rad/s): ``0 < A <= B``, ``N >= 1``."""
+def parse_speeds(text: str | None) -> np.ndarray:
+    """The pinion speeds of ``--speeds A:B:N`` (rad/s): ``0 < A <= B``, ``N >= 1``; None
+    (no ``--speeds``: the rig's default, :func:`gearjax.cli.scenario.speeds_of`) gives the
+    paper's 20:900:45, which has the default's count of speeds."""
+    if text is None:
+        text = "20:900:45"
     return linspace_option(text, "--speeds", example="20:900:60", unit="rad/s")
 
 
@@ -248,45 +256,6 @@ def _forms(text: str) -> list[str]:
     if bad or not forms:
         raise ValueError(f"--formulations={text!r}: choose from reference,te,perturbation")
     return list(dict.fromkeys(forms))
-
-
-def periodic_start_options(model) -> dict:
-    """simulate() options for a model whose initial state is already the periodic steady
-    state (:attr:`Geared3DModel.periodic_start`: Eq. (48a) solved harmonic by harmonic):
-    no transient, start exactly there."""
-    if not model.periodic_start:
-        return {}
-    return {"n_transient_periods": 0, "start": "initial"}
-
-
-# --method: the command line's names of the periodic solvers (gearjax.dynamics.solvers)
-METHODS = ("auto", "transient", "steady", "harmonic")
-# gearjax stability --method: the monodromy everywhere (steady), or the small-gain bound
-# first and the monodromy where it does not prove stability (harmonic:
-# gearjax.dynamics.harmonic.small_gain_bounds)
-STABILITY_METHODS = ("auto", "steady", "harmonic")
-
-
-def solver_for(method: str, model, rtol: float | None, tolerances: dict):
-    """The periodic solver of ``--method`` for ``model`` at ``--rtol`` (``tolerances``: its
-    transient options, :func:`gearjax.dynamics.sweep.tolerance_options`): ``auto``
-    :class:`~gearjax.dynamics.sweep.Auto`; ``transient``; ``steady`` shooting, the speeds it
-    does not solve by the transient; ``harmonic`` the frequency domain, likewise."""
-    from ..dynamics.harmonic_sweep import HarmonicBalance
-    from ..dynamics.solvers import Fallback
-    from ..dynamics.steady import Shooting
-    from ..dynamics.sweep import Auto, Transient
-
-    if method == "auto":
-        return Auto(rtol=rtol)
-    transient = Transient(**tolerances, **periodic_start_options(model))
-    if method == "transient":
-        return transient
-    if method == "steady":
-        return Fallback(Shooting.for_transient(transient), transient)
-    if method == "harmonic":
-        return Fallback(HarmonicBalance(rtol=tolerances.get("rtol", 1e-6)), transient)
-    raise ValueError(f"--method={method!r}: choose from {', '.join(METHODS)}")
 
 
 def _check_cutoff(args, rig, cutoff_hz) -> None:
@@ -343,12 +312,11 @@ def _tolerances(args) -> dict:
 
 
 def cmd_sweep(args) -> int:
-    from ..rigs.registry import get_rig
     from ..dynamics.results import CSV_COLUMNS, ORDER_COLUMNS, check_header
     from ..dynamics.sweep import sweep
     from .outputs import prepare_output_dir
     from .results import (RESULT_FILES, check_resume, done_speeds, max_force_by_speed,
-                          method_counts, read_rows, summarise_rows, write_case)
+                          method_counts, print_summary, read_rows, summarise_rows, write_case)
     from .scenario import scenario_modifications
 
     if args.resume and (args.distributed or args.coordinator is not None
@@ -357,7 +325,8 @@ def cmd_sweep(args) -> int:
                          "start a new --out folder)")
     check_direction(args)
     lead = init_distributed(args)
-    speeds = parse_speeds(args.speeds)
+    if args.speeds is not None:
+        parse_speeds(args.speeds)  # a bad range is reported before the rig is read
     forms = _forms(args.formulations or ("te,perturbation" if args.te_file
                                          else "reference,te,perturbation"))
     _check_te_file(args, forms)
@@ -374,12 +343,18 @@ def cmd_sweep(args) -> int:
     if tolerances and args.direction != "independent":
         raise ValueError(f"--rtol={args.rtol!r}: for independent sweeps (the continuation of "
                          "--direction keeps its shooting tolerances)")
-    rig = get_rig(args.rig)
+    rig = rig_of(args)
+    spec = speeds_of(args, rig, "sweep", law=args.stiffness, model=args.model,
+                     damping=args.damping)
+    speeds = spec.rad_s
     scen = scenario_modifications(rig, args)
     mods = scen.mods
     te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
     case = case_name(args, scen)
     out = args.out or os.path.join("gearjax-out", case)
+    # a plain re-run (no --out) replaces the earlier run of its own default folder
+    replace = (args.out is None and not args.resume and not args.overwrite
+               and any(os.path.exists(os.path.join(out, n)) for n in RESULT_FILES))
     csv_path = os.path.join(out, "results.csv")
     orders_path = os.path.join(out, "orders.csv")  # mesh orders 1-5 (gearjax.dynamics.orders)
     cutoff_hz, cutoff_source = (modal_cutoff(args, rig, np.concatenate([speeds, sig_speeds]))
@@ -395,7 +370,10 @@ def cmd_sweep(args) -> int:
         **({"nlte_inertia": False} if args.no_nlte_terms else {}),
         "encoders": args.encoders, "max_frequency_hz": cutoff_hz, "formulations": forms,
         **({"te_file": os.path.abspath(args.te_file)} if args.te_file else {}),
-        "speeds_rad_s": [float(w) for w in speeds],
+        # the rig and TE files' contents, not only their names: an edited file is another case
+        **input_digests(args), "pinion_torque_Nm": rig.pinion_torque_Nm,
+        # the specification, not the speeds (ten million of them are 231 MB of JSON)
+        **{k: v for k, v in spec.record().items() if k != "speeds_source"},
     }
     if args.rtol is not None:
         record["rtol"] = float(args.rtol)
@@ -404,7 +382,11 @@ def cmd_sweep(args) -> int:
     done: dict = {}
     if lead:  # every output problem is reported now, before any computing
         prepare_output_dir("--out", out, results=RESULT_FILES, resume=args.resume,
-                           overwrite=args.overwrite)
+                           overwrite=args.overwrite or replace)
+        if replace:
+            print(f"gearjax sweep: replacing the earlier run in {out} (this case's default "
+                  "folder; --resume continues it instead, --out DIR keeps both)",
+                  file=sys.stderr, flush=True)
         if args.resume:
             check_resume(out, record)
             for path, columns in ((csv_path, CSV_COLUMNS), (orders_path, ORDER_COLUMNS)):
@@ -414,6 +396,13 @@ def cmd_sweep(args) -> int:
         write_case(out, record)
     devices = sweep_devices(args.method)
     nlte = nlte_options_of(args)
+    notes = rig_notes(rig, args.model)
+    estimate = work_estimate(args.model, speeds.size, len(forms))
+    if estimate:
+        notes.append(estimate)
+    if lead:
+        for note in notes:
+            print(f"gearjax sweep: note: {note}", file=sys.stderr, flush=True)
     summary = {
         "case": case, "rig": rig.name, "model": args.model,
         "stiffness_law": args.stiffness, "relief": args.relief or scen.key, **scen.summary(),
@@ -422,9 +411,14 @@ def cmd_sweep(args) -> int:
         "nlte_reaction": reaction, "encoders": args.encoders, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "rtol": args.rtol, "devices": device_count(devices),
-        "speeds_rad_s": [float(speeds[0]), float(speeds[-1]), int(speeds.size)],
+        "pinion_torque_Nm": rig.pinion_torque_Nm,
+        "static_mesh_force_N": static_mesh_force(rig.pair, rig.pinion_torque_Nm),
+        **spec.record(),
+        **({"excitation": _excitation(args, te, scen)} if te is not None else {}),
         "formulations": {},
         **({"warnings": [warning]} if warning else {}),
+        **({"notes": notes} if notes else {}),
+        **({"replaced_earlier_run": True} if replace else {}),
     }
     if done:
         summary["resumed"] = {f: len(v) for f, v in done.items()}
@@ -441,8 +435,9 @@ def cmd_sweep(args) -> int:
                                max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te,
                                moving_events=False)  # forward only
 
-        def todo_of(form):
-            return np.array([w for w in speeds if float(w) not in done.get(form, ())])
+        def todo_of(form):  # vectorised: ten million speeds in well under a second
+            got = np.fromiter(done.get(form, ()), dtype=float)
+            return speeds[~np.isin(speeds, got)] if got.size else speeds
 
         def sweep_options(model):
             size = None if args.chunk is None else min(args.chunk, todo_of(model.formulation).size)
@@ -474,6 +469,11 @@ def cmd_sweep(args) -> int:
                 linear = model
             if "predicted" not in summary:
                 summary["predicted"] = predicted_critical_speeds(model)
+                missed = missed_critical_speed(summary["predicted"], speeds)
+                if missed:
+                    summary.setdefault("warnings", []).append(missed)
+                    if lead:
+                        print(f"gearjax sweep: warning: {missed}", file=sys.stderr, flush=True)
                 if args.model == "3d":
                     summary["n_modes"] = int(model.n_modes)
                     summary["w_x0_m"] = float(model.w_x0)
@@ -524,7 +524,8 @@ def cmd_sweep(args) -> int:
                             "median_rel_diff_max_mesh_force": float(np.nanmedian(rel))}
         summary["agreement_with_reference"] = agree
     summary["results_csv"] = csv_path
-    title = (f"{rig.name}, {args.model}, {scen.label}"
+    title = (f"{rig.name}, {args.model}, "
+             f"{summary['excitation'] if te is not None else scen.label}"
              f"{', pitch errors' if scen.pitch_errors else ''}, damping {args.damping}"
              + (", NLTE = 0" if args.zero_nlte else ", NLTE'' = 0" if args.no_nlte_terms else "")
              + f"{' (interrupted)' if interrupted else ''}")
@@ -552,76 +553,57 @@ def cmd_sweep(args) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
-    _print_summary(rig, summary, out)
+    print_summary(rig, summary, out)
     return 0
 
 
-def _listed(speeds, tags=None) -> str:
-    """The first 8 speeds (rad/s, with their tags) and how many more."""
-    tags = tags or [""] * len(speeds)
-    text = ", ".join(f"{w:.0f}{t}" for w, t in list(zip(speeds, tags))[:8])
-    return text + (f" (+{len(speeds) - 8} more)" if len(speeds) > 8 else "")
+# Cost of one speed of one formulation after compiling, on 2 CPU cores
+# (benchmarks/results/scaling_3d.md and sdof_exact_2000.md): the estimate announced
+# before a long sweep.
+SECONDS_PER_SPEED = {"3d": 0.024, "torsional": 0.001}
+ANNOUNCE_S = 600.0  # sweeps estimated to take longer are announced with their estimate
 
 
-def _print_summary(rig, summary, out):
-    pred = summary["predicted"]
-    print(f"\n  {rig.description}")
-    print(f"  {summary['model']} model, {summary['relief_label']} [{summary['relief_source']}], "
-          f"damping {summary['damping']}, NLTE'' reaction at the {summary['nlte_reaction']}, "
-          f"speeds {summary['speeds_rad_s'][0]:.0f}-{summary['speeds_rad_s'][1]:.0f} rad/s "
-          f"({summary['speeds_rad_s'][2]})")
-    if summary["model"] == "3d":
-        fc = summary["max_frequency_hz"]
-        print(f"  modes {'below %.0f Hz' % fc if fc else 'all'} ({summary['max_frequency_source']})"
-              f": {summary['n_modes']} modes")
-        for w in summary.get("warnings", ()):
-            print(f"  warning: {w}")
-    print(f"  predicted main tooth critical speed {pred['critical_speed_rad_s']:.0f} rad/s (peak of "
-          f"the mesh receptance; mode with most mesh energy: {pred['mode_frequency_hz']:.0f} Hz, "
-          f"{100 * pred['mesh_energy_share']:.0f} %, i.e. {pred['mode_critical_speed_rad_s']:.0f} rad/s)")
-    print(f"  {'formulation':13s} {'peak K_v':>9s} {'at [rad/s]':>11s} {'contact loss':>13s} "
-          f"{'unconverged':>12s} {'vs reference':>13s} {'time [s]':>9s}")
-    agree = summary.get("agreement_with_reference", {})
-    for form, r in summary["formulations"].items():
-        a = agree.get(form)
-        vs = f"{100 * a['max_rel_diff_max_mesh_force']:.1f} % max" if a else "-"
-        print(f"  {form:13s} {r['peak_dynamic_factor']:9.3f} {r['critical_speed_rad_s']:11.1f} "
-              f"{len(r['contact_loss_speeds']):13d} {len(r['unconverged_speeds']):12d} {vs:>13s} "
-              f"{r['build_time_s'] + r['wall_time_s']:9.1f}")
-    for form, r in summary["formulations"].items():
-        sub = r.get("subharmonic_speeds") or {}
-        rest = [w for w in r["unconverged_speeds"] if repr(float(w)) not in sub]
-        if rest:
-            print(f"  note: {form} not converged to steady state at {_listed(rest)} rad/s "
-                  "(converged=False in results.csv); the peak K_v is over the converged "
-                  "speeds only")
-        if sub:
-            print(f"  note: {form} periodic over m excitation periods (sub-harmonic, "
-                  f"period_multiple m in results.csv; converged=False, out of the peak K_v) "
-                  f"at {_listed([float(w) for w in sub], [f' ({m}P)' for m in sub.values()])} "
-                  "rad/s")
-    files = [summary["results_csv"]] + [summary[k] for k in (
-        "response_curves_png", "orders_csv", "order_tracks_png") if k in summary]
-    files += [os.path.join(out, "summary.json")]
-    files += [summary[k] for k in ("signals_csv", "mesh_force_signals_png") if k in summary]
-    print(f"  wrote {', '.join(files)}  ({summary['total_time_s']:.0f} s in all)")
+def work_estimate(model: str, n_speeds: int, n_forms: int) -> str | None:
+    """A one-line estimate of a sweep's computing time where it exceeds
+    :data:`ANNOUNCE_S` (speeds x formulations x :data:`SECONDS_PER_SPEED`), else None."""
+    t = SECONDS_PER_SPEED[model] * n_speeds * n_forms
+    if t < ANNOUNCE_S:
+        return None
+    when = f"{t / 3600:.1f} h" if t >= 3600 else f"{t / 60:.0f} min"
+    return (f"{n_speeds:,} speeds x {n_forms} formulation(s): about {when} of computing at "
+            f"the measured ~{SECONDS_PER_SPEED[model] * 1e3:g} ms per speed of the {model} "
+            "model on 2 CPU cores; rows are written as they finish, Ctrl-C keeps them and "
+            "--resume continues")
+
+
+def _excitation(args, te, scen) -> str:
+    """What excites a --te-file sweep: the file (and the relief only where the file has
+    no stiffness column: the model's own mesh stiffness)."""
+    name = os.path.basename(args.te_file)
+    if te.has_stiffness:
+        return f"TE file {name} (TE_S, NLTE, stiffness)"
+    return f"TE file {name} (TE_S, NLTE; mesh stiffness from {scen.label})"
 
 
 def cmd_stability(args) -> int:
-    from ..rigs.registry import get_rig
     from ..dynamics.harmonic import small_gain_bounds
     from ..dynamics.small_gain import SMALL_GAIN_MARGIN
     from ..dynamics.stability import spectral_radius
 
     from .scenario import scenario_modifications
 
-    speeds = parse_speeds(args.speeds)
+    if args.speeds is not None:
+        parse_speeds(args.speeds)  # a bad range is reported before the rig is read
     _check_damping(args.damping)
     _check_te_file(args, [args.formulation])
     # the monodromy's integrator takes --rtol (atol R/100): the accuracy of rho
     tols = {k: v for k, v in _tolerances(args).items() if k in ("rtol", "atol")}
     reaction = nlte_reaction_of(args)
-    rig = get_rig(args.rig)
+    rig = rig_of(args)
+    spec = speeds_of(args, rig, "stability", law=args.stiffness, model=args.model,
+                     damping=args.damping)
+    speeds = spec.rad_s
     scen = scenario_modifications(rig, args)
     mods = scen.mods
     te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
@@ -630,6 +612,9 @@ def cmd_stability(args) -> int:
     warning = cutoff_warning(args, rig, cutoff_hz, speeds)
     if warning:
         print(f"gearjax stability: warning: {warning}", file=sys.stderr, flush=True)
+    notes = rig_notes(rig, args.model)  # after every input check: an error stays one line
+    for note in notes:
+        print(f"gearjax stability: note: {note}", file=sys.stderr, flush=True)
     model = build_model(rig, mods, model=args.model, formulation=args.formulation,
                         law=args.stiffness, damping_ratio=args.damping,
                         encoder_position=args.encoders,
@@ -659,6 +644,8 @@ def cmd_stability(args) -> int:
         "rig": rig.name, "model": args.model, "formulation": args.formulation,
         "relief": args.relief or scen.key, **scen.summary(), "damping": args.damping,
         "stiffness_law": args.stiffness, "nlte_reaction": reaction, "te_file": args.te_file,
+        "pinion_torque_Nm": rig.pinion_torque_Nm, **spec.record(),
+        **({"notes": notes} if notes else {}),
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "method": method, "rtol": args.rtol, "monodromies": int(need.size),
         "wall_time_s": time.perf_counter() - t0,

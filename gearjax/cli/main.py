@@ -65,10 +65,14 @@ def _parser() -> argparse.ArgumentParser:
                            "natural frequencies")
     info.add_argument("--encoders", type=int, default=1, choices=[1, 2, 3],
                       help="encoder positions of Fig. 7 for W and w_x0 (default 1)")
+    from .scenario import add_torque
+
+    add_torque(info)
 
     qs = sub.add_parser("quasistatic", help="quasi-static TE_S and NLTE (unilateral contact)")
     _add_rig(qs)
     qs.add_argument("--model", default="torsional", choices=["torsional"])
+    add_torque(qs)
     _add_scenario(qs)
     qs.add_argument("--positions", type=int, default=256,
                     help="positions per mesh period (default 256)")
@@ -195,14 +199,16 @@ def _fail(msg: str) -> int:
 
 def _cmd_info(args) -> int:
     from ..rigs.figures import three_d_figures, torsional_stiffness_figures
-    from ..rigs.registry import get_rig
 
-    rig = get_rig(args.rig)
+    from .scenario import rig_notes, rig_of
+
+    rig = rig_of(args)
     out = {"rig": rig.name, "description": rig.description}
     out.update(rig.pair.summary())
     out.update(torsional_stiffness_figures(rig, args.stiffness))
     if args.model == "3d":
         out.update(three_d_figures(rig, args.stiffness, args.encoders))
+    out["notes"] = rig_notes(rig, args.model)
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
@@ -235,6 +241,7 @@ def _cmd_info(args) -> int:
             (f"w_x0 (encoders {out['encoder_position']})", f"{out['w_x0_m'] * 1e6:.3f} um"),
             ("lowest natural frequencies", f"{freqs} Hz"),
         ]
+    rows += [("note", n) for n in out["notes"]]
     w = max(len(r[0]) for r in rows)
     for k, v in rows:
         print(f"  {k:<{w}}  {v}")
@@ -244,10 +251,9 @@ def _cmd_info(args) -> int:
 def _cmd_quasistatic(args) -> int:
     from ..gears.mesh import Mesh
     from ..gears.quasistatic import quasi_static, static_mesh_force
-    from ..rigs.registry import get_rig
 
     from .outputs import check_output_file
-    from .scenario import scenario_modifications
+    from .scenario import rig_of, scenario_modifications
 
     if args.positions < 8:
         return _fail(f"--positions={args.positions}: need at least 8 positions per mesh period")
@@ -255,7 +261,7 @@ def _cmd_quasistatic(args) -> int:
         check_output_file("--csv", args.csv)
     if args.plot:
         check_output_file("--plot", args.plot, figure=True)
-    rig = get_rig(args.rig)
+    rig = rig_of(args)
     scen = scenario_modifications(rig, args)
     mods = scen.mods
     # the excitation period: a revolution of each body carrying errors (pinion: z1 mesh periods)
@@ -270,6 +276,7 @@ def _cmd_quasistatic(args) -> int:
     summary = {
         "rig": rig.name,
         "stiffness_law": args.stiffness,
+        "pinion_torque_Nm": rig.pinion_torque_Nm,
         "relief": args.relief or scen.key,
         **scen.summary(),
         "pitch_errors": scen.pitch_errors,

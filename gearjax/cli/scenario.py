@@ -20,7 +20,9 @@ import numpy as np
 
 __all__ = ["linspace_option", "Scenario", "scenario_modifications", "add_nlte_reaction",
            "nlte_reaction_of", "add_nlte_switches", "nlte_options_of", "add_eccentricity",
-           "eccentricity_of"]
+           "eccentricity_of", "add_torque", "rig_of", "file_digest", "input_digests",
+           "rig_notes", "Speeds", "add_speeds", "speeds_of", "missed_critical_speed",
+           "PAPER_RIGS"]
 
 
 def linspace_option(text: str, option: str, *, example: str, lo: float = 0.0,
@@ -42,7 +44,7 @@ def linspace_option(text: str, option: str, *, example: str, lo: float = 0.0,
     return np.linspace(a, b, n)
 
 
-MAX_ECCENTRICITY_UM = 1000.0  # above 1 mm: a unit mistake (the option is in micrometres)
+MAX_ECCENTRICITY_M = 1e-3  # above 1 mm: a unit mistake (the option is in metres)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,7 +128,9 @@ def scenario_modifications(rig, args) -> Scenario:
     ecc = eccentricity_of(args)
     if ecc is not None:
         mods = mods.with_eccentricity(*ecc)
-    source = base + (" with " + ", ".join(changed) if changed else "")
+    # an --eccentricity is a command-line value, not the rig file's: the source says so
+    given = changed + (["--eccentricity"] if ecc is not None else [])
+    source = base + (" with " + ", ".join(given) if given else "")
     if not changed and file_mods is None:
         label = f"relief {relief}" + (f" ({shape})" if shape != "linear" else "")
         key = relief if shape == "linear" else f"{relief}-{shape}"
@@ -135,7 +139,7 @@ def scenario_modifications(rig, args) -> Scenario:
         a = f"{um[0]:.3g}" if um[0] == um[1] else f"{um[0]:.3g}/{um[1]:.3g}"
         e = f"{ext[0]:.3g}" if ext[0] == ext[1] else f"{ext[0]:.3g}/{ext[1]:.3g}"
         label = f"relief {a} um x {e} {shape}" + (" (rig file)" if file_mods is not None
-                                                   and not changed else "")
+                                                   and not changed else "")  # the relief's
         key = ("file" if file_mods is not None and not changed
                else f"relief{amp[0]:g}x{ext[0]:g}" + ("" if shape == "linear" else f"-{shape}"))
     if ecc is not None:
@@ -190,11 +194,13 @@ def nlte_options_of(args) -> dict:
 
 
 def add_eccentricity(p) -> None:
-    """Add ``--eccentricity E1[,E2]`` (um) and ``--eccentricity-phase P1[,P2]`` (rad)."""
+    """Add ``--eccentricity E1[,E2]`` (m, as every length option) and
+    ``--eccentricity-phase P1[,P2]`` (rad)."""
     p.add_argument("--eccentricity", default=None, metavar="E1[,E2]",
-                   help="eccentricities of the pinion and the gear in micrometres (one value: "
-                        "pinion only); the excitation period becomes a revolution of each "
-                        "eccentric body (gear: z2 mesh periods); replaces a rig file's")
+                   help="eccentricities of the pinion and the gear in metres, as every length "
+                        "option (e.g. 20e-6; one value: pinion only); the excitation period "
+                        "becomes a revolution of each eccentric body (gear: z2 mesh periods); "
+                        "replaces a rig file's")
     p.add_argument("--eccentricity-phase", default=None, metavar="P1[,P2]",
                    help="phases lambda_1, lambda_2 of the eccentricities (rad, default 0)")
 
@@ -214,10 +220,11 @@ def _pair_of(flag: str, text: str, what: str) -> np.ndarray:
 
 
 def eccentricity_of(args):
-    """``(e (2,) m, lambda (2,) rad)`` of ``--eccentricity`` (micrometres; one value: the
-    pinion's, the gear's 0) and ``--eccentricity-phase`` (rad, default 0), or None without
-    ``--eccentricity``. Raises :class:`gearjax.errors.GearjaxError` for a negative, non
-    finite or absurd (> 1 mm) eccentricity, or a phase without an eccentricity."""
+    """``(e (2,) m, lambda (2,) rad)`` of ``--eccentricity`` (metres, as every length
+    option; one value: the pinion's, the gear's 0) and ``--eccentricity-phase`` (rad,
+    default 0), or None without ``--eccentricity``. Raises
+    :class:`gearjax.errors.GearjaxError` for a negative, non finite or absurd (> 1 mm: a
+    value in micrometres) eccentricity, or a phase without an eccentricity."""
     from ..errors import GearjaxError
 
     text, ph = getattr(args, "eccentricity", None), getattr(args, "eccentricity_phase", None)
@@ -225,12 +232,178 @@ def eccentricity_of(args):
         if ph is not None:
             raise GearjaxError("--eccentricity-phase", ph, "needs --eccentricity")
         return None
-    um = _pair_of("--eccentricity", text, "eccentricities (um)")
-    if np.any(um < 0):
-        raise GearjaxError("--eccentricity", text, "eccentricities must be >= 0 (um; the "
+    e = _pair_of("--eccentricity", text, "eccentricities (m)")
+    if np.any(e < 0):
+        raise GearjaxError("--eccentricity", text, "eccentricities must be >= 0 (m; the "
                            "direction is the phase)")
-    if np.any(um > MAX_ECCENTRICITY_UM):
-        raise GearjaxError("--eccentricity", text, f"above {MAX_ECCENTRICITY_UM:g} um = 1 mm; "
-                           "the values are in micrometres (20 um is 20)")
+    if np.any(e > MAX_ECCENTRICITY_M):
+        raise GearjaxError("--eccentricity", text, f"above {MAX_ECCENTRICITY_M:g} m = 1 mm; "
+                           "the values are in metres like every length option (20 um is 20e-6)")
     phase = np.zeros(2) if ph is None else _pair_of("--eccentricity-phase", ph, "phases (rad)")
-    return um / 1e6, phase
+    return e, phase
+
+
+# ------------------------------------------------------------------ the rig of a command
+PAPER_RIGS = ("baud-velex-spur", "baud-velex-helical")  # the built-in rigs of Section 6.1
+
+
+def add_torque(p) -> None:
+    """Add ``--torque NM`` (the pinion torque C_m0, N m; default the rig's)."""
+    p.add_argument("--torque", type=float, default=None, metavar="NM",
+                   help="pinion torque C_m0 in N m (default: the rig's, e.g. 254.8 for the "
+                        "Baud-Velex rigs or a rig file's [operating] pinion_torque_Nm)")
+
+
+def rig_of(args):
+    """The rig of parsed ``args`` (``rig``, optional ``torque``): a built-in rig or a rig
+    file, with ``--torque`` replacing its nominal torque. Raises
+    :class:`gearjax.errors.GearjaxError` for a torque that is not finite and > 0."""
+    from ..errors import GearjaxError
+    from ..rigs.registry import get_rig
+
+    torque = getattr(args, "torque", None)
+    if torque is not None and not (math.isfinite(torque) and 0.0 < torque <= 1e8):
+        raise GearjaxError("--torque", torque, "the pinion torque must be finite, > 0 and at "
+                                               "most 1e8 (N m)")
+    rig = get_rig(args.rig)
+    if torque is not None:
+        rig = dataclasses.replace(rig, pinion_torque_Nm=float(torque))
+    return rig
+
+
+def file_digest(path: str) -> str:
+    """SHA-256 (hex) of a file's bytes: ``--resume`` compares the rig and TE files' contents,
+    not only their names."""
+    import hashlib
+
+    with open(path, "rb") as fh:
+        return hashlib.sha256(fh.read()).hexdigest()
+
+
+def input_digests(args) -> dict:
+    """``{"rig_file_sha256": ..., "te_file_sha256": ...}`` of the files a command reads
+    (a built-in rig has none)."""
+    import os
+
+    out = {}
+    if str(args.rig).endswith(".toml") or os.path.isfile(str(args.rig)):
+        out["rig_file_sha256"] = file_digest(args.rig)
+    if getattr(args, "te_file", None):
+        out["te_file_sha256"] = file_digest(args.te_file)
+    return out
+
+
+def rig_notes(rig, model: str) -> list[str]:
+    """What a run takes from the rig that a user might not expect, one sentence each (the
+    commands print them and store them in their JSON as ``notes``): unequal face widths
+    (the common width carries the load) and, for the torsional model, the body inertias
+    it uses instead of the rig's discs and shafts."""
+    from ..gears.geometry import solid_cylinder_inertias
+
+    p = rig.pair
+    notes = []
+    if p.face_width1_m != p.face_width2_m:
+        notes.append(f"face widths {p.face_width1_m * 1e3:g} / {p.face_width2_m * 1e3:g} mm "
+                     f"differ: the common width b = {p.face_width_m * 1e3:g} mm carries the "
+                     "load (mesh stiffness, contact lines)")
+    if model == "torsional":
+        j1, j2 = solid_cylinder_inertias(p)
+        notes.append(f"the torsional model takes solid steel cylinders at the pitch radii "
+                     f"(J1 {j1:.3g}, J2 {j2:.3g} kg m^2), not the rig's discs, shafts or "
+                     "bearings; --model 3d uses them")
+    return notes
+
+
+@dataclasses.dataclass(frozen=True)
+class Speeds:
+    """The pinion speeds of a command: ``rad_s`` (rad/s), the ``spec`` as given or chosen
+    (``"A:B:N"`` rad/s, or ``"A:B:N rpm"``) and its ``source``."""
+
+    rad_s: np.ndarray
+    spec: str
+    source: str
+
+    def record(self) -> dict:
+        """The speed specification for a JSON record (not the speeds themselves)."""
+        w = self.rad_s
+        return {"speeds_rad_s": [float(w[0]), float(w[-1]), int(w.size)],
+                "speeds_spec": self.spec, "speeds_source": self.source}
+
+
+# the default ranges of each command: the paper's on its rigs; on any other rig, relative
+# to the rig's own predicted main critical speed Omega_c: (low, high, count), with low
+# None for high / count
+PAPER_SPEEDS = {"sweep": "20:900:45", "stability": "100:1500:15", "design": "660:900:8"}
+OWN_SPEEDS = {"sweep": (None, 1.2, 45), "stability": (None, 2.0, 15),
+              "design": (0.85, 1.16, 8)}
+
+
+def add_speeds(p, command: str, what: str = "pinion speeds") -> None:
+    """Add ``--speeds A:B:N`` (rad/s), ``--speeds-rpm A:B:N`` (rev/min) and
+    ``--speeds-mesh-hz A:B:N`` (mesh frequency, Hz) to ``p``, the defaults of ``command``
+    (:data:`PAPER_SPEEDS`, :data:`OWN_SPEEDS`)."""
+    lo, hi, n = OWN_SPEEDS[command]
+    own = (f"{lo:g}-{hi:g} x" if lo else f"up to {hi:g} x") + f" its predicted main critical speed, {n} speeds"
+    p.add_argument("--speeds", default=None, metavar="A:B:N",
+                   help=f"N {what} from A to B rad/s (default: {PAPER_SPEEDS[command]} on the "
+                        f"Baud-Velex rigs, the paper's; on any other rig {own})")
+    p.add_argument("--speeds-rpm", default=None, metavar="A:B:N",
+                   help="the same in rev/min of the pinion (instead of --speeds)")
+    p.add_argument("--speeds-mesh-hz", default=None, metavar="A:B:N",
+                   help="the same as mesh frequencies f_m = z1 Omega1 / (2 pi) in Hz "
+                        "(instead of --speeds)")
+
+
+def _nice(x: float) -> float:
+    return float(f"{x:.3g}")
+
+
+def speeds_of(args, rig, command: str, *, law: str, model: str, damping: float) -> Speeds:
+    """The :class:`Speeds` of parsed ``args`` (``speeds``, ``speeds_rpm``): as given, or the
+    default of ``command`` for ``rig`` (the paper's range on the Baud-Velex rigs, else
+    relative to :func:`gearjax.rigs.figures.rig_critical_speeds` of ``model``, ``law`` and
+    ``damping``). ``ValueError`` naming the option for a bad range or both options."""
+    from ..errors import GearjaxError
+
+    text, rpm = getattr(args, "speeds", None), getattr(args, "speeds_rpm", None)
+    hz = getattr(args, "speeds_mesh_hz", None)
+    given = [o for o, v in (("--speeds", text), ("--speeds-rpm", rpm), ("--speeds-mesh-hz", hz))
+             if v is not None]
+    if len(given) > 1:
+        raise GearjaxError(given[1], rpm if given[1] == "--speeds-rpm" else hz,
+                           f"give one of --speeds (rad/s), --speeds-rpm, --speeds-mesh-hz, "
+                           f"not both {given[0]} and {given[1]}")
+    if hz is not None:
+        f = linspace_option(hz, "--speeds-mesh-hz", example="500:5000:40", unit="Hz")
+        return Speeds(f * (2.0 * math.pi / rig.pair.z1), f"{hz} mesh-Hz", "--speeds-mesh-hz")
+    if rpm is not None:
+        w = linspace_option(rpm, "--speeds-rpm", example="1000:9000:40", unit="rev/min")
+        return Speeds(w * (2.0 * math.pi / 60.0), f"{rpm} rpm", "--speeds-rpm")
+    if text is not None:
+        return Speeds(linspace_option(text, "--speeds", example="20:900:60", unit="rad/s"),
+                      text, "--speeds")
+    if rig.name in PAPER_RIGS:
+        spec = PAPER_SPEEDS[command]
+        return Speeds(linspace_option(spec, "--speeds", example=spec), spec,
+                      "default: the paper's range (Baud-Velex rig)")
+    from ..rigs.figures import rig_critical_speeds
+
+    wc = rig_critical_speeds(rig, law, model, damping)["critical_speed_rad_s"]
+    lo, hi, n = OWN_SPEEDS[command]
+    b = _nice(hi * wc)
+    a = _nice(lo * wc) if lo else _nice(b / n)
+    spec = f"{a:g}:{b:g}:{n}"
+    how = f"{lo:g}-{hi:g} x" if lo else f"up to {hi:g} x"
+    return Speeds(np.linspace(a, b, n), spec,
+                  f"default: {how} the rig's predicted critical speed {wc:.0f} rad/s ({model})")
+
+
+def missed_critical_speed(predicted: dict, speeds_rad_s) -> str | None:
+    """A warning when the predicted main critical speed lies outside the swept range."""
+    wc = predicted.get("critical_speed_rad_s")
+    w = np.asarray(speeds_rad_s)
+    if wc is None or not np.isfinite(wc) or w[0] <= wc <= w[-1]:
+        return None
+    return (f"the predicted main tooth critical speed {wc:.0f} rad/s lies outside the swept "
+            f"speeds {w[0]:.0f}-{w[-1]:.0f} rad/s: the peak found is not the resonance; "
+            "sweep through it (e.g. leave --speeds out on a rig file)")

@@ -21,7 +21,7 @@ from ..gears.mesh import Mesh
 from ..gears.quasistatic import quasi_static, static_mesh_force
 from .spaces import ReliefSpace
 
-__all__ = ["OBJECTIVES", "DYNAMIC_OBJECTIVES", "DESIGN_MODELS", "DEFAULT_SHARPNESS", "DESIGN_INERTIAS", "design_inertias", "smooth_max", "Evaluation", "QuasiStaticObjective", "DynamicObjective", "make_objective"]
+__all__ = ["OBJECTIVES", "DYNAMIC_OBJECTIVES", "DESIGN_MODELS", "DEFAULT_SHARPNESS", "DESIGN_INERTIAS", "design_inertias", "smooth_max", "Evaluation", "QuasiStaticObjective", "DynamicObjective", "make_objective", "default_torque_Nm"]
 
 
 OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp", "te-ptp", "te-rms")
@@ -108,6 +108,25 @@ def _value_and_jac(f, jac=jax.jacfwd):
     return jac(g, has_aux=True)
 
 
+def default_torque_Nm(pair, rig=None, what: str = "pinion_torque_Nm") -> float:
+    """The pinion torque (N m) of an objective built without one: the ``rig``'s nominal
+    torque, else the paper's 254.8 N m for the Baud-Velex pairs of Table 1 only.
+
+    Raises
+    ------
+    DesignError
+        for any other pair without a rig: another pair's torque is not the paper's (its
+        static mesh force, dynamic factors and TE would all be those of 254.8 N m)."""
+    if rig is not None:
+        return float(rig.pinion_torque_Nm)
+    from ..rigs.baud_velex import PINION_TORQUE_NM, baud_velex_pair
+
+    if any(pair == baud_velex_pair(h) for h in (False, True)):
+        return PINION_TORQUE_NM
+    raise DesignError(what, None, "give the pinion torque (N m) or the rig: the paper's "
+                                  "254.8 N m is the Baud-Velex pair's, not this pair's")
+
+
 # ---------------------------------------------------------------------------- quasi-static
 class QuasiStaticObjective:
     """TE_S fluctuation objective ``"te-ptp"`` or ``"te-rms"`` (m) on one mesh period.
@@ -116,7 +135,8 @@ class QuasiStaticObjective:
     ----------
     mesh : the mesh (stiffness law, cells).
     space : the :class:`ReliefSpace`.
-    torques_Nm : one or several pinion torques C_m0 (N m) (F_S = C_m0 / (Rb1 cos b_b)).
+    torques_Nm : one or several pinion torques C_m0 (N m) (F_S = C_m0 / (Rb1 cos b_b));
+        None (default): :func:`default_torque_Nm` (the rig's; the paper's only for its pair).
     kind : ``"te-ptp"`` or ``"te-rms"``. For te-rms the smoothed value (the one descended)
         is the mean square fluctuation over the loads divided by the scale (m): the RMS has
         a V-shaped (non-differentiable) minimum where the fluctuation vanishes, the mean
@@ -132,9 +152,11 @@ class QuasiStaticObjective:
     rig : the :class:`gearjax.rigs.registry.Rig` of a 3D objective.
     """
 
-    def __init__(self, mesh: Mesh, space: ReliefSpace, torques_Nm=254.8, kind: str = "te-rms",
+    def __init__(self, mesh: Mesh, space: ReliefSpace, torques_Nm=None, kind: str = "te-rms",
                  n_positions: int = 256, sharpness: float = DEFAULT_SHARPNESS,
                  model: str = "torsional", rig=None):
+        if torques_Nm is None:
+            torques_Nm = default_torque_Nm(mesh.pair, rig, "torques_Nm")
         if kind not in ("te-ptp", "te-rms"):
             raise DesignError("objective", kind, "quasi-static objectives are 'te-ptp', 'te-rms'")
         if model not in DESIGN_MODELS:
@@ -222,8 +244,10 @@ class DynamicObjective:
         ``"reference"`` (Eq. (16) / (14)) or ``"perturbation"`` (Eq. (47a) / (48a)); see
         :mod:`gearjax.design`, "Formulation". The 3D perturbation formulation holds its
         splitting constant k_m at the build design.
-    pinion_torque_Nm, inertias_kg_m2, damping_ratio : model data (defaults: 254.8 N m,
-        :data:`DESIGN_INERTIAS` (the gear bodies, sdof only), 0.03).
+    pinion_torque_Nm, inertias_kg_m2, damping_ratio : model data (defaults: the rig's
+        torque, the paper's 254.8 N m for its own pair only, else required
+        (:func:`default_torque_Nm`); :data:`DESIGN_INERTIAS` (the gear bodies, sdof only);
+        0.03).
     nlte_reaction : ``"drive"`` (default, as every command and model) or ``"pinion"``
         (:mod:`gearjax.design`, "Inertias"; sdof only: the 3D model refuses it).
     max_frequency_hz : modal cut-off of the 3D model (Hz; None: all modes); default
@@ -252,7 +276,7 @@ class DynamicObjective:
 
     def __init__(self, mesh: Mesh, space: ReliefSpace, speeds_rad_s, kind: str = "peak-force", *,
                  model: str = "torsional", rig=None,
-                 formulation: str = "te", pinion_torque_Nm: float = 254.8,
+                 formulation: str = "te", pinion_torque_Nm: float | None = None,
                  inertias_kg_m2=DESIGN_INERTIAS, damping_ratio: float = 0.03,
                  nlte_reaction: str = "drive", max_frequency_hz: float | str | None = "auto",
                  solver=None, sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
@@ -275,8 +299,11 @@ class DynamicObjective:
         speeds = np.atleast_1d(np.asarray(speeds_rad_s, dtype=float))
         if speeds.ndim != 1 or not np.all(np.isfinite(speeds)) or np.any(speeds <= 0):
             raise DesignError("speeds_rad_s", speeds.tolist(), "need finite pinion speeds > 0 (rad/s)")
+        if pinion_torque_Nm is None:
+            pinion_torque_Nm = default_torque_Nm(mesh.pair, rig)
         space = space.for_dynamics(mesh.pair)
         self.mesh, self.space, self.kind = mesh, space, kind
+        self.pinion_torque_Nm = float(pinion_torque_Nm)
         self.speeds = speeds
         self.formulation = formulation
         self.model_type, self.rig, self.solver = model, rig, solver
@@ -462,10 +489,13 @@ def _dyn_grid(model, xs, speeds, static):
 
 
 def make_objective(kind: str, mesh: Mesh, space: ReliefSpace, *, speeds_rad_s=None,
-                   torques_Nm=254.8, **kwargs):
-    """The objective ``kind`` of :data:`OBJECTIVES` (dynamic ones need ``speeds_rad_s``)."""
+                   torques_Nm=None, **kwargs):
+    """The objective ``kind`` of :data:`OBJECTIVES` (dynamic ones need ``speeds_rad_s``);
+    ``torques_Nm`` None: :func:`default_torque_Nm` (the ``rig`` keyword's torque)."""
     if kind not in OBJECTIVES:
         raise DesignError("objective", kind, f"must be one of {OBJECTIVES}")
+    if torques_Nm is None:
+        torques_Nm = default_torque_Nm(mesh.pair, kwargs.get("rig"), "torques_Nm")
     if kind in DYNAMIC_OBJECTIVES:
         if speeds_rad_s is None:
             raise DesignError("speeds_rad_s", None, f"objective {kind!r} needs a speed range")

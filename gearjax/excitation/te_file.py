@@ -178,6 +178,8 @@ class TETable(eqx.Module):
                           "expected (N/um given as N/m?)")
         data = np.stack([cols["te_s_m"], cols.get("nlte_m", np.zeros(n)),
                          np.zeros(n) if k is None else k], axis=1)
+        if angle_unit_rad == 1.0:
+            _question_degrees(th, m, source, angle_column, rows[-1])
         # the period: whole mesh periods, with the closing row or without it
         span = (th[-1] - th[0]) / m
         if span >= 1 - _CLOSE and abs(span - round(span)) <= _CLOSE * max(1.0, span):
@@ -208,6 +210,33 @@ class TETable(eqx.Module):
         return cls(knots=knots, values=vals, slopes=slopes, side=side, period_rad=period,
                    mesh_period_rad=m, jump_thetas=jumps, has_nlte="nlte_m" in cols,
                    has_stiffness=k is not None, source=source)
+
+
+def _whole_periods(th, m, tol) -> bool:
+    """Whether the angles ``th`` (rad) span whole mesh periods ``m``, with or without the
+    closing row (then the span plus one median step), within ``tol`` of a period count."""
+    d = np.diff(th)
+    d = d[d > _SAME_ANGLE * m]
+    span = (th[-1] - th[0]) / m
+    for cover in (span, span + (float(np.median(d)) / m if d.size else 0.0)):
+        n = round(cover)
+        if n >= 1 and abs(cover - n) <= tol * n:
+            return True
+    return False
+
+
+def _question_degrees(th, m, source, column, last_row) -> None:
+    """Refuse angles in a radian column that are whole mesh periods only when read as
+    degrees (a file exported in degrees: one mesh period of 360/z1 deg would otherwise
+    read as ~57 mesh periods of a much slower excitation)."""
+    deg = th * (np.pi / 180.0)
+    if _whole_periods(deg, m, 1e-3) and not _whole_periods(th, m, 1e-3):
+        span = float(th[-1] - th[0])
+        raise GearjaxError(
+            f"{source}: {column}={float(th[-1])!r} in row {last_row}: the rows span {span:.6g} "
+            f"= {span / m:.4g} mesh periods if radians, but {span * np.pi / 180 / m:.4g} whole "
+            "mesh period(s) if degrees: angles in degrees? The column is in radians (multiply "
+            "by pi/180)")
 
 
 def _knots(th, data, period, m):

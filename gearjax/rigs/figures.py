@@ -18,7 +18,7 @@ from ..structure.element import PinionGearElement
 from .rig import Rig
 
 __all__ = ["torsional_stiffness_figures", "iso6336_resonance_speed", "system_3d",
-           "three_d_figures", "predicted_critical_speeds"]
+           "three_d_figures", "predicted_critical_speeds", "rig_critical_speeds"]
 
 
 def torsional_stiffness_figures(rig: Rig, law: str = "iso6336") -> dict:
@@ -115,18 +115,50 @@ def three_d_figures(rig: Rig, law: str = "iso6336", encoder_position: int = 1, n
     }
 
 
+# the receptance peak search: this many speeds from 0 to SPAN x the highest critical
+# speed of a mode carrying at least MIN_SHARE of the mesh strain energy
+GRID_POINTS = 6000
+GRID_SPAN = 1.5
+MIN_SHARE = 0.01
+
+
+def _receptance_peak(w, v, k_m: float, zeta: float, z1: int, n: int, speeds_rad_s=None) -> dict:
+    """The critical speeds of modes ``w`` (rad/s, mass-normalised, the first ``n`` true
+    modes) with mesh components ``v = phi^T V``: see :func:`predicted_critical_speeds`."""
+    w = np.asarray(w, dtype=float)
+    v = np.asarray(v, dtype=float)
+    share = k_m * v[:n] ** 2 / np.where(w[:n] > 0, w[:n], np.inf) ** 2
+    j = int(np.argmax(share))
+    top = GRID_SPAN * float(np.max(w[:n][share >= MIN_SHARE * share[j]])) / z1
+    speeds = np.linspace(top / GRID_POINTS, top, GRID_POINTS)
+    if speeds_rad_s is not None:
+        speeds = np.union1d(speeds, np.asarray(speeds_rad_s, dtype=float).reshape(-1))
+    om = z1 * speeds
+    c = np.sum(v[None, :] ** 2 / (w[None, :] ** 2 - om[:, None] ** 2
+                                  + 2j * zeta * w[None, :] * om[:, None]), axis=1)
+    amp = np.abs(k_m * c - 1.0)
+    i = int(np.argmax(amp))
+    return {"mode_frequency_hz": float(w[j] / (2 * math.pi)), "mesh_energy_share": float(share[j]),
+            "mode_critical_speed_rad_s": float(w[j] / z1),
+            "critical_speed_rad_s": float(speeds[i]), "mesh_amplification_at_peak": float(amp[i]),
+            "searched_rad_s": [float(speeds[0]), float(speeds[-1])]}
+
+
 def predicted_critical_speeds(model, speeds_rad_s=None) -> dict:
     """Main tooth critical pinion speed predicted from the modes (``Omega1 = omega / z1``).
 
     * ``mode_*``: the mode with the largest share of strain energy in the mesh,
       ``k_m (phi^T V)^2 / omega^2`` (mass-normalised modes of ``(M, K_bar)``; the shares sum
       to ``k_m C_vv = 1``, Eq. (33)).
-    * ``critical_speed_rad_s``: the peak over ``speeds_rad_s`` (default 20-1500 rad/s) of the
-      mesh dynamic amplification ``|k_m C_vv(omega) - 1|`` at the mesh frequency
-      ``omega = z1 Omega1``, with the receptance ``C_vv(omega) = sum_j (phi_j^T V)^2 /
-      (omega_j^2 - omega^2 + 2 i zeta omega_j omega)`` (Eq. (33) at frequency omega): the
-      ratio of the dynamic to the quasi-static mesh deflection for the first mesh harmonic
-      of a TE excitation (Eq. (48a)); it accounts for close modes sharing the mesh energy.
+    * ``critical_speed_rad_s``: the peak of the mesh dynamic amplification ``|k_m
+      C_vv(omega) - 1|`` at the mesh frequency ``omega = z1 Omega1``, with the receptance
+      ``C_vv(omega) = sum_j (phi_j^T V)^2 / (omega_j^2 - omega^2 + 2 i zeta omega_j
+      omega)`` (Eq. (33) at frequency omega): the ratio of the dynamic to the quasi-static
+      mesh deflection for the first mesh harmonic of a TE excitation (Eq. (48a)); it
+      accounts for close modes sharing the mesh energy. Searched over the model's own
+      range: :data:`GRID_POINTS` speeds up to :data:`GRID_SPAN` times the highest critical
+      speed of a mode with at least :data:`MIN_SHARE` of the largest mesh-energy share
+      (``searched_rad_s``), plus ``speeds_rad_s`` (rad/s) if given.
     * sdof model (:class:`TorsionalModel`): ``omega_n`` for both.
     """
     z1 = model.mesh.pair.z1
@@ -134,19 +166,25 @@ def predicted_critical_speeds(model, speeds_rad_s=None) -> dict:
         w = float(model.natural_frequency_rad_s())
         return {"mode_frequency_hz": w / (2 * math.pi), "mesh_energy_share": 1.0,
                 "mode_critical_speed_rad_s": w / z1, "critical_speed_rad_s": w / z1}
-    n = model.n_modes
-    w = np.asarray(model.omega_r)
-    v = np.asarray(model.v_r)
-    k_m = float(model.k_m)
-    share = k_m * v[:n] ** 2 / np.where(w[:n] > 0, w[:n], np.inf) ** 2
-    j = int(np.argmax(share))
-    speeds = np.linspace(20.0, 1500.0, 2961) if speeds_rad_s is None else np.asarray(speeds_rad_s)
-    om = z1 * speeds
-    zeta = float(model.damping_ratio)
-    c = np.sum(v[None, :] ** 2 / (w[None, :] ** 2 - om[:, None] ** 2
-                                  + 2j * zeta * w[None, :] * om[:, None]), axis=1)
-    amp = np.abs(k_m * c - 1.0)
-    i = int(np.argmax(amp))
-    return {"mode_frequency_hz": float(w[j] / (2 * math.pi)), "mesh_energy_share": float(share[j]),
-            "mode_critical_speed_rad_s": float(w[j] / z1),
-            "critical_speed_rad_s": float(speeds[i]), "mesh_amplification_at_peak": float(amp[i])}
+    return _receptance_peak(model.omega_r, model.v_r, float(model.k_m),
+                            float(model.damping_ratio), z1, model.n_modes, speeds_rad_s)
+
+
+def rig_critical_speeds(rig: Rig, law: str = "iso6336", model: str = "3d",
+                        damping_ratio: float = 0.1) -> dict:
+    """:func:`predicted_critical_speeds` of a rig before any dynamic model is built (the
+    default speed ranges of the command line): ``"torsional"``, ``omega_n / z1`` of the
+    sdof model with its default inertias (:func:`torsional_stiffness_figures`); ``"3d"``,
+    the receptance peak of every mode of ``(M, K + k_m V V^T)`` (no modal cut-off) at
+    modal damping ``damping_ratio``. Speeds in rad/s."""
+    if model == "torsional":
+        w = torsional_stiffness_figures(rig, law)["torsional_critical_speed_rad_s"]
+        return {"mode_frequency_hz": w * rig.pair.z1 / (2 * math.pi), "mesh_energy_share": 1.0,
+                "mode_critical_speed_rad_s": w, "critical_speed_rad_s": w}
+    sys3 = system_3d(rig, law)
+    V, k_m = sys3["V"], sys3["k_m"]
+    modes = modal_basis(np.asarray(sys3["structure"].M),
+                        np.asarray(sys3["structure"].K) + k_m * np.outer(V, V), warn=False)
+    phi = np.asarray(modes.modes)
+    return _receptance_peak(modes.omegas_rad_s, phi.T @ V, k_m, damping_ratio, rig.pair.z1,
+                            phi.shape[1])

@@ -112,7 +112,7 @@ Internally nodes are 0-based (``index = number - first_node``); the returned
 Checks made at load time, beyond types and ranges: the gear pair is valid
 (:class:`~gearjax.gears.geometry.GearPair`), every dof of every node has mass, the pinion and
 gear nodes are on different shaft lines, no node is on two shaft lines, every number is in
-its physical range (:data:`gearjax.rigs.rigfile_checks.RANGES`: stiffnesses up to 1e13 N/m and
+its physical range (:data:`gearjax.rigs.rigfile_checks.RANGES`: stiffnesses up to 1e16 N/m and
 1e9 N m/rad, diameters 1 mm-10 m, elements at least 0.1 mm long, ...; a value outside is named
 with its range before any modal analysis), and the structure without the mesh has at most one
 rigid-body mode (the free rotation of the driving line, which the pinion-gear element removes,
@@ -142,7 +142,7 @@ from .rig import Rig
 from .rigfile_checks import (AXIS_KEYS, MIN_ELEMENT_LENGTH_M, REQUIRED, Nodes, Reader,
                              per_element, read_axis, table_list)
 from ..structure.assembly import Structure, StructureBuilder
-from ..structure.modal import modal_basis
+from ..structure.modal import modal_basis, scaled_null_dimension
 from ..structure.beams import DOF_NAMES, STEEL, ElementInputError, Material, disc_properties
 
 __all__ = ["load_rig", "parse_rig"]
@@ -564,7 +564,7 @@ def _check_structure(root: Reader, s: Structure, nodes: Nodes, special: dict) ->
                   "pinion line and the gear line different `line` names")
     K = np.asarray(s.K)
     basis = modal_basis(M, K, warn=False)
-    if basis.n_rigid > 1 and _null_dimension(K) <= 1:
+    if basis.n_rigid > 1 and scaled_null_dimension(K) <= 1:
         # K itself has at most one free motion: the extra "rigid-body" modes are soft modes
         # lost in the round-off of a too wide stiffness range, not missing supports
         d = np.diag(K)
@@ -591,16 +591,6 @@ def _check_structure(root: Reader, s: Structure, nodes: Nodes, special: dict) ->
                   f"resisting torsional_spring? Free motions: {free}")
 
 
-def _null_dimension(K: np.ndarray, tol: float = 1e-10) -> int:
-    """Number of free motions of the stiffness matrix ``K`` (dimension of its null space),
-    after Jacobi scaling ``D^-1/2 K D^-1/2``: a stiffness contrast between dofs no longer
-    drowns the soft directions in round-off."""
-    d = np.diag(K).copy()
-    scale = 1.0 / np.sqrt(np.where(d > 0, d, 1.0))
-    lam = np.linalg.eigvalsh(K * scale[:, None] * scale[None, :])
-    return int(np.sum(lam <= tol * max(float(lam[-1]), 1e-300)))
-
-
 def load_rig(path: str | os.PathLike) -> Rig:
     """Load a user rig from a TOML file (schema in the module docstring).
 
@@ -617,7 +607,7 @@ def load_rig(path: str | os.PathLike) -> Rig:
     except OSError as exc:
         raise RigError(f"rig={str(path)!r}: cannot read the rig file ({exc.strerror})") from None
     try:
-        data = tomllib.loads(text.decode("utf-8"))
+        data = tomllib.loads(text.decode("utf-8-sig"))  # a byte-order mark (Windows editors) reads
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise RigError(f"rig={str(path)!r}: not valid TOML: {exc}") from None
     return parse_rig(data, source=str(path), default_name=p.stem)

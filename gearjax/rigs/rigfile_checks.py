@@ -71,9 +71,12 @@ def is_real(x: Any) -> bool:
 
 # Physical ranges of the numbers of a rig file (by key), checked at load: values beyond
 # them are typos or unit slips (mm for m), and values far beyond them make the structure's
-# modal analysis meaningless (a 1e15 N/m bearing next to a 1e5 N m/rad torsional spring
-# turns soft modes into apparent rigid-body modes).
-N_PER_M = (0.0, 1e13, "N/m")
+# modal analysis meaningless (a 1e18 N/m bearing next to a 1e5 N m/rad torsional spring
+# puts the soft modes below the round-off of the stiff ones).
+# Translational stiffnesses up to 1e16 N/m: "rigid" supports (1e14 N/m) are accepted; above
+# 1e16 N/m the structure's highest natural frequencies rise so far above the soft
+# torsional modes that float64 eigenvalues lose them (round-off ~1e-16 max(w^2)).
+N_PER_M = (0.0, 1e16, "N/m")
 NM_PER_RAD = (0.0, 1e9, "N m/rad")
 RANGES: dict[str, tuple[float, float, str]] = {
     "k_S_N_per_m": N_PER_M, "k_T_N_per_m": N_PER_M, "k_axial_N_per_m": N_PER_M,

@@ -86,10 +86,28 @@ def _full_eig(
         raise StructureInputError(
             f"K must be positive semi-definite; smallest eigenvalue {lam[0]!r} (rad/s)^2"
         )
+    # at most as many rigid-body modes as K has free motions once Jacobi-scaled: a very
+    # stiff support (1e14 N/m, "rigid") lifts max(w^2) so far that a soft but real mode
+    # would otherwise fall below rigid_body_tol * max(w^2) and be zeroed
     rigid = lam <= rigid_body_tol * scale
-    lam = np.where(rigid, 0.0, lam)
+    n_rigid = min(int(rigid.sum()), scaled_null_dimension(K, rigid_body_tol))
+    rigid = np.arange(lam.size) < n_rigid
+    lam = np.where(rigid, 0.0, np.maximum(lam, 0.0))
     modes = Linv.T @ Y
-    return np.sqrt(lam), modes, int(rigid.sum())
+    return np.sqrt(lam), modes, n_rigid
+
+
+def scaled_null_dimension(K: NDArray[np.float64], tol: float = 1e-10) -> int:
+    """Number of free motions of the stiffness matrix ``K`` (the dimension of its null
+    space) after Jacobi scaling ``D^-1/2 K D^-1/2`` (``D = diag K``; a dof without
+    stiffness is its own free motion): a stiffness contrast between dofs (a 1e14 N/m
+    bearing next to a 1e5 N m/rad torsional spring) no longer drowns the soft directions
+    in round-off. An eigenvalue of the scaled matrix below ``tol`` times its largest is
+    a free motion."""
+    d = np.diag(K).copy()
+    scale = 1.0 / np.sqrt(np.where(d > 0, d, 1.0))
+    lam = np.linalg.eigvalsh(K * scale[:, None] * scale[None, :])
+    return int(np.sum(lam <= tol * max(float(lam[-1]), 1e-300)))
 
 
 def modal_basis(
