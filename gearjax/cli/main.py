@@ -67,6 +67,9 @@ def _parser() -> argparse.ArgumentParser:
                            "natural frequencies")
     info.add_argument("--encoders", type=int, default=1, choices=[1, 2, 3],
                       help="encoder positions of Fig. 7 for W and w_x0 (default 1)")
+    from .iso import add_iso_options
+
+    add_iso_options(info)
 
     qs = sub.add_parser("quasistatic", help="quasi-static TE_S and NLTE (unilateral contact)")
     _add_rig(qs)
@@ -150,6 +153,10 @@ def _cmd_info(args) -> int:
     out = {"rig": rig.name, "description": rig.description}
     out.update(rig.pair.summary())
     out.update(torsional_stiffness_figures(rig, args.stiffness))
+    from ..rigs.iso_figures import info_figures
+    from .iso import accuracy_of
+
+    out.update(info_figures(rig, accuracy_of(args, rig)))  # ISO 6336-1's own c_gamma_alpha
     if args.model == "3d":
         out.update(three_d_figures(rig, args.stiffness, args.encoders))
     if args.json:
@@ -171,8 +178,18 @@ def _cmd_info(args) -> int:
         ("mesh stiffness law", out["stiffness_law"]),
         ("mean mesh stiffness k_m", f"{out['mean_mesh_stiffness_N_per_m'] / 1e6:.2f} N/um"),
         ("stiffness variation alpha", f"{out['stiffness_variation_alpha']:.4f}"),
+        ("ISO 6336-1 c' / c_gamma_alpha", f"{out['iso6336_c_prime_N_per_mm_um']:.4f} / "
+                                          f"{out['iso6336_c_gamma_alpha_N_per_mm_um']:.4f} N/(mm um)"),
+        ("ISO resonance speed n_E1", f"{out['iso6336_resonance_speed_rad_s']:.1f} rad/s "
+                                     f"({out['iso6336_resonance_speed_rpm']:.0f} 1/min)"),
+        ("ISO K_v (method B), main resonance", f"{out['iso6336_kv_main_resonance']:.4f}"),
+        *([(f"ISO K_v at {out['iso6336_rated_speed_rad_s']:.1f} rad/s",
+            f"{out['iso6336_kv_at_rated_speed']:.4f} (N = "
+            f"{out['iso6336_resonance_ratio_at_rated_speed']:.4f})")]
+          if "iso6336_kv_at_rated_speed" in out else []),
+        ("ISO F_t (reference circle)", f"{out['iso6336_reference_tangential_force_N']:.1f} N"),
         ("pinion torque", f"{rig.pinion_torque_Nm:.1f} N m"),
-        ("static mesh force F_S", f"{out['static_mesh_force_N']:.1f} N"),
+        ("static mesh force F_S (base plane)", f"{out['static_mesh_force_N']:.1f} N"),
     ]
     if args.model == "3d":
         freqs = ", ".join(f"{f:.1f}" for f in out["natural_frequencies_hz"][:8])
