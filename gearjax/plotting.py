@@ -57,11 +57,16 @@ def plot_quasistatic(result, mesh, path: str, title: str = ""):
     plt.close(fig)
 
 
-def plot_response_curves(csv_path: str, path: str, title: str = ""):
+def plot_response_curves(csv_path: str, path: str, title: str = "", iso_kv=None):
     """Response curves laid out like Figs. 8-13 from a sweep's ``results.csv``: maximum
     dynamic tooth load, peak-to-peak DTE and peak-to-peak pinion-centre acceleration (S)
     against pinion speed, one curve per formulation (the acceleration panel is left out for
-    torsional models, which have none)."""
+    torsional models, which have none).
+
+    ``iso_kv = (speeds_rad_s, kv, resonance_speed_rad_s)`` (ISO 6336-1 method B,
+    :func:`gearjax.rigs.iso_figures.rig_dynamic_factor`) adds a first panel: the computed
+    dynamic factor ``max F / F_S`` of each formulation beside ISO's K_v, and marks ISO's
+    resonance speed n_E1 on every panel (in the legend when it lies beyond the speeds)."""
     import csv
 
     plt = _pyplot()
@@ -72,6 +77,8 @@ def plot_response_curves(csv_path: str, path: str, title: str = ""):
               ("dte_ptp_m", "peak-to-peak DTE [um]", 1e6)]
     if has_acc:
         panels.append(("accel_ptp_m_s2", "p-p pinion acceleration S [m/s$^2$]", 1.0))
+    if iso_kv is not None:
+        panels.insert(0, ("dynamic_factor", "dynamic factor: max F / F$_S$, ISO K$_v$", 1.0))
     fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 2.6 * len(panels) + 0.6), sharex=True,
                              constrained_layout=True)
     markers = {"reference": "D", "te": "s", "perturbation": "^"}
@@ -83,6 +90,18 @@ def plot_response_curves(csv_path: str, path: str, title: str = ""):
             x = np.array([float(r["speed_rad_s"]) for r in sel])
             y = np.array([float(r[key]) if r[key] not in ("",) else np.nan for r in sel]) * scale
             ax.plot(x, y, marker=markers.get(form, "o"), ms=3.5, lw=1.2, label=labels.get(form, form))
+        if iso_kv is not None and key == "dynamic_factor":
+            ax.plot(np.asarray(iso_kv[0]), np.asarray(iso_kv[1]), "k--", lw=1.4,
+                    label="ISO 6336-1 K$_v$ (method B)")
+        if iso_kv is not None:
+            speeds = [float(r["speed_rad_s"]) for r in rows]
+            w_e = float(iso_kv[2])
+            text = f"ISO n$_{{E1}}$ = {w_e:.0f} rad/s"
+            if speeds and min(speeds) <= w_e <= max(speeds):
+                ax.axvline(w_e, color="0.4", ls=":", lw=1.2,
+                           label=text if key == "dynamic_factor" else None)
+            elif key == "dynamic_factor":
+                ax.plot([], [], " ", label=text + " (beyond the speeds)")
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
     np.atleast_1d(axes)[0].legend(loc="best", fontsize=8)

@@ -97,3 +97,26 @@ def test_rig_file_iso6336_table_errors_name_the_key(tmp_path):
     bad.write_text(EXAMPLE.read_text().replace("accuracy_grade = 5", "accuracy_grade = 0"))
     with pytest.raises(RigError, match=r"iso6336\.accuracy_grade=0"):
         load_rig(str(bad))
+
+
+def test_sweep_summary_and_figure_carry_the_iso_dynamic_factor(capsys, tmp_path):
+    """The default sweep figure and summary.json: ISO's K_v at every speed (C_a = the
+    scenario's Table 1 short relief, 13.3 um) and n_E1; below N_S the curve is ISO's
+    straight line K_v = 1 + N K through 1 at rest."""
+    from gearjax.rigs.registry import get_rig
+
+    out = tmp_path / "sw"
+    assert main(["sweep", "--model", "torsional", "--formulations", "te", "--speeds",
+                 "100:1000:4", "--out", str(out), "--json"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert (out / "response_curves.png").stat().st_size > 0
+    rig = get_rig("baud-velex-spur")
+    speeds = np.linspace(100.0, 1000.0, 4)
+    ref = dynamic_factor(rig.pair, rig.pinion_torque_Nm, speeds, AccuracyData(tip_relief_m=13.3e-6))
+    assert summary["iso6336_kv"] == pytest.approx(list(ref.kv), rel=1e-12)
+    assert summary["iso6336_resonance_speed_rad_s"] == pytest.approx(ref.resonance_speed_rad_s, rel=1e-12)
+    assert summary["iso6336"]["iso6336_sources"]["C_a"] == "tip relief of the modifications"
+    sub = ref.resonance_ratio <= ref.n_s
+    assert sub.sum() >= 2
+    slope = (ref.kv[sub] - 1.0) / ref.resonance_ratio[sub]
+    assert slope == pytest.approx(np.full(sub.sum(), slope[0]), rel=1e-12)

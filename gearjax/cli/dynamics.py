@@ -138,6 +138,9 @@ def register(sub, add_rig, add_scenario):
                          "core by the model's size (the speeds of a chunk run in lockstep and "
                          "their solver stages must stay in cache), on a GPU every speed that "
                          "memory holds)")
+    from .iso import add_iso_options
+
+    add_iso_options(sw)
     dist = sw.add_argument_group("several hosts (jax.distributed)")
     dist.add_argument("--distributed", action="store_true",
                       help="join a multi-process run (jax.distributed.initialize with cluster "
@@ -397,6 +400,8 @@ def cmd_sweep(args) -> int:
     }
     if done:
         summary["resumed"] = {f: len(v) for f, v in done.items()}
+    iso = _iso_dynamic_factor(args, rig, mods, speeds)
+    summary.update(iso)
     times, signals, methods, branches = {}, {}, {}, {}
     if lead:  # a stall (gearjax.dynamics.watchdog) ends the process: say where the rows are
         watchdog.add_stall_hook(lambda: f"the speeds finished so far are in {csv_path}; continue "
@@ -501,8 +506,13 @@ def cmd_sweep(args) -> int:
         from ..plotting import plot_branches, plot_response_curves
 
         fig_path = os.path.join(out, "response_curves.png")
-        plot = plot_response_curves if args.direction == "independent" else plot_branches
-        plot(csv_path, fig_path, title=title)
+        if args.direction == "independent":
+            dense = np.linspace(float(speeds[0]), float(speeds[-1]), 400)  # ISO's ranges' kinks
+            plot_response_curves(csv_path, fig_path, title=title,
+                                 iso_kv=(dense, _iso_dynamic_factor(args, rig, mods, dense)[
+                                     "iso6336_kv"], iso["iso6336_resonance_speed_rad_s"]))
+        else:
+            plot_branches(csv_path, fig_path, title=title)
         summary["response_curves_png"] = fig_path
         summary.update(write_order_tracks(orders_path, out, title))
     if signals and not interrupted:
@@ -523,6 +533,22 @@ def cmd_sweep(args) -> int:
         return 0
     _print_summary(rig, summary, out)
     return 0
+
+
+def _iso_dynamic_factor(args, rig, mods, speeds) -> dict:
+    """ISO 6336-1 method-B K_v at the sweep's speeds for ``summary.json``
+    (:func:`gearjax.rigs.iso_figures.rig_dynamic_factor`; C_a defaults to the scenario's tip
+    relief): ``iso6336_kv`` (one per speed), ``iso6336_resonance_speed_rad_s`` and the method's
+    inputs under ``iso6336``. ISO's K_v multiplies F_t at the reference circle, the sweep's
+    ``dynamic_factor`` divides by F_S on the base plane; both are ratios of a dynamic to a
+    static load."""
+    from ..rigs.iso_figures import rig_dynamic_factor
+    from .iso import accuracy_of
+
+    kv = rig_dynamic_factor(rig, speeds, mods, accuracy_of(args, rig))
+    return {"iso6336_kv": [float(v) for v in kv.kv],
+            "iso6336_resonance_speed_rad_s": kv.resonance_speed_rad_s,
+            "iso6336": kv.summary()}
 
 
 def _listed(speeds, tags=None) -> str:
