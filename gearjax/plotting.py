@@ -12,7 +12,7 @@ import numpy as np
 from .design.maps import HarrisMap
 from .design.optimise import OptimisationResult
 
-__all__ = ["plot_quasistatic", "plot_response_curves", "plot_order_tracks", "plot_branches",
+__all__ = ["plot_campbell", "plot_quasistatic", "plot_response_curves", "plot_order_tracks", "plot_branches",
            "plot_mesh_force_signals",
            "plot_design_map", "plot_history", "plot_harris"]
 
@@ -331,3 +331,53 @@ def plot_harris(curves: dict, path: str, title: str = ""):
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def plot_campbell(diagram, path: str, title: str = ""):
+    """Campbell diagram (:class:`gearjax.rigs.campbell.Campbell`): natural frequencies [Hz]
+    against pinion speed [rad/s] as horizontal lines coloured by their share of mesh strain
+    energy, the mesh orders ``k z1 Omega1 / (2 pi)`` as grey lines, and the predicted critical
+    speeds (crossings with ``share >= min_share``) circled and labelled."""
+    from matplotlib import colors
+
+    plt = _pyplot()
+    d = diagram
+    w_max = d.max_speed_rad_s
+    f_top = max(d.orders) * d.z1 * w_max / (2 * np.pi)
+    fig, ax = plt.subplots(figsize=(8.0, 5.6), constrained_layout=True)
+    norm = colors.Normalize(0.0, max(float(np.max(d.share)), d.min_share))
+    cmap = plt.get_cmap("viridis_r")
+    order = np.argsort(d.share)  # the strong modes drawn last, on top
+    for j in order:
+        f = float(d.frequencies_hz[j])
+        if f > f_top:
+            continue
+        s = float(d.share[j])
+        ax.plot([0.0, w_max], [f, f], color=cmap(norm(s)), lw=0.6 + 2.4 * norm(s),
+                alpha=0.35 + 0.65 * norm(s), zorder=1 + s)
+    for k in d.orders:
+        ax.plot([0.0, w_max], [0.0, k * d.z1 * w_max / (2 * np.pi)], color="0.45", lw=0.9, ls="--",
+                zorder=0.5)
+        ax.annotate(f"{k}x mesh", (w_max, k * d.z1 * w_max / (2 * np.pi)), fontsize=7,
+                    color="0.3", ha="right", va="bottom")
+    for r in d.critical_speeds():
+        ax.plot(r["crossing_speed_rad_s"], r["frequency_hz"], "o", mfc="none", mec="crimson",
+                ms=5 + 8 * r["mesh_energy_share"], mew=1.3, zorder=10)
+        if r["mesh_order"] == 1:
+            ax.annotate(f"{r['crossing_speed_rad_s']:.0f}", (r["crossing_speed_rad_s"],
+                        r["frequency_hz"]), xytext=(4, 4), textcoords="offset points",
+                        fontsize=7, color="crimson")
+    sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
+    fig.colorbar(sm, ax=ax, label="share of mesh strain energy")
+    ax.set_xlim(0.0, w_max)
+    ax.set_ylim(0.0, f_top)
+    ax.set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
+    ax.set_ylabel("frequency [Hz]")
+    ax.plot([], [], "o", mfc="none", mec="crimson",
+            label=f"predicted critical speed (share >= {d.min_share:g}; order 1 labelled, rad/s)")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.grid(alpha=0.25)
+    if title:
+        ax.set_title(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -8,6 +8,7 @@ Commands
 ``gearjax sweep``       response curves of Figs. 8-13 (:mod:`gearjax.cli.dynamics`).
 ``gearjax stability``   Floquet spectral radius over speeds (:mod:`gearjax.cli.dynamics`).
 ``gearjax optimise``, ``gearjax harris-map``  tip-relief design (:mod:`gearjax.cli.design`).
+``gearjax campbell``    Campbell diagram and predicted critical speeds (:mod:`gearjax.cli.campbell`).
 
 The CLI only parses arguments and formats results; all physics lives in the library.
 """
@@ -106,7 +107,8 @@ _STALL_TIMEOUTS = {"sweep": _WATCHED_S, "optimise": _WATCHED_S, "stability": 0.0
 
 # Modules adding sub-commands: each defines ``register(subparsers, add_rig, add_scenario)``
 # that adds its parsers with ``set_defaults(func=...)``; ``func(args) -> int``.
-_EXTENSIONS: tuple[str, ...] = ("gearjax.cli.dynamics", "gearjax.cli.design", "gearjax.cli.paper")
+_EXTENSIONS: tuple[str, ...] = ("gearjax.cli.dynamics", "gearjax.cli.design", "gearjax.cli.paper",
+                                "gearjax.cli.campbell")
 
 
 _EXAMPLES = """examples:

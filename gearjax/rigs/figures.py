@@ -16,6 +16,7 @@ from ..models.torsional import TorsionalModel, solid_cylinder_inertias
 from ..structure import modal_basis
 from ..structure.analytic import analytic_relations
 from ..structure.element import PinionGearElement
+from .campbell import mesh_energy_shares
 from .rig import Rig
 
 __all__ = ["torsional_stiffness_figures", "iso6336_resonance_speed", "system_3d",
@@ -133,7 +134,7 @@ def predicted_critical_speeds(model, speeds_rad_s=None) -> dict:
     w = np.asarray(model.omega_r)
     v = np.asarray(model.v_r)
     k_m = float(model.k_m)
-    share = k_m * v[:n] ** 2 / np.where(w[:n] > 0, w[:n], np.inf) ** 2
+    _, share = mesh_energy_shares(model)  # the Campbell diagram's shares
     j = int(np.argmax(share))
     speeds = np.linspace(20.0, 1500.0, 2961) if speeds_rad_s is None else np.asarray(speeds_rad_s)
     om = z1 * speeds
