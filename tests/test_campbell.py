@@ -33,11 +33,12 @@ def test_torsional_campbell_crosses_at_the_closed_form_critical_speeds(capsys, t
     summary, rows = _campbell(capsys, tmp_path, "--model", "torsional", "--max-speed", "900")
     crit = summary["predicted_critical_speeds"]
     assert [r["mesh_order"] for r in crit] == [5, 4, 3, 2, 1]
-    w_n = info["torsional_natural_frequency_rad_s"]
-    # info's k_m is the geometric mean of the law; the model's is the loaded mean (short relief)
+    # the loaded k_m (short relief) of the dynamics, which info gives beside the geometric one
+    assert summary["mean_mesh_stiffness_N_per_m"] == info["loaded_mean_mesh_stiffness_N_per_m"]
     ratio = math.sqrt(summary["mean_mesh_stiffness_N_per_m"] / info["mean_mesh_stiffness_N_per_m"])
+    w_n = info["torsional_natural_frequency_rad_s"] * ratio  # closed form, Eq. (16)
     for r in crit:
-        assert r["crossing_speed_rad_s"] == pytest.approx(w_n * ratio / (r["mesh_order"] * 26), rel=1e-9)
+        assert r["crossing_speed_rad_s"] == pytest.approx(w_n / (r["mesh_order"] * 26), rel=1e-9)
         assert r["mesh_energy_share"] == 1.0
     assert len(rows) == 5
 
@@ -57,6 +58,13 @@ def test_3d_predicted_critical_speeds_match_the_stored_response_peaks(capsys, tm
                               "--max-speed", "900")
     # Eq. (33): the shares of all modes sum to k_m C_vv = 1; the retained ones nearly
     assert 0.95 < summary["retained_mesh_energy_share"] <= 1.0 + 1e-9
+    from gearjax.rigs.loaded import loaded_stiffness_figures
+    from gearjax.rigs.registry import get_rig
+
+    r_ = get_rig(rig)  # one k_m: the 3D model's matches the sdof model's that info reports
+    sdof = loaded_stiffness_figures(r_, r_.modifications("short"), stored["stiffness_law"])
+    assert summary["mean_mesh_stiffness_N_per_m"] == pytest.approx(
+        sdof["loaded_mean_mesh_stiffness_N_per_m"], rel=1e-3)
     shares = np.array([float(r["mesh_energy_share"]) for r in rows])
     assert np.all(shares >= 0.0)
     ref = [r for r in csv.DictReader(open(PAPER / case / "results.csv"))
@@ -68,3 +76,26 @@ def test_3d_predicted_critical_speeds_match_the_stored_response_peaks(capsys, tm
               if r["mesh_order"] == 1]
     nearest = min(order1, key=lambda s: abs(s - peak))
     assert abs(nearest - peak) / peak < 0.03, (peak, order1)
+
+
+def test_info_gives_the_dynamics_k_m_beside_the_geometric_one(capsys):
+    """One k_m: `gearjax info` reports the loaded mean the dynamic models use (the sdof
+    model's, which the 3D model's matches to 1e-3) beside the geometric mean; without tip
+    relief every cell of the involute pair is loaded and the two coincide."""
+    from gearjax.rigs.factory import build_model
+    from gearjax.rigs.figures import torsional_stiffness_figures
+    from gearjax.rigs.loaded import loaded_stiffness_figures
+    from gearjax.rigs.registry import get_rig
+
+    assert main(["info", "--model", "torsional", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    rig = get_rig("baud-velex-spur")
+    short = rig.modifications("short")
+    sdof = build_model(rig, short, model="torsional", formulation="te")
+    assert info["loaded_mean_mesh_stiffness_N_per_m"] == float(sdof.k_m)
+    assert info["loaded_mean_mesh_stiffness_N_per_m"] < 0.95 * info["mean_mesh_stiffness_N_per_m"]
+    assert info["loaded_torsional_critical_speed_rad_s"] == pytest.approx(
+        float(sdof.natural_frequency_rad_s()) / 26, rel=1e-12)
+    bare = loaded_stiffness_figures(rig, rig.modifications("none"))
+    geometric = torsional_stiffness_figures(rig)["mean_mesh_stiffness_N_per_m"]
+    assert bare["loaded_mean_mesh_stiffness_N_per_m"] == pytest.approx(geometric, rel=2e-3)

@@ -159,6 +159,13 @@ def _cmd_info(args) -> int:
     from .iso import accuracy_of
 
     out.update(info_figures(rig, accuracy_of(args, rig)))  # ISO 6336-1's own c_gamma_alpha
+    from ..rigs.iso_figures import default_modifications
+    from ..rigs.loaded import loaded_stiffness_figures
+
+    mods = default_modifications(rig)  # the dynamics' k_m: loaded, with the default relief
+    out.update(loaded_stiffness_figures(rig, mods, args.stiffness))
+    out["loaded_stiffness_modifications"] = (
+        "rig file [modifications]" if rig.modifications_default is not None else "--relief short")
     if args.model == "3d":
         out.update(three_d_figures(rig, args.stiffness, args.encoders))
     if args.json:
@@ -178,7 +185,11 @@ def _cmd_info(args) -> int:
         ("contact ratio eps_alpha", f"{p.transverse_contact_ratio:.4f}"),
         ("overlap ratio eps_beta", f"{p.overlap_ratio:.4f}"),
         ("mesh stiffness law", out["stiffness_law"]),
-        ("mean mesh stiffness k_m", f"{out['mean_mesh_stiffness_N_per_m'] / 1e6:.2f} N/um"),
+        ("mean mesh stiffness k_m, geometric", f"{out['mean_mesh_stiffness_N_per_m'] / 1e6:.2f} N/um "
+                                               "(every cell in the path of contact)"),
+        ("mean mesh stiffness k_m, loaded", f"{out['loaded_mean_mesh_stiffness_N_per_m'] / 1e6:.2f} N/um "
+                                            f"(the dynamics' k_m; {out['loaded_stiffness_modifications']})"),
+        ("sdof critical speed, loaded k_m", f"{out['loaded_torsional_critical_speed_rad_s']:.1f} rad/s"),
         ("stiffness variation alpha", f"{out['stiffness_variation_alpha']:.4f}"),
         ("ISO 6336-1 c' / c_gamma_alpha", f"{out['iso6336_c_prime_N_per_mm_um']:.4f} / "
                                           f"{out['iso6336_c_gamma_alpha_N_per_mm_um']:.4f} N/(mm um)"),
