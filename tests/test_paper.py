@@ -90,3 +90,32 @@ def test_paper_command_tiny_run(tmp_path, capsys):
     assert "![fig09](fig09/response_curves.png)" in text and "encoders2" not in os.listdir(out)
     assert "not run (fig08)" in text and "gearjax sweep --model torsional" in text
     assert {c.key for c in CASES} >= {"fig08", "fig13", "encoders3"}
+
+
+@pytest.mark.parametrize("extra, law", [((), "weber"), (("--stiffness", "iso6336"), "iso6336")])
+def test_paper_runs_the_papers_mesh_law_by_default(tmp_path, capsys, monkeypatch, extra, law):
+    """Section 6.1's mesh model (Weber-Banaschek/O'Donnell, `weber`) in every case unless
+    --stiffness says otherwise; paper.json and the README name the law used."""
+    import importlib
+    import json
+
+    cli = importlib.import_module("gearjax.cli.main")  # the module (gearjax.cli.main is main())
+
+    seen = []
+
+    def fake_sweep(argv):  # records each case's command instead of running it
+        seen.append(argv)
+        os.makedirs(argv[argv.index("--out") + 1], exist_ok=True)
+        return 0
+
+    monkeypatch.setattr(cli, "main", fake_sweep)
+    out = tmp_path / "paper"
+    assert main(["paper", "--cases", "fig09", "--out", str(out), *extra]) == 0
+    capsys.readouterr()
+    (argv,) = seen
+    assert argv[argv.index("--stiffness") + 1] == law
+    meta = json.loads((out / "fig09" / "paper.json").read_text())
+    assert meta["stiffness_law"] == law and f"--stiffness {law}" in meta["command"]
+    text = (out / "README.md").read_text()
+    assert f"Mesh stiffness law: **{law}**" in text
+    assert ("the paper's (Section 6.1" in text) is (law == "weber")

@@ -448,6 +448,8 @@ def cmd_sweep(args) -> int:
                 linear = model
             if "predicted" not in summary:
                 summary["predicted"] = predicted_critical_speeds(model)
+                # the k_m of the model (gearjax.rigs.loaded), as `gearjax info` names it
+                summary["loaded_mean_mesh_stiffness_N_per_m"] = float(model.k_m)
                 if args.model == "3d":
                     summary["n_modes"] = int(model.n_modes)
                     summary["w_x0_m"] = float(model.w_x0)
