@@ -116,6 +116,12 @@ def test_sweep_summary_and_figure_carry_the_iso_dynamic_factor(capsys, tmp_path)
     assert summary["iso6336_kv"] == pytest.approx(list(ref.kv), rel=1e-12)
     assert summary["iso6336_resonance_speed_rad_s"] == pytest.approx(ref.resonance_speed_rad_s, rel=1e-12)
     assert summary["iso6336"]["iso6336_sources"]["C_a"] == "tip relief of the modifications"
+    # the same run records the model's own critical speeds (gearjax campbell's rows) and k_m
+    crit = summary["critical_speeds"]
+    assert [r["mesh_order"] for r in crit] == [5, 4, 3, 2, 1]
+    assert crit[-1]["crossing_speed_rad_s"] == pytest.approx(
+        summary["predicted"]["critical_speed_rad_s"], rel=1e-12)
+    assert summary["loaded_mean_mesh_stiffness_N_per_m"] > 0
     sub = ref.resonance_ratio <= ref.n_s
     assert sub.sum() >= 2
     slope = (ref.kv[sub] - 1.0) / ref.resonance_ratio[sub]
