@@ -185,3 +185,21 @@ def test_every_panel_is_judged_with_its_criterion_and_cause(tmp_path):
     p12 = next(r for r in panel_claims(str(tmp_path)) if r["figure"] == "Fig. 12"
                and r["comparison"].startswith("perturbation") and r["panel"] == "max force")
     assert p12["verdict"] == "disagree" and p12["critical_source"] == "the reference's peak"
+
+
+def test_claim_6_3_3_reads_near_from_the_models_own_critical_speeds(tmp_path):
+    """The perturbation's worst error at 600 rad/s: away from the reference's peak (840), but
+    within 10 % of the model's second critical speed (660 rad/s, a mode with 20 % of the mesh
+    strain energy), which the sweep recorded: the claim holds and the row names the speeds."""
+    speeds = (200.0, 400.0, 600.0, 840.0)
+    ref = {w: (1000.0 + (w == 840.0) * 1000.0, 1e-5, 100.0, 900.0, False) for w in speeds}
+    pert = {w: (v[0] * (1.10 if w == 600.0 else 1.02),) + v[1:] for w, v in ref.items()}
+    crit = [(660.0, 2700.0, 0.20, 1), (840.0, 3400.0, 0.30, 1)]
+    _full_case(tmp_path, "fig12", {"reference": ref, "te": ref, "perturbation": pert}, critical=crit)
+    row = next(r for r in claims(str(tmp_path)) if r[0] == "6.3.3")
+    assert row[3] == "agree"
+    assert "the model's critical speeds 660 (2700 Hz, 20 %), 840 (3400 Hz, 30 %) rad/s" in row[2]
+    assert "away: max 2.0 %" in row[2]
+    os.remove(tmp_path / "fig12" / "summary.json")  # a case run before: the reference's peak
+    row = next(r for r in claims(str(tmp_path)) if r[0] == "6.3.3")
+    assert row[3] == "disagree" and "within ±10 % of 840 rad/s" in row[2]
