@@ -99,3 +99,13 @@ def test_info_gives_the_dynamics_k_m_beside_the_geometric_one(capsys):
     bare = loaded_stiffness_figures(rig, rig.modifications("none"))
     geometric = torsional_stiffness_figures(rig)["mean_mesh_stiffness_N_per_m"]
     assert bare["loaded_mean_mesh_stiffness_N_per_m"] == pytest.approx(geometric, rel=2e-3)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--max-speed", "-5"], "--max-speed=-5.0"),
+    (["--min-share", "1.5"], "--min-share=1.5"),
+])
+def test_campbell_bad_input_is_one_line(capsys, tmp_path, argv, words):
+    assert main(["campbell", "--model", "torsional", "--out", str(tmp_path / "c"), *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and words in err

@@ -18,20 +18,22 @@ Method B as implemented (ISO 6336-1:2006, 6.5; clause numbers of that edition)
 * ``c'`` (:func:`single_stiffness`): ``c'_th C_M C_R C_B cos(beta)`` of
   :func:`gearjax.gears.mesh.iso6336_single_stiffness` (Eq. (98) coefficients, ``C_M = 0.8``,
   ``C_R = 1``, solid blanks), times ``((F_t K_A / b) / (100 N/mm))^0.25`` when the line load
-  is below 100 N/mm (9.3.1). ``c_gamma_alpha = c' (0.75 eps_alpha + 0.25)``.
-* Resonance speed (6.5.3, Eq. (6)): ``n_E1 = 30000 / (pi z1) sqrt(c_gamma_alpha / m_red)``
+  is below 100 N/mm (clause 9). ``c_gamma_alpha = c' (0.75 eps_alpha + 0.25)``.
+* Resonance speed (Eq. (6)): ``n_E1 = 30000 / (pi z1) sqrt(c_gamma_alpha / m_red)``
   (1/min), solid gears, ``m_red = m1* m2* / (m1* + m2*)``, ``m_i* = pi rho d_mi^4 /
   (8 d_bi^2)`` per unit face width, ``d_m`` the mean of tip and root diameters; here in
   rad/s, ``Omega_E1 = sqrt(c_gamma_alpha / m_red) / z1`` (:func:`resonance_speed`).
-* Resonance ratio ``N = Omega1 / Omega_E1``; lower limit of the main resonance range
-  ``N_S = 0.85`` for ``F_t K_A / b >= 100 N/mm``, else ``0.5 + 0.35 sqrt((F_t K_A / b) / 100)``.
+* Resonance ratio ``N = Omega1 / Omega_E1`` (Eq. (9)); lower limit of the main resonance range
+  ``N_S = 0.85`` for ``F_t K_A / b >= 100 N/mm``, else ``0.5 + 0.35 sqrt((F_t K_A / b) / 100)``
+  (Eqs. (11), (12)).
 * ``B_p = c' f_pb,eff / (F_t K_A / b)``, ``B_f = c' f_falpha,eff / (F_t K_A / b)``,
-  ``B_k = |1 - c' C_a / (F_t K_A / b)|``; ``f_pb,eff = f_pb - y_p``, ``f_falpha,eff =
+  ``B_k = |1 - c' C_a / (F_t K_A / b)|`` (Eqs. (15)-(17)); ``f_pb,eff = f_pb - y_p``, ``f_falpha,eff =
   f_falpha - y_f``; gearjax takes ``y_p = y_f = y_alpha`` with ``y_alpha = 0.075 f_pb``
   (at most 3 um: case-hardened or nitrided steel).
-* ``K_v``: subcritical ``N <= N_S``: ``N (C_v1 B_p + C_v2 B_f + C_v3 B_k) + 1``; main
-  resonance ``N_S < N <= 1.15``: ``C_v1 B_p + C_v2 B_f + C_v4 B_k + 1``; supercritical
-  ``N >= 1.5``: ``C_v5 B_p + C_v6 B_f + C_v7``; linear between 1.15 and 1.5. ``C_v1..C_v7``
+* ``K_v``: subcritical ``N <= N_S``: ``N (C_v1 B_p + C_v2 B_f + C_v3 B_k) + 1`` (6.5.4, Eqs.
+  (13), (14)); main resonance ``N_S < N <= 1.15``: ``C_v1 B_p + C_v2 B_f + C_v4 B_k + 1``
+  (6.5.5, Eq. (20)); supercritical ``N >= 1.5``: ``C_v5 B_p + C_v6 B_f + C_v7`` (6.5.6,
+  Eq. (21)); linear between 1.15 and 1.5 (6.5.7, Eq. (22)). ``C_v1..C_v7``
   from the total contact ratio ``eps_gamma`` (Table 8).
 
 Accuracy data and defaults (:class:`AccuracyData`)
@@ -144,7 +146,7 @@ def mesh_stiffness(pair: GearPair, line_load_N_per_m: float | None = None) -> fl
 
 
 def reduced_mass_per_width(pair: GearPair, density_kg_m3: float = STEEL_DENSITY_KG_M3) -> float:
-    """ISO 6336-1 (6.5.9, solid gears) reduced mass per unit face width (kg/m):
+    """ISO 6336-1 (6.5.9, Eq. (30), solid gears) reduced mass per unit face width (kg/m):
     ``m_red = m1* m2* / (m1* + m2*)``, ``m_i* = pi rho d_mi^4 / (8 d_bi^2)``, ``d_m`` the mean
     of tip and root diameters, ``d_b`` the base diameter."""
     m_star = []
@@ -156,7 +158,7 @@ def reduced_mass_per_width(pair: GearPair, density_kg_m3: float = STEEL_DENSITY_
 
 def resonance_speed(pair: GearPair, c_gamma_alpha_N_per_m2: float,
                     density_kg_m3: float = STEEL_DENSITY_KG_M3) -> float:
-    """ISO 6336-1 (6.5.3, Eq. (6)) pinion resonance speed in rad/s: ``Omega_E1 =
+    """ISO 6336-1 (Eq. (6)) pinion resonance speed in rad/s: ``Omega_E1 =
     sqrt(c_gamma_alpha / m_red) / z1`` (``n_E1 = 30 Omega_E1 / pi`` in 1/min) with
     :func:`reduced_mass_per_width`; ``c_gamma_alpha`` in N/m^2 (mesh stiffness per unit
     face width)."""
