@@ -203,3 +203,29 @@ def test_claim_6_3_3_reads_near_from_the_models_own_critical_speeds(tmp_path):
     os.remove(tmp_path / "fig12" / "summary.json")  # a case run before: the reference's peak
     row = next(r for r in claims(str(tmp_path)) if r[0] == "6.3.3")
     assert row[3] == "disagree" and "within ±10 % of 840 rad/s" in row[2]
+
+
+def test_readme_sets_the_verdicts_of_two_laws_side_by_side(tmp_path, capsys):
+    """`--compare DIR --readme-only`: the README adds both folders' verdicts claim by claim,
+    each folder named by the law its paper.json records."""
+    import json
+
+    speeds = [200.0, 400.0, 600.0, 800.0, 900.0]
+    ref = {w: 1000.0 + (1000.0 if w == 800.0 else 0.0) for w in speeds}
+    for folder, te_off, law in (("weber", 1.01, "weber"), ("iso", 1.2, "iso6336")):
+        root = tmp_path / folder
+        _case(root, "fig08", {"reference": ref, "te": {w: ref[w] * te_off for w in speeds}})
+        _case(root, "fig09", {"reference": ref, "te": {w: ref[w] * 1.02 for w in speeds}})
+        for k in ("fig08", "fig09"):
+            (root / k / "paper.json").write_text(json.dumps(
+                {"command": f"gearjax sweep --model 3d --speeds 20:900:5 --stiffness {law}",
+                 "stiffness_law": law, "seconds": 1.0}))
+    assert main(["paper", "--readme-only", "--out", str(tmp_path / "weber"), "--compare",
+                 str(tmp_path / "iso")]) == 0
+    capsys.readouterr()
+    text = (tmp_path / "weber" / "README.md").read_text()
+    assert "## Verdicts under both mesh laws" in text
+    assert "| verdict, weber | verdict, iso6336 |" in text
+    # "better at damping 0.1": te 2 % off at 0.1 against 1 % (weber) or 20 % (iso6336) at 0.03
+    row = next(line for line in text.splitlines() if line.startswith("| 6.3.1 | te's largest"))
+    assert "**disagree** | **agree**" in row

@@ -103,6 +103,9 @@ def register(sub, add_rig, add_scenario):
                    help=f"mesh stiffness law of every case (default {PAPER_LAW}: the paper's "
                         "Section 6.1 mesh model, Weber-Banaschek and O'Donnell; iso6336: the "
                         "ISO 6336-1 calibrated parabola, gearjax sweep's default)")
+    p.add_argument("--compare", default=None, metavar="DIR",
+                   help="a second gearjax paper folder (e.g. the same cases run with "
+                        "--stiffness iso6336): the README adds both folders' verdicts side by side")
     p.add_argument("--readme-only", action="store_true",
                    help="run nothing: write --out/README.md again from the case folders there "
                         "(the claims tables of the results already computed)")
@@ -373,6 +376,33 @@ def claims(out: str) -> list[tuple[str, str, str, str, str]]:
     return res
 
 
+def _law_of(out) -> str:
+    """The stiffness law(s) of the cases under ``out`` (their paper.json; iso6336 before the
+    law was recorded)."""
+    laws = set()
+    for c in CASES:
+        meta = os.path.join(out, c.key, "paper.json")
+        if os.path.exists(meta):
+            with open(meta) as fh:
+                laws.add(json.load(fh).get("stiffness_law", "iso6336"))
+    return ", ".join(sorted(laws)) or "?"
+
+
+def verdicts_side_by_side(out, other) -> list[str]:
+    """Markdown lines: the first claims table's verdicts of ``out`` and of ``other`` (e.g. the
+    paper's mesh law against ``iso6336``), claim by claim, with each folder's numbers."""
+    mine, theirs = claims(out), claims(other)
+    a, b = _law_of(out), _law_of(other)
+    lines = ["## Verdicts under both mesh laws", "",
+             f"The claims above ({a}, this folder) against the same cases in `{other}` ({b}): "
+             "the law moves the critical speeds and contact losses, hence the comparisons.", "",
+             f"| section | criterion | verdict, {a} | verdict, {b} | numbers, {b} |",
+             "|---|---|---|---|---|"]
+    for (sec, _, _, v1, crit), (_, _, n2, v2, _) in zip(mine, theirs):
+        lines.append(f"| {sec} | {crit} | **{v1}** | **{v2}** | {n2} |")
+    return lines + [""]
+
+
 def write_readme(out, args, seconds) -> str:
     """``out/README.md``: the claims table, then every case found under ``out`` with its
     command (``paper.json``) and figure."""
@@ -420,6 +450,9 @@ def write_readme(out, args, seconds) -> str:
     from .paper_panels import panel_table
 
     lines += [""] + panel_table(out)
+    other = getattr(args, "compare", None)
+    if other:
+        lines += verdicts_side_by_side(out, other)
     done = {c.key for c, _, _ in runs}
     todo = [c.key for c in CASES if c.key not in done]
     if todo:
