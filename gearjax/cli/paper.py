@@ -19,7 +19,9 @@ Every case runs the paper's mesh model by default (Section 6.1, Weber-Banaschek/
 ``--stiffness weber``); ``paper.json`` and the README record the law. The law matters to the
 comparisons, not only to the critical speeds: Fig. 8's case (zeta 0.03, 340-460 rad/s) with
 ``weber`` keeps contact and te stays within 3.3 % of the reference, where ``iso6336`` puts te
-23.7 % off at 420 rad/s (issue 48's measurement).
+23.7 % off at 420 rad/s (issue 48's measurement). ``--compare DIR`` sets the verdicts of a
+second run (e.g. ``--stiffness iso6336``) beside this one's; ``--readme-only`` rewrites the
+README from the stored cases without running anything.
 """
 
 from __future__ import annotations
