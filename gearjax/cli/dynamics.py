@@ -58,10 +58,12 @@ from ..dynamics.sweep import HARMONIC_FLOQUET_MAX_STATES, METHODS, tolerance_opt
 from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv
 from ..rigs.factory import build_model
+from ..rigs.campbell import campbell
 from ..rigs.figures import predicted_critical_speeds
 from .ahead import Ahead, build_and_compile_ahead
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
+from .iso import iso_dynamic_factor
 from .signals import last_mesh_period_signals, write_order_tracks, write_signals
 from .scenario import (add_nlte_reaction, add_nlte_switches, linspace_option, nlte_options_of,
                        nlte_reaction_of)
@@ -400,7 +402,7 @@ def cmd_sweep(args) -> int:
     }
     if done:
         summary["resumed"] = {f: len(v) for f, v in done.items()}
-    iso = _iso_dynamic_factor(args, rig, mods, speeds)
+    iso = iso_dynamic_factor(args, rig, mods, speeds)
     summary.update(iso)
     times, signals, methods, branches = {}, {}, {}, {}
     if lead:  # a stall (gearjax.dynamics.watchdog) ends the process: say where the rows are
@@ -450,7 +452,9 @@ def cmd_sweep(args) -> int:
                 summary["predicted"] = predicted_critical_speeds(model)
                 # the k_m of the model (gearjax.rigs.loaded), as `gearjax info` names it
                 summary["loaded_mean_mesh_stiffness_N_per_m"] = float(model.k_m)
-                summary["critical_speeds"] = _model_critical_speeds(model, speeds)
+                # its own critical speeds (gearjax campbell's marked crossings, orders 1-5):
+                # gearjax paper judges "near a critical speed" by them
+                summary["critical_speeds"] = campbell(model, float(np.max(speeds))).critical_speeds()
                 if args.model == "3d":
                     summary["n_modes"] = int(model.n_modes)
                     summary["w_x0_m"] = float(model.w_x0)
@@ -512,7 +516,7 @@ def cmd_sweep(args) -> int:
         if args.direction == "independent":
             dense = np.linspace(float(speeds[0]), float(speeds[-1]), 400)  # ISO's ranges' kinks
             plot_response_curves(csv_path, fig_path, title=title,
-                                 iso_kv=(dense, _iso_dynamic_factor(args, rig, mods, dense)[
+                                 iso_kv=(dense, iso_dynamic_factor(args, rig, mods, dense)[
                                      "iso6336_kv"], iso["iso6336_resonance_speed_rad_s"]))
         else:
             plot_branches(csv_path, fig_path, title=title)
@@ -536,33 +540,6 @@ def cmd_sweep(args) -> int:
         return 0
     _print_summary(rig, summary, out)
     return 0
-
-
-def _model_critical_speeds(model, speeds) -> list[dict]:
-    """The model's own critical speeds over the sweep's range (``summary.json``
-    ``critical_speeds``): the crossings of mesh orders 1-5 with the modes holding at least
-    :data:`gearjax.rigs.campbell.DEFAULT_MIN_SHARE` of the mesh strain energy (the rows of
-    ``gearjax campbell``), each with its order, mode frequency and share. ``gearjax paper``
-    judges "near a critical speed" by them."""
-    from ..rigs.campbell import campbell
-
-    return campbell(model, float(np.max(speeds))).critical_speeds()
-
-
-def _iso_dynamic_factor(args, rig, mods, speeds) -> dict:
-    """ISO 6336-1 method-B K_v at the sweep's speeds for ``summary.json``
-    (:func:`gearjax.rigs.iso_figures.rig_dynamic_factor`; C_a defaults to the scenario's tip
-    relief): ``iso6336_kv`` (one per speed), ``iso6336_resonance_speed_rad_s`` and the method's
-    inputs under ``iso6336``. ISO's K_v multiplies F_t at the reference circle, the sweep's
-    ``dynamic_factor`` divides by F_S on the base plane; both are ratios of a dynamic to a
-    static load."""
-    from ..rigs.iso_figures import rig_dynamic_factor
-    from .iso import accuracy_of
-
-    kv = rig_dynamic_factor(rig, speeds, mods, accuracy_of(args, rig))
-    return {"iso6336_kv": [float(v) for v in kv.kv],
-            "iso6336_resonance_speed_rad_s": kv.resonance_speed_rad_s,
-            "iso6336": kv.summary()}
 
 
 def _listed(speeds, tags=None) -> str:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 
-__all__ = ["add_iso_options", "accuracy_of"]
+__all__ = ["add_iso_options", "accuracy_of", "iso_dynamic_factor"]
 
 
 def add_iso_options(p: argparse.ArgumentParser) -> None:
@@ -35,3 +35,18 @@ def accuracy_of(args, rig):
         rig, accuracy_grade=args.iso_grade, base_pitch_deviation_m=args.iso_fpb,
         profile_form_deviation_m=args.iso_ffa, tip_relief_m=args.iso_tip_relief,
         application_factor=args.iso_ka, rated_speed_rad_s=getattr(args, "iso_speed", None))
+
+
+def iso_dynamic_factor(args, rig, mods, speeds) -> dict:
+    """ISO 6336-1 method-B K_v at a sweep's speeds for its ``summary.json``
+    (:func:`gearjax.rigs.iso_figures.rig_dynamic_factor`; C_a defaults to the scenario's tip
+    relief): ``iso6336_kv`` (one per speed), ``iso6336_resonance_speed_rad_s`` and the method's
+    inputs under ``iso6336``. ISO's K_v multiplies F_t at the reference circle, the sweep's
+    ``dynamic_factor`` divides by F_S on the base plane; both are ratios of a dynamic to a
+    static load."""
+    from ..rigs.iso_figures import rig_dynamic_factor
+
+    kv = rig_dynamic_factor(rig, speeds, mods, accuracy_of(args, rig))
+    return {"iso6336_kv": [float(v) for v in kv.kv],
+            "iso6336_resonance_speed_rad_s": kv.resonance_speed_rad_s,
+            "iso6336": kv.summary()}
