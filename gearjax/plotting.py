@@ -66,7 +66,8 @@ def plot_response_curves(csv_path: str, path: str, title: str = "", iso_kv=None)
     ``iso_kv = (speeds_rad_s, kv, resonance_speed_rad_s)`` (ISO 6336-1 method B,
     :func:`gearjax.rigs.iso_figures.rig_dynamic_factor`) adds a first panel: the computed
     dynamic factor ``max F / F_S`` of each formulation beside ISO's K_v, and marks ISO's
-    resonance speed n_E1 on every panel (in the legend when it lies beyond the speeds)."""
+    resonance speed n_E1 on every panel (up to 10 % beyond the highest speed; in the legend
+    only when it lies further out)."""
     import csv
 
     plt = _pyplot()
@@ -97,7 +98,7 @@ def plot_response_curves(csv_path: str, path: str, title: str = "", iso_kv=None)
             speeds = [float(r["speed_rad_s"]) for r in rows]
             w_e = float(iso_kv[2])
             text = f"ISO n$_{{E1}}$ = {w_e:.0f} rad/s"
-            if speeds and min(speeds) <= w_e <= max(speeds):
+            if speeds and min(speeds) <= w_e <= 1.1 * max(speeds):  # the axis may stretch 10 %
                 ax.axvline(w_e, color="0.4", ls=":", lw=1.2,
                            label=text if key == "dynamic_factor" else None)
             elif key == "dynamic_factor":
