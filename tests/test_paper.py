@@ -229,3 +229,30 @@ def test_readme_sets_the_verdicts_of_two_laws_side_by_side(tmp_path, capsys):
     # "better at damping 0.1": te 2 % off at 0.1 against 1 % (weber) or 20 % (iso6336) at 0.03
     row = next(line for line in text.splitlines() if line.startswith("| 6.3.1 | te's largest"))
     assert "**disagree** | **agree**" in row
+
+
+def test_fig8_up_and_down_is_an_opt_in_case(tmp_path, capsys, monkeypatch):
+    """Fig. 8's jumps: `--cases fig08-branches` follows the reference and te up and down
+    (`gearjax sweep --direction both`) over the critical band; the default run leaves it out
+    and the README does not count it as unfinished."""
+    import importlib
+
+    cli = importlib.import_module("gearjax.cli.main")
+    seen = []
+
+    def fake_sweep(argv):
+        seen.append(argv)
+        os.makedirs(argv[argv.index("--out") + 1], exist_ok=True)
+        return 0
+
+    monkeypatch.setattr(cli, "main", fake_sweep)
+    assert main(["paper", "--cases", "fig08-branches", "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    (argv,) = seen
+    assert argv[argv.index("--direction") + 1] == "both"
+    assert argv[len(argv) - 1 - argv[::-1].index("--speeds") + 1] == "600:900:16"  # the last wins
+    parser = cli._parser()
+    assert "fig08-branches" not in parser.parse_args(["paper"]).cases.split(",")
+    text = (tmp_path / "README.md").read_text()
+    unfinished = next(line for line in text.splitlines() if line.startswith("**Not finished:**"))
+    assert "fig08," in unfinished and "fig08-branches" not in unfinished
