@@ -115,7 +115,9 @@ _EXAMPLES = """examples:
   gearjax info --rig baud-velex-helical            gear data, mesh stiffness, 3D natural frequencies
   gearjax quasistatic --csv te.csv --plot te.png   quasi-static TE_S and NLTE over a mesh period
   gearjax sweep --model torsional --speeds 100:900:40 --out sweep1
-                                                   response curves (Figs. 8-13); --resume continues
+                                                   response curves (Figs. 8-13) beside ISO 6336-1's K_v;
+                                                   --resume continues
+  gearjax campbell --rig baud-velex-helical        Campbell diagram, predicted critical speeds
 'gearjax COMMAND --help' lists the options of a command."""
 
 
