@@ -12,7 +12,7 @@ import numpy as np
 from .design.maps import HarrisMap
 from .design.optimise import OptimisationResult
 
-__all__ = ["plot_quasistatic", "plot_response_curves", "plot_order_tracks", "plot_branches",
+__all__ = ["plot_campbell", "plot_quasistatic", "plot_response_curves", "plot_order_tracks", "plot_branches",
            "plot_mesh_force_signals",
            "plot_design_map", "plot_history", "plot_harris"]
 
@@ -64,11 +64,17 @@ def plot_quasistatic(result, mesh, path: str, title: str = ""):
     plt.close(fig)
 
 
-def plot_response_curves(csv_path: str, path: str, title: str = ""):
+def plot_response_curves(csv_path: str, path: str, title: str = "", iso_kv=None):
     """Response curves laid out like Figs. 8-13 from a sweep's ``results.csv``: maximum
     dynamic tooth load, peak-to-peak DTE and peak-to-peak pinion-centre acceleration (S)
     against pinion speed, one curve per formulation (the acceleration panel is left out for
-    torsional models, which have none)."""
+    torsional models, which have none).
+
+    ``iso_kv = (speeds_rad_s, kv, resonance_speed_rad_s)`` (ISO 6336-1 method B,
+    :func:`gearjax.rigs.iso_figures.rig_dynamic_factor`) adds a first panel: the computed
+    dynamic factor ``max F / F_S`` of each formulation beside ISO's K_v, and marks ISO's
+    resonance speed n_E1 on every panel (up to 10 % beyond the highest speed; in the legend
+    only when it lies further out)."""
     import csv
 
     plt = _pyplot()
@@ -79,6 +85,8 @@ def plot_response_curves(csv_path: str, path: str, title: str = ""):
               ("dte_ptp_m", "peak-to-peak DTE [µm]", 1e6)]
     if has_acc:
         panels.append(("accel_ptp_m_s2", "p-p pinion acceleration S [m/s$^2$]", 1.0))
+    if iso_kv is not None:
+        panels.insert(0, ("dynamic_factor", "dynamic factor: max F / F$_S$, ISO K$_v$", 1.0))
     fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 2.6 * len(panels) + 0.6), sharex=True,
                              constrained_layout=True)
     markers = {"reference": "D", "te": "s", "perturbation": "^"}
@@ -90,6 +98,18 @@ def plot_response_curves(csv_path: str, path: str, title: str = ""):
             x = np.array([float(r["speed_rad_s"]) for r in sel])
             y = np.array([float(r[key]) if r[key] not in ("",) else np.nan for r in sel]) * scale
             ax.plot(x, y, marker=markers.get(form, "o"), ms=3.5, lw=1.2, label=labels.get(form, form))
+        if iso_kv is not None and key == "dynamic_factor":
+            ax.plot(np.asarray(iso_kv[0]), np.asarray(iso_kv[1]), "k--", lw=1.4,
+                    label="ISO 6336-1 K$_v$ (method B)")
+        if iso_kv is not None:
+            speeds = [float(r["speed_rad_s"]) for r in rows]
+            w_e = float(iso_kv[2])
+            text = f"ISO n$_{{E1}}$ = {w_e:.0f} rad/s"
+            if speeds and min(speeds) <= w_e <= 1.1 * max(speeds):  # the axis may stretch 10 %
+                ax.axvline(w_e, color="0.4", ls=":", lw=1.2,
+                           label=text if key == "dynamic_factor" else None)
+            elif key == "dynamic_factor":
+                ax.plot([], [], " ", label=text + " (beyond the speeds)")
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
     np.atleast_1d(axes)[0].legend(loc="best", fontsize=8)
@@ -351,3 +371,53 @@ def plot_harris(curves: dict, path: str, title: str = ""):
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def plot_campbell(diagram, path: str, title: str = ""):
+    """Campbell diagram (:class:`gearjax.rigs.campbell.Campbell`): natural frequencies [Hz]
+    against pinion speed [rad/s] as horizontal lines coloured by their share of mesh strain
+    energy, the mesh orders ``k z1 Omega1 / (2 pi)`` as grey lines, and the predicted critical
+    speeds (crossings with ``share >= min_share``) circled and labelled."""
+    from matplotlib import colors
+
+    plt = _pyplot()
+    d = diagram
+    w_max = d.max_speed_rad_s
+    f_top = max(d.orders) * d.z1 * w_max / (2 * np.pi)
+    fig, ax = plt.subplots(figsize=(8.0, 5.6), constrained_layout=True)
+    norm = colors.Normalize(0.0, max(float(np.max(d.share)), d.min_share))
+    cmap = plt.get_cmap("viridis_r")
+    order = np.argsort(d.share)  # the strong modes drawn last, on top
+    for j in order:
+        f = float(d.frequencies_hz[j])
+        if f > f_top:
+            continue
+        s = float(d.share[j])
+        ax.plot([0.0, w_max], [f, f], color=cmap(norm(s)), lw=0.6 + 2.4 * norm(s),
+                alpha=0.35 + 0.65 * norm(s), zorder=1 + s)
+    for k in d.orders:
+        ax.plot([0.0, w_max], [0.0, k * d.z1 * w_max / (2 * np.pi)], color="0.45", lw=0.9, ls="--",
+                zorder=0.5)
+        ax.annotate(f"{k}x mesh", (w_max, k * d.z1 * w_max / (2 * np.pi)), fontsize=7,
+                    color="0.3", ha="right", va="bottom")
+    for r in d.critical_speeds():
+        ax.plot(r["crossing_speed_rad_s"], r["frequency_hz"], "o", mfc="none", mec="crimson",
+                ms=5 + 8 * r["mesh_energy_share"], mew=1.3, zorder=10)
+        if r["mesh_order"] == 1:
+            ax.annotate(f"{r['crossing_speed_rad_s']:.0f}", (r["crossing_speed_rad_s"],
+                        r["frequency_hz"]), xytext=(4, 4), textcoords="offset points",
+                        fontsize=7, color="crimson")
+    sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
+    fig.colorbar(sm, ax=ax, label="share of mesh strain energy")
+    ax.set_xlim(0.0, w_max)
+    ax.set_ylim(0.0, f_top)
+    ax.set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
+    ax.set_ylabel("frequency [Hz]")
+    ax.plot([], [], "o", mfc="none", mec="crimson",
+            label=f"predicted critical speed (share >= {d.min_share:g}; order 1 labelled, rad/s)")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.grid(alpha=0.25)
+    if title:
+        ax.set_title(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -60,10 +60,12 @@ from ..errors import SimulationError
 from ..excitation.te_file import read_te_csv
 from ..gears.quasistatic import static_mesh_force
 from ..rigs.factory import build_model
+from ..rigs.campbell import campbell
 from ..rigs.figures import predicted_critical_speeds
 from .ahead import Ahead, build_and_compile_ahead
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
+from .iso import iso_dynamic_factor
 from .signals import last_mesh_period_signals, write_order_tracks, write_signals
 from .solvers import METHODS, STABILITY_METHODS, solver_for
 from .scenario import (add_nlte_reaction, add_nlte_switches, add_speeds, add_torque,
@@ -142,6 +144,9 @@ def register(sub, add_rig, add_scenario):
                          "core by the model's size (the speeds of a chunk run in lockstep and "
                          "their solver stages must stay in cache), on a GPU every speed that "
                          "memory holds)")
+    from .iso import add_iso_options
+
+    add_iso_options(sw)
     dist = sw.add_argument_group("several hosts (jax.distributed)")
     dist.add_argument("--distributed", action="store_true",
                       help="join a multi-process run (jax.distributed.initialize with cluster "
@@ -422,6 +427,8 @@ def cmd_sweep(args) -> int:
     }
     if done:
         summary["resumed"] = {f: len(v) for f, v in done.items()}
+    iso = iso_dynamic_factor(args, rig, mods, speeds)
+    summary.update(iso)
     times, signals, methods, branches = {}, {}, {}, {}
     if lead:  # a stall (gearjax.runtime.watchdog) ends the process: say where the rows are
         watchdog.add_stall_hook(lambda: f"the speeds finished so far are in {csv_path}; continue "
@@ -474,6 +481,11 @@ def cmd_sweep(args) -> int:
                     summary.setdefault("warnings", []).append(missed)
                     if lead:
                         print(f"gearjax sweep: warning: {missed}", file=sys.stderr, flush=True)
+                # the k_m of the model (gearjax.rigs.loaded), as `gearjax info` names it
+                summary["loaded_mean_mesh_stiffness_N_per_m"] = float(model.k_m)
+                # its own critical speeds (gearjax campbell's marked crossings, orders 1-5):
+                # gearjax paper judges "near a critical speed" by them
+                summary["critical_speeds"] = campbell(model, float(np.max(speeds))).critical_speeds()
                 if args.model == "3d":
                     summary["n_modes"] = int(model.n_modes)
                     summary["w_x0_m"] = float(model.w_x0)
@@ -533,8 +545,13 @@ def cmd_sweep(args) -> int:
         from ..plotting import plot_branches, plot_response_curves
 
         fig_path = os.path.join(out, "response_curves.png")
-        plot = plot_response_curves if args.direction == "independent" else plot_branches
-        plot(csv_path, fig_path, title=title)
+        if args.direction == "independent":
+            dense = np.linspace(float(speeds[0]), float(speeds[-1]), 400)  # ISO's ranges' kinks
+            plot_response_curves(csv_path, fig_path, title=title,
+                                 iso_kv=(dense, iso_dynamic_factor(args, rig, mods, dense)[
+                                     "iso6336_kv"], iso["iso6336_resonance_speed_rad_s"]))
+        else:
+            plot_branches(csv_path, fig_path, title=title)
         summary["response_curves_png"] = fig_path
         summary.update(write_order_tracks(orders_path, out, title))
     if signals and not interrupted:

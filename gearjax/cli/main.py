@@ -8,6 +8,7 @@ Commands
 ``gearjax sweep``       response curves of Figs. 8-13 (:mod:`gearjax.cli.dynamics`).
 ``gearjax stability``   Floquet spectral radius over speeds (:mod:`gearjax.cli.dynamics`).
 ``gearjax optimise``, ``gearjax harris-map``  tip-relief design (:mod:`gearjax.cli.design`).
+``gearjax campbell``    Campbell diagram and predicted critical speeds (:mod:`gearjax.cli.campbell`).
 
 The CLI only parses arguments and formats results; all physics lives in the library.
 """
@@ -65,9 +66,11 @@ def _parser() -> argparse.ArgumentParser:
                            "natural frequencies")
     info.add_argument("--encoders", type=int, default=1, choices=[1, 2, 3],
                       help="encoder positions of Fig. 7 for W and w_x0 (default 1)")
+    from .iso import add_iso_options
     from .scenario import add_torque
 
     add_torque(info)
+    add_iso_options(info)
 
     qs = sub.add_parser("quasistatic", help="quasi-static TE_S and NLTE (unilateral contact)")
     _add_rig(qs)
@@ -158,14 +161,17 @@ def _stall_timeouts() -> dict[str, float]:
 
 # Modules adding sub-commands: each defines ``register(subparsers, add_rig, add_scenario)``
 # that adds its parsers with ``set_defaults(func=...)``; ``func(args) -> int``.
-_EXTENSIONS: tuple[str, ...] = ("gearjax.cli.dynamics", "gearjax.cli.design", "gearjax.cli.paper")
+_EXTENSIONS: tuple[str, ...] = ("gearjax.cli.dynamics", "gearjax.cli.design", "gearjax.cli.paper",
+                                "gearjax.cli.campbell")
 
 
 _EXAMPLES = """examples:
   gearjax info --rig baud-velex-helical            gear data, mesh stiffness, 3D natural frequencies
   gearjax quasistatic --csv te.csv --plot te.png   quasi-static TE_S and NLTE over a mesh period
   gearjax sweep --model torsional --speeds 100:900:40 --out sweep1
-                                                   response curves (Figs. 8-13); --resume continues
+                                                   response curves (Figs. 8-13) beside ISO 6336-1's K_v;
+                                                   --resume continues
+  gearjax campbell --rig baud-velex-helical        Campbell diagram, predicted critical speeds
 'gearjax COMMAND --help' lists the options of a command."""
 
 
@@ -206,6 +212,17 @@ def _cmd_info(args) -> int:
     out = {"rig": rig.name, "description": rig.description}
     out.update(rig.pair.summary())
     out.update(torsional_stiffness_figures(rig, args.stiffness))
+    from ..rigs.iso_figures import info_figures
+    from .iso import accuracy_of
+
+    out.update(info_figures(rig, accuracy_of(args, rig)))  # ISO 6336-1's own c_gamma_alpha
+    from ..rigs.iso_figures import default_modifications
+    from ..rigs.loaded import loaded_stiffness_figures
+
+    mods = default_modifications(rig)  # the dynamics' k_m: loaded, with the default relief
+    out.update(loaded_stiffness_figures(rig, mods, args.stiffness))
+    out["loaded_stiffness_modifications"] = (
+        "rig file [modifications]" if rig.modifications_default is not None else "--relief short")
     if args.model == "3d":
         out.update(three_d_figures(rig, args.stiffness, args.encoders))
     out["notes"] = rig_notes(rig, args.model)
@@ -226,10 +243,24 @@ def _cmd_info(args) -> int:
         ("contact ratio eps_alpha", f"{p.transverse_contact_ratio:.4f}"),
         ("overlap ratio eps_beta", f"{p.overlap_ratio:.4f}"),
         ("mesh stiffness law", out["stiffness_law"]),
-        ("mean mesh stiffness k_m", f"{out['mean_mesh_stiffness_N_per_m'] / 1e6:.2f} N/um"),
+        ("mean mesh stiffness k_m, geometric", f"{out['mean_mesh_stiffness_N_per_m'] / 1e6:.2f} N/um "
+                                               "(every cell in the path of contact)"),
+        ("mean mesh stiffness k_m, loaded", f"{out['loaded_mean_mesh_stiffness_N_per_m'] / 1e6:.2f} N/um "
+                                            f"(the dynamics' k_m; {out['loaded_stiffness_modifications']})"),
+        ("sdof critical speed, loaded k_m", f"{out['loaded_torsional_critical_speed_rad_s']:.1f} rad/s"),
         ("stiffness variation alpha", f"{out['stiffness_variation_alpha']:.4f}"),
+        ("ISO 6336-1 c' / c_gamma_alpha", f"{out['iso6336_c_prime_N_per_mm_um']:.4f} / "
+                                          f"{out['iso6336_c_gamma_alpha_N_per_mm_um']:.4f} N/(mm um)"),
+        ("ISO resonance speed n_E1", f"{out['iso6336_resonance_speed_rad_s']:.1f} rad/s "
+                                     f"({out['iso6336_resonance_speed_rpm']:.0f} 1/min)"),
+        ("ISO K_v (method B), main resonance", f"{out['iso6336_kv_main_resonance']:.4f}"),
+        *([(f"ISO K_v at {out['iso6336_rated_speed_rad_s']:.1f} rad/s",
+            f"{out['iso6336_kv_at_rated_speed']:.4f} (N = "
+            f"{out['iso6336_resonance_ratio_at_rated_speed']:.4f})")]
+          if "iso6336_kv_at_rated_speed" in out else []),
+        ("ISO F_t (reference circle)", f"{out['iso6336_reference_tangential_force_N']:.1f} N"),
         ("pinion torque", f"{rig.pinion_torque_Nm:.1f} N m"),
-        ("static mesh force F_S", f"{out['static_mesh_force_N']:.1f} N"),
+        ("static mesh force F_S (base plane)", f"{out['static_mesh_force_N']:.1f} N"),
     ]
     if args.model == "3d":
         freqs = ", ".join(f"{f:.1f}" for f in out["natural_frequencies_hz"][:8])

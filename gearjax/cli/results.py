@@ -191,6 +191,11 @@ def print_summary(rig, summary: dict, out: str) -> None:
     print(f"  predicted main tooth critical speed {pred['critical_speed_rad_s']:.0f} rad/s (peak of "
           f"the mesh receptance; mode with most mesh energy: {pred['mode_frequency_hz']:.0f} Hz, "
           f"{100 * pred['mesh_energy_share']:.0f} %, i.e. {pred['mode_critical_speed_rad_s']:.0f} rad/s)")
+    if "iso6336_kv" in summary:
+        kv = summary["iso6336_kv"]
+        print(f"  ISO 6336-1 method B: resonance speed n_E1 "
+              f"{summary['iso6336_resonance_speed_rad_s']:.0f} rad/s, K_v {min(kv):.3f}-"
+              f"{max(kv):.3f} over the speeds (response_curves.png, first panel)")
     print(f"  {'formulation':13s} {'peak K_v':>9s} {'at [rad/s]':>11s} {'contact loss':>13s} "
           f"{'unconverged':>12s} {'vs reference':>13s} {'time [s]':>9s}")
     agree = summary.get("agreement_with_reference", {})

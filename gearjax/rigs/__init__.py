@@ -1,6 +1,6 @@
 """Test rigs: the :class:`Rig` record, the registry of built-in rigs, the Baud & Velex rig
 of Section 6.1 (all its data), TOML rig files, the one model factory, the rig figures of
-``gearjax info`` and the ROSS bridge."""
+``gearjax info`` (with ISO 6336-1 method B), the Campbell diagram and the ROSS bridge."""
 
 from .baud_velex import baud_velex_pair as baud_velex_pair
 from .baud_velex import baud_velex_rig as baud_velex_rig
@@ -11,3 +11,6 @@ from .registry import Rig as Rig
 from .registry import RigError as RigError
 from .registry import get_rig as get_rig
 from .rigfile import load_rig as load_rig
+from .campbell import Campbell as Campbell
+from .campbell import campbell as campbell
+from .iso_figures import rig_dynamic_factor as rig_dynamic_factor

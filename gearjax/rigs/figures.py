@@ -9,12 +9,14 @@ import math
 import numpy as np
 
 from ..gears.geometry import GearPair
+from ..gears.iso6336 import resonance_speed
 from ..gears.mesh import Mesh
 from ..gears.quasistatic import static_mesh_force
 from ..models.torsional import TorsionalModel, solid_cylinder_inertias
 from ..structure import modal_basis
 from ..structure.analytic import analytic_relations
 from ..structure.element import PinionGearElement
+from .campbell import mode_shares
 from .rig import Rig
 
 __all__ = ["torsional_stiffness_figures", "iso6336_resonance_speed", "system_3d",
@@ -58,13 +60,7 @@ def iso6336_resonance_speed(pair: GearPair, mean_stiffness_N_per_m: float,
     (``d_m`` the mean of tip and root diameters) and ``c_gamma_alpha = k_m / b``; in rad/s
     ``Omega_E1 = sqrt(c_gamma_alpha / m_red) / z1``.
     """
-    m_star = []
-    for ra, rf, rb in zip(pair.tip_radii_m, pair.root_radii_m, pair.base_radii_m):
-        dm, db = ra + rf, 2.0 * rb
-        m_star.append(math.pi * density_kg_m3 * dm**4 / (8.0 * db**2))
-    m_red = m_star[0] * m_star[1] / (m_star[0] + m_star[1])
-    c_ga = mean_stiffness_N_per_m / pair.face_width_m
-    return math.sqrt(c_ga / m_red) / pair.z1
+    return resonance_speed(pair, mean_stiffness_N_per_m / pair.face_width_m, density_kg_m3)
 
 
 def system_3d(rig: Rig, law: str = "iso6336", encoder_position: int = 1):
@@ -127,7 +123,7 @@ def _receptance_peak(w, v, k_m: float, zeta: float, z1: int, n: int, speeds_rad_
     modes) with mesh components ``v = phi^T V``: see :func:`predicted_critical_speeds`."""
     w = np.asarray(w, dtype=float)
     v = np.asarray(v, dtype=float)
-    share = k_m * v[:n] ** 2 / np.where(w[:n] > 0, w[:n], np.inf) ** 2
+    share = mode_shares(w[:n], v[:n], k_m)
     j = int(np.argmax(share))
     top = GRID_SPAN * float(np.max(w[:n][share >= MIN_SHARE * share[j]])) / z1
     speeds = np.linspace(top / GRID_POINTS, top, GRID_POINTS)

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..errors import RigError
 from ..gears.geometry import GearPair
+from ..gears.iso6336 import AccuracyData
 from ..gears.modifications import ToothModifications
 
 __all__ = ["Rig"]
@@ -37,6 +38,9 @@ class Rig:
     relief_presets : ``f(kind, shape) -> ToothModifications`` giving the named reliefs
         (``"short"``, ``"long"``) of :meth:`modifications`; the built-in rigs and rig files
         use Table 1's (:func:`gearjax.rigs.baud_velex.table1_relief`).
+    accuracy : ISO 6336-1 method-B accuracy data (:class:`gearjax.gears.iso6336.AccuracyData`:
+        f_pb, f_falpha, C_a, K_A, rated speed) of a rig file's ``[iso6336]`` table, or None
+        (the defaults named in :mod:`gearjax.gears.iso6336`).
     """
 
     name: str
@@ -49,6 +53,7 @@ class Rig:
     encoder_positions: dict | None = None
     modifications_default: ToothModifications | None = None
     relief_presets: Callable | None = None
+    accuracy: AccuracyData | None = None
 
     def structure(self):
         """The rig's shafts, discs, bearings and couplings, with the centre line set by

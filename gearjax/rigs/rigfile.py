@@ -94,6 +94,15 @@ Schema (SI units; the unit is in each key name)
     1 = [7, 35]                #   node II (gear line)]; default 1 = [pinion_node, gear_node]
     2 = [1, 43]
 
+    [iso6336]                  # optional: ISO 6336-1 method-B data (gearjax.gears.iso6336)
+    accuracy_grade = 5         # ISO 1328-1 grade for f_pb, f_falpha when not given (default 5)
+    base_pitch_deviation_m = 9e-6      # f_pb (optional)
+    profile_form_deviation_m = 12e-6   # f_falpha (optional)
+    tip_relief_m = 70e-6       # C_a (optional; default the scenario's tip relief, else C_ay)
+    application_factor = 1.0   # K_A (default 1)
+    sigma_hlim_Pa = 1.5e9      # sigma_Hlim for C_ay (default 1500 N/mm^2)
+    rated_speed_rad_s = 37.7   # pinion speed of the K_v that `gearjax info` reports
+
     [modifications]            # optional: the rig's default tooth modifications
     relief_shape = "linear"    # "linear" or "parabolic" (both gears)
     crowning_m = 0.0           # optional composite lead crowning
@@ -135,6 +144,7 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
 from ..gears.geometry import GearPair, GeometryError
+from ..gears.iso6336 import AccuracyData
 from ..gears.modifications import ModificationError, ToothModifications
 from ..errors import RigError
 from .baud_velex import table1_relief
@@ -240,7 +250,7 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
     root = Reader(source, "", data, (
         "name", "description", "first_node", "pinion_node", "gear_node", "motor_node",
         "gear_pair", "operating", "materials", "shaft", "node", "disc", "bearing", "coupling",
-        "torsional_spring", "encoders", "modifications"))
+        "torsional_spring", "encoders", "modifications", "iso6336"))
     name = root.get("name", "str", "rig name", default_name)
     description = root.get("description", "str", "one line", f"rig file {source}")
     first = root.get("first_node", "int", "0 or 1", 0)
@@ -429,7 +439,31 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
         encoder_positions=encoders,
         modifications_default=mods,
         relief_presets=table1_relief,  # --relief short/long: the Table 1 reliefs
+        accuracy=_accuracy(root),
     )
+
+
+_ACCURACY_KEYS = {  # key: (kind, what)
+    "accuracy_grade": ("int", "ISO 1328-1 accuracy grade 1-12"),
+    "base_pitch_deviation_m": ("nonneg", "base pitch deviation f_pb, m"),
+    "profile_form_deviation_m": ("nonneg", "profile form deviation f_falpha, m"),
+    "tip_relief_m": ("nonneg", "tip relief C_a, m"),
+    "application_factor": ("positive", "application factor K_A"),
+    "sigma_hlim_Pa": ("positive", "allowable contact stress sigma_Hlim, Pa"),
+    "rated_speed_rad_s": ("positive", "pinion speed, rad/s"),
+}
+
+
+def _accuracy(root: Reader) -> AccuracyData | None:
+    """The ``[iso6336]`` table as :class:`~gearjax.gears.iso6336.AccuracyData`, or None."""
+    if not root.has("iso6336"):
+        return None
+    r = Reader(root.source, "iso6336", root.data["iso6336"], tuple(_ACCURACY_KEYS))
+    kw = {k: r.get(k, kind, what) for k, (kind, what) in _ACCURACY_KEYS.items() if r.has(k)}
+    try:
+        return AccuracyData(**kw)
+    except GeometryError as exc:
+        r.fail(r.sub(exc.field), r.data.get(exc.field, exc.value), str(exc).split(": ", 1)[-1])
 
 
 def _encoders(root: Reader, nodes: Nodes, special: dict) -> dict[int, tuple[int, int]]:
