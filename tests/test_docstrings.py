@@ -31,6 +31,7 @@ MAX_MODULE_DOCSTRING_LINES = 40
 THEORY_DOCSTRINGS = {
     "gearjax.dynamics.harmonic": "derives the rank-one Hill equation (1)-(2) and its exact jumps",
     "gearjax.gears.weber": "states Weber-Banaschek, O'Donnell/Sainsot and Hertz compliances",
+    "gearjax.gears.iso6336": "states ISO 6336-1 method B's equations and the accuracy defaults",
     "gearjax.models.geared3d": "states the 3D equations (14), (42), (48a), outputs, state",
     "gearjax.models.torsional": "states the sdof equations (16), (20), (47a), NLTE substitution",
     "gearjax.rigs.baud_velex": "the rig's data and the assumptions the paper does not print",

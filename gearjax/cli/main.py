@@ -135,6 +135,10 @@ _COMMAND_EXAMPLES = {
     "harris-map": """examples:
   gearjax harris-map --amplitudes 0:30e-6:7 --extents 0.1:0.7:7 --out map
                                           peak mesh force over a relief grid (map.png)""",
+    "campbell": """examples:
+  gearjax campbell                        the spur rig's 3D modes against speed, orders 1-5
+  gearjax campbell --model torsional --rig examples/rigs/two_shafts.toml --out camp
+                                          the mesh mode of your own rig (camp/campbell.png)""",
     "paper": """examples:
   gearjax paper                           every Section 6.3 case into docs/paper
   gearjax paper --cases fig08,fig09 --out paper-check

@@ -73,8 +73,8 @@ CASES = (
           "--method", "transient")),
     # Fig. 8's jumps: the reference and te followed up and down in speed from each
     # neighbour's periodic orbit (gearjax sweep --direction both, shooting) over the critical
-    # band at 20 rad/s. Opt-in: 3D continuation costs about 10 s per speed and direction on
-    # 2 cores after a first speed of ~95 s (measured on a loaded VM), some 15 min in all.
+    # band at 20 rad/s. Opt-in: the 3D continuation is the longest case by far
+    # (benchmarks/results/iso6336_campbell.md).
     Case("fig08-branches", "6.3.1", "Fig. 8", "damping 0.03, followed up and down (jumps)",
          ("--damping", "0.03", "--direction", "both", "--formulations", "reference,te",
           "--speeds", "600:900:16"), default=False),
