@@ -26,7 +26,6 @@ README from the stored cases without running anything.
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import sys
@@ -176,14 +175,6 @@ def cmd_paper(args) -> int:
 
 
 # ---------------------------------------------------------------------------- claims
-def _rows(out, key):
-    path = os.path.join(out, key, "results.csv")
-    if not os.path.exists(path):
-        return None
-    with open(path, newline="") as fh:
-        return list(csv.DictReader(fh))
-
-
 def _curve(rows, form, col="max_mesh_force_N", converged_only=True):
     """{speed: value} of one formulation (converged speeds only, unless told)."""
     out = {}
@@ -278,7 +269,9 @@ def _verdict(ok, *compared) -> str:
 def claims(out: str) -> list[tuple[str, str, str, str, str]]:
     """(section, the paper's words, our numbers, verdict, criterion) per claim, from the
     case folders under ``out`` (a claim whose cases were not run says so)."""
-    R = {k: _rows(out, k) for k in _KEYS}
+    from .paper_panels import case_rows
+
+    R = {k: case_rows(out, k) for k in _KEYS}
     res = []
 
     def missing(section, words, *keys):

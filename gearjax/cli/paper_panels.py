@@ -41,7 +41,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["PANELS", "COMPARISONS", "AGREE_TOLERANCE", "NEAR_SHARE", "panel_claims",
+__all__ = ["case_rows", "PANELS", "COMPARISONS", "AGREE_TOLERANCE", "NEAR_SHARE", "panel_claims",
            "critical_speeds"]
 
 # (results.csv column, panel name)
@@ -88,7 +88,9 @@ COMPARISONS = (
 )
 
 
-def _rows(out, key):
+def case_rows(out, key):
+    """The rows of case ``key``'s ``results.csv`` under ``out`` (dicts), or None where the
+    case has not run."""
     path = os.path.join(out, key, "results.csv")
     if not os.path.exists(path):
         return None
@@ -193,7 +195,7 @@ def panel_claims(out: str) -> list[dict]:
     for c in COMPARISONS:
         for k in (c.case, c.ref_case):
             if k not in R:
-                R[k] = _rows(out, k)
+                R[k] = case_rows(out, k)
         if R[c.case] is None or R[c.ref_case] is None:
             continue
         crit, source = critical_speeds(out, c.ref_case, R[c.ref_case])
