@@ -94,8 +94,7 @@ class Fallback(AbstractPeriodicSolver):
         run.progress.note(f"{type(self.first).__name__} {model.formulation}",
                           f"{n_rest} of {speeds.size} speed(s) to "
                           f"{type(self.then).__name__}")
-        return merge_results(res.take(np.arange(speeds.size)),
-                             self.then.sweep(model, speeds[rest], run_rest), rest)
+        return merge_results(res, self.then.sweep(model, speeds[rest], run_rest), rest)
 
     def solved(self, result: SweepResult) -> np.ndarray:
         return np.asarray(self.then.solved(result), dtype=bool)

@@ -393,7 +393,7 @@ def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
     formulation = model.formulation
     if continuation is not None:  # te/perturbation too: with the contact law they are
         # nonlinear there
-        need = ((out["contact_loss"] > 0) | ~(rho < 1.0) | ~(out["converged"] > 0))
+        need = ~orbit_solved(out["contact_loss"] > 0, rho, out["converged"] > 0)
         idx = np.flatnonzero(need)
         if idx.size:
             # from the quasi-static start, as simulate/sweep: after contact loss several
@@ -416,6 +416,14 @@ def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
     return SteadySweepResult(**out, formulation=formulation, spectral_radius=rho,
                              continued=continued,
                              solver=np.where(continued, "transient", "steady"))
+
+
+def orbit_solved(contact_loss, spectral_radius, converged) -> np.ndarray:
+    """Per speed, whether a shooting orbit is the model's steady state: contact kept, stable
+    (Floquet ``spectral_radius < 1``) and converged; :func:`steady_sweep` continues the
+    other speeds by the transient, as :class:`Shooting` hands them on in a ``Fallback``."""
+    stable = np.asarray(spectral_radius, dtype=float) < 1.0
+    return ~np.asarray(contact_loss, dtype=bool) & stable & np.asarray(converged, dtype=bool)
 
 
 class Shooting(AbstractOrbitSolver):
@@ -464,9 +472,7 @@ class Shooting(AbstractOrbitSolver):
         return steady_state(model, omega, **self.options()).result
 
     def solved(self, result: SweepResult) -> np.ndarray:
-        rho = np.asarray(result.spectral_radius, dtype=float)
-        return (~np.asarray(result.contact_loss, dtype=bool) & (rho < 1.0)
-                & np.asarray(result.converged, dtype=bool))
+        return orbit_solved(result.contact_loss, result.spectral_radius, result.converged)
 
     def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> SweepResult:
         if run.devices is not None or jax.process_count() > 1:

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ..gears.geometry import GearPair
+from ..gears.geometry import STEEL_DENSITY_KG_M3, GearPair
 from ..gears.iso6336 import resonance_speed
 from ..gears.mesh import Mesh
 from ..gears.quasistatic import static_mesh_force
@@ -52,7 +52,7 @@ def torsional_stiffness_figures(rig: Rig, law: str = "iso6336") -> dict:
 
 
 def iso6336_resonance_speed(pair: GearPair, mean_stiffness_N_per_m: float,
-                            density_kg_m3: float = 7800.0) -> float:
+                            density_kg_m3: float = STEEL_DENSITY_KG_M3) -> float:
     """Pinion resonance speed of ISO 6336-1 (method B, solid gear bodies), in rad/s.
 
     ``n_E1 = 30000 / (pi z1) sqrt(c_gamma_alpha / m_red)`` (1/min) with the reduced mass per
