@@ -179,7 +179,7 @@ def test_3d_without_inertial_terms_differs_by_nlte_dd_e():
 
 
 def test_cli_switches_map_to_model_options():
-    from gearjax.cli.dynamics import case_name
+    from gearjax.cli.case import case_name
     from gearjax.cli.scenario import nlte_options_of
 
     def ns(no, zero):

@@ -413,7 +413,7 @@ def compile_bound(args) -> bool:
         return False
     if not args.damping >= COMPILE_BOUND_3D_DAMPING:
         return False
-    from .dynamics import parse_speeds
+    from .case import parse_speeds
 
     try:
         n = parse_speeds(args.speeds).size
