@@ -50,7 +50,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from ..errors import SimulationError, check_float64
-from ..models.base import AbstractGearModel
+from ..models.base import AbstractGearModel, AbstractModalModel
 from .integrate import PeriodicJumpController, jump_controller
 from .legs import solve_legs
 from .metrics import (jump_clusters, jump_window_extrema, jump_windows, n_jump_windows,
@@ -341,7 +341,7 @@ def simulate(
     y0 = jnp.asarray(y0)
     ctrl = jump_controller(model, rtol, atol)
     accelerated = (accelerate and n_transient_periods is None
-                   and model.periodic_estimate(y0, y0, omega) is not None)
+                   and isinstance(model, AbstractModalModel))
     n_max = transient_period_bounds(model, min_transient_mesh_periods,
                                     max_transient_mesh_periods)[1] if accelerated else 0
     accelerated = accelerated and n_max > 0

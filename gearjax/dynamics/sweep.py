@@ -46,6 +46,7 @@ from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .solvers import AbstractOrbitSolver, AbstractPeriodicSolver, SweepRun
 from .results import (CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, append_rows,
                       empty_metrics)
+from .orbit import metric_status
 from .simulate import SimulationError, SimulationResult, simulate
 
 __all__ = ["sweep", "Transient", "Auto", "SweepResult", "CSV_COLUMNS", "tolerance_options",
@@ -522,4 +523,6 @@ def _gather(results, formulation, idx):
     for f in ("contact_loss", "converged", "solver_ok"):
         kw[f] = kw[f].astype(bool)
     kw["n_steps"] = kw["n_steps"].astype(np.int64)
-    return SweepResult(**kw, formulation=formulation, solver=np.full(idx.size, "transient"))
+    return SweepResult(**kw, formulation=formulation, solver=np.full(idx.size, "transient"),
+                       spectral_radius=np.full(idx.size, np.nan),
+                       status=metric_status(kw["solver_ok"], kw["converged"]))

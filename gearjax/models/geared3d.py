@@ -82,8 +82,8 @@ from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..structure.condensation import Condensation, QuasiStatic3D
 from ..structure.element import PinionGearElement
 from ..structure.geared import Eccentricity
-from .base import (FORMULATIONS, LINEAR_FORMULATIONS, AbstractGearModel, ModelOutputs,
-                   modal_periodic_estimate, modal_slowest_output_mode,
+from .base import (FORMULATIONS, LINEAR_FORMULATIONS, AbstractModalModel, ModelOutputs,
+                   modal_periodic_estimate,
                    modal_transient_amplitudes, modal_transient_start)
 from .geared3d_build import EXCITATIONS, MESH_VECTORS, build_geared3d
 from .geared3d_inertial import inertial_vectors, nlte_derivatives
@@ -96,7 +96,7 @@ __all__ = ["Geared3DModel", "MESH_VECTORS", "default_max_frequency_hz", "CUTOFF_
 
 
 
-class Geared3DModel(AbstractGearModel):
+class Geared3DModel(AbstractModalModel):
     """3D geared system, Eqs. (14), (42), (48a). Build with :meth:`build`; complete when
     built (table, angle map and structure flag of the build design included).
 
@@ -506,11 +506,6 @@ class Geared3DModel(AbstractGearModel):
         ones on the quasi-static state (:func:`gearjax.models.base.modal_transient_start`
         with the modal frequencies :attr:`omega_r`)."""
         return modal_transient_start(self, omega, self.omega_r)
-
-    def slowest_output_mode(self):
-        """(omega_s (rad/s), zeta) of the slowest mode the mesh force or the DTE sees
-        (:func:`gearjax.models.base.modal_slowest_output_mode` on ``omega_r, v_r, w_r``)."""
-        return modal_slowest_output_mode(self.omega_r, self.v_r, self.w_r, self.damping_ratio)
 
     def transient_amplitudes(self, dy, omega):
         """Free response left in a transient (:func:`gearjax.models.base.modal_transient_amplitudes`
