@@ -229,7 +229,7 @@ def _summary_head(case: SweepCase, devices, notes: list[str]) -> dict:
     }
 
 
-def _model_summary(model, speeds, lead: bool) -> dict:
+def _model_summary(model, speeds, lead: bool, three_d: bool) -> dict:
     """What the first model built tells ``summary.json``: its predicted critical speeds
     (and a warning where the sweep misses the main one), its k_m as ``gearjax info`` names
     it (:mod:`gearjax.rigs.loaded`), its own critical speeds (``gearjax campbell``'s marked
@@ -243,7 +243,7 @@ def _model_summary(model, speeds, lead: bool) -> dict:
             _stderr("sweep", "warning", missed)
     out["loaded_mean_mesh_stiffness_N_per_m"] = float(model.k_m)
     out["critical_speeds"] = campbell(model, float(np.max(speeds))).critical_speeds()
-    if hasattr(model, "n_modes"):
+    if three_d:
         out.update(n_modes=int(model.n_modes), w_x0_m=float(model.w_x0))
     return out
 
@@ -304,7 +304,7 @@ def _sweep_formulations(case: SweepCase, first, done: dict, devices, lead: bool,
             if a.model == "3d" and form in LINEAR_FORMULATIONS and not shared:
                 linear = model
             if "predicted" not in summary:
-                extra = _model_summary(model, speeds, lead)
+                extra = _model_summary(model, speeds, lead, a.model == "3d")
                 summary.setdefault("warnings", []).extend(extra.pop("warnings", []))
                 summary.update(extra)
             todo = todo_of(form)
