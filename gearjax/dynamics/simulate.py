@@ -31,6 +31,7 @@ Metrics per speed, exact to the integration tolerance (read on the output grid o
 :mod:`gearjax.dynamics.metrics` by the dense interpolant and refined between grid points
 and after the largest jumps): max and min mesh force F_D (N, Eqs. (22)/(24)), dynamic factor
 ``max F_D / F_S``, DTE and acceleration peak-to-peak, ``contact_loss`` (``min F_D <= 0``),
+``back_contact`` (``min F_D < 0``: the back flanks met, a model with backlash),
 ``convergence`` and ``period_multiple`` (:mod:`gearjax.dynamics.periodicity`), and
 ``converged`` ("periodic with the excitation period to within ``convergence_tol``"). A
 failed integration gives ``solver_ok = False``, ``converged = False`` and NaN metrics.
@@ -142,6 +143,8 @@ class SimulationResult(eqx.Module):
     dte_ptp_m : peak-to-peak dynamic transmission error (m).
     accel_ptp_m_s2 : peak-to-peak acceleration (m/s^2); NaN for models without one.
     contact_loss : min F_D <= 0 over the measured periods.
+    back_contact : min F_D < 0 over the measured periods: the back flanks carried load (a
+        model with backlash; never for one without, whose mesh force is never tensile).
     convergence : largest relative change of per-period extrema between the last two
         measured periods.
     converged : convergence <= tolerance and solver_ok.
@@ -168,6 +171,7 @@ class SimulationResult(eqx.Module):
     dte_ptp_m: jax.Array
     accel_ptp_m_s2: jax.Array
     contact_loss: jax.Array
+    back_contact: jax.Array
     convergence: jax.Array
     converged: jax.Array
     solver_ok: jax.Array
@@ -445,6 +449,7 @@ def simulate(
         dte_ptp_m=bad(dte_ptp),
         accel_ptp_m_s2=bad(acc_ptp) if has_acc else nan,
         contact_loss=ok & (f_min <= 0.0),
+        back_contact=ok & (f_min < 0.0),
         convergence=jnp.where(ok, conv, jnp.inf),
         converged=converged,
         period_multiple=jnp.where(converged, 1, jnp.where(ok, multiple, 0)),
