@@ -21,13 +21,12 @@ Section 6.3 cases (Velex & Ajmi), one command each (``--speeds`` to taste)::
 Several hosts (or several processes on one host): start the same command on every process
 with ``--distributed`` (cluster auto-detection: SLURM, Open MPI, ...) or with
 ``--coordinator HOST:PORT --num-processes N --process-id I``; the speeds are shared over
-every device of every process and process 0 writes the outputs.
-
+every device of every process and process 0 writes the outputs. ``--backlash`` (sweep):
+:mod:`gearjax.cli.backlash`; stability analyses the linear equations, without back flanks.
 3D modal cut-off: without ``--max-frequency`` the model keeps the modes below 3 mesh
 harmonics of the highest requested speed times 1.5, at least 6 kHz
 (:func:`default_max_frequency_hz`; 16.8 kHz for the default sweep to 900 rad/s, 27.9 kHz
 for the default stability range to 1500 rad/s); ``--max-frequency 0`` keeps all modes.
-
 NLTE'' reaction: at the drive by default, as in the 3D model and the design commands
 (``--nlte-reaction``, :func:`gearjax.cli.scenario.add_nlte_reaction`); ``--nlte-reaction
 pinion`` (torsional model only) gives Eqs. (15)-(16) as written. ``case.json`` and
@@ -53,7 +52,7 @@ from ..models.geared3d import (  # the default modal cut-off rule lives with the
 )
 from ..runtime import watchdog
 from ..runtime.progress import command_meter
-from ..models.base import LINEAR_FORMULATIONS
+from ..models.base import FORMULATIONS, LINEAR_FORMULATIONS
 from ..dynamics.harmonic_sweep import HARMONIC_FLOQUET_MAX_STATES
 from ..dynamics.sweep import tolerance_options
 from ..errors import SimulationError
@@ -63,6 +62,7 @@ from ..rigs.factory import build_model
 from ..rigs.campbell import campbell
 from ..rigs.figures import predicted_critical_speeds
 from .ahead import Ahead, build_and_compile_ahead
+from .backlash import add_backlash, backlash_key, backlash_record
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
 from .iso import iso_dynamic_factor
@@ -74,7 +74,6 @@ from .scenario import (add_nlte_reaction, add_nlte_switches, add_speeds, add_tor
 
 __all__ = ["register", "parse_speeds", "case_name", "default_max_frequency_hz", "modal_cutoff"]
 
-FORMULATIONS = ("reference", "te", "perturbation")
 # undamped stability: |spectral radius - 1| below this is round-off of the monodromy matrix
 # (neutral), above it a parametric instability
 NEUTRAL_TOLERANCE = 1e-6
@@ -109,6 +108,7 @@ def register(sub, add_rig, add_scenario):
                     help="comma-separated subset of reference,te,perturbation (default all; "
                          "te,perturbation with --te-file)")
     add_speeds(sw, "sweep")
+    add_backlash(sw)
     sw.add_argument("--signals", default=None, metavar="SPEEDS",
                     help="comma-separated pinion speeds (rad/s) whose mesh force over the last "
                          "mesh period is also written and plotted (Fig. 11), e.g. 100,400,800")
@@ -252,7 +252,7 @@ def case_name(args, scenario=None) -> str:
         parts.append(f"nlte-{args.nlte_reaction}")
     if args.model == "3d":
         parts.append(f"enc{args.encoders}")
-    return "-".join(parts)
+    return "-".join(parts + [k for k in (backlash_key(args),) if k])
 
 
 def _forms(text: str) -> list[str]:
@@ -376,7 +376,7 @@ def cmd_sweep(args) -> int:
         "encoders": args.encoders, "max_frequency_hz": cutoff_hz, "formulations": forms,
         **({"te_file": os.path.abspath(args.te_file)} if args.te_file else {}),
         # the rig and TE files' contents, not only their names: an edited file is another case
-        **input_digests(args), "pinion_torque_Nm": rig.pinion_torque_Nm,
+        **input_digests(args), "pinion_torque_Nm": rig.pinion_torque_Nm, **backlash_record(rig),
         # the specification, not the speeds (ten million of them are 231 MB of JSON)
         **{k: v for k, v in spec.record().items() if k != "speeds_source"},
     }
@@ -416,7 +416,7 @@ def cmd_sweep(args) -> int:
         "nlte_reaction": reaction, "encoders": args.encoders, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
         "rtol": args.rtol, "devices": device_count(devices),
-        "pinion_torque_Nm": rig.pinion_torque_Nm,
+        "pinion_torque_Nm": rig.pinion_torque_Nm, "backlash_m": rig.backlash_m,
         "static_mesh_force_N": static_mesh_force(rig.pair, rig.pinion_torque_Nm),
         **spec.record(),
         **({"excitation": _excitation(args, te, scen)} if te is not None else {}),
@@ -637,7 +637,7 @@ def cmd_stability(args) -> int:
                         encoder_position=args.encoders,
                         **nlte_options_of(args),
                         max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te,
-                        moving_events=False)
+                        moving_events=False, backlash_m=None)  # linear: no back flanks
     method = args.method
     if method == "auto":  # the monodromy costs n columns: cheap for the sdof model only
         method = "steady" if model.state_size <= HARMONIC_FLOQUET_MAX_STATES else "harmonic"
