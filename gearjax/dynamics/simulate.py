@@ -24,17 +24,17 @@ linear model). Measurements: ``benchmarks/results/code_notes.md``, gearjax.dynam
 
 Jumps: the right-hand side jumps or kinks at speed-independent angles
 (``model.jump_thetas``); :class:`~gearjax.dynamics.integrate.PeriodicJumpController` ends a step just before each and
-restarts just after it. The reference contact law's state-dependent kinks are left to the
-error control. Solvers and tolerances: :func:`default_solver`.
+restarts just after it. The contact laws' state-dependent kinks (contact loss, back-flank
+impacts) are left to the error control. Solvers and tolerances: :func:`default_solver`.
 
 Metrics per speed, exact to the integration tolerance (read on the output grid of
 :mod:`gearjax.dynamics.metrics` by the dense interpolant and refined between grid points
 and after the largest jumps): max and min mesh force F_D (N, Eqs. (22)/(24)), dynamic factor
 ``max F_D / F_S``, DTE and acceleration peak-to-peak, ``contact_loss`` (``min F_D <= 0``),
-``back_contact`` (``min F_D < 0``: the back flanks met, a model with backlash),
-``convergence`` and ``period_multiple`` (:mod:`gearjax.dynamics.periodicity`), and
-``converged`` ("periodic with the excitation period to within ``convergence_tol``"). A
-failed integration gives ``solver_ok = False``, ``converged = False`` and NaN metrics.
+``back_contact`` (``min F_D < 0``: backlash), ``convergence``, ``period_multiple``
+(:mod:`gearjax.dynamics.periodicity`) and ``converged`` ("periodic with the excitation
+period to within ``convergence_tol``"). A failed integration gives ``solver_ok = False``,
+``converged = False`` and NaN metrics.
 
 Derivatives: every operation on the metric path is differentiable; the default
 ``adjoint=diffrax.ForwardMode()`` differentiates through the solve, and the models' angle
