@@ -4,9 +4,8 @@
 Eqs. (16)/(20)/(47a), 3D Eqs. (14)/(42)/(48a)) at one speed through a transient to its
 periodic steady state and measures that state, asking the model only what the base class
 declares. It integrates in the angle ``theta`` (rad) from ``model.transient_start``
-(:func:`gearjax.dynamics.integrate.integrate`);
-the transient, each measured period and each refinement window are legs of one call site
-(:mod:`gearjax.dynamics.legs`).
+(:func:`gearjax.dynamics.integrate.integrate`); the transient, each measured period and
+each refinement window are legs of one call site (:mod:`gearjax.dynamics.legs`).
 
 Transient: ``n_transient_periods`` excitation periods, or (``None``) per speed
 ``n = ceil(ln(1/transient_decay) / (decay_rate * period))`` clipped to
