@@ -145,13 +145,16 @@ def _mark_regimes(ax, x, y, regimes, color) -> None:
     """Ring the single-sided and cross the double-sided speeds of one curve (legend entries
     once per axis)."""
     have = {t.get_label() for t in ax.get_lines()}
-    for k, (marker, face) in ((1, ("o", "none")), (2, ("X", color))):
+    if np.any(regimes > 0) and "no impact (plain markers)" not in have:
+        ax.plot([], [], ls="none", marker=".", color="0.3", label="no impact (plain markers)")
+    for k, marker in ((1, "o"), (2, "X")):
         sel = regimes == k
         if not np.any(sel):
             continue
+        ax.plot(x[sel], y[sel], ls="none", marker=marker, ms=8, color=color, mfc="none", mew=1.0)
         label = f"{REGIMES[k]} impacts" + (" (contact loss)" if k == 1 else " (back flanks)")
-        ax.plot(x[sel], y[sel], ls="none", marker=marker, ms=8, mfc=face, mec=color, mew=1.0,
-                label=None if label in have else label)
+        if label not in have:  # one neutral legend entry per regime
+            ax.plot([], [], ls="none", marker=marker, ms=8, color="0.3", mfc="none", label=label)
 
 
 # order-track panels: (column stem, y label, dB reference in the column's SI unit)
