@@ -15,7 +15,8 @@ from gearjax.models.torsional import TorsionalModel
 from gearjax.rigs.registry import get_rig
 
 CSV_COLUMNS = ("speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor", "dte_ptp_m",
-               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged", "convergence",
+               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "back_contact", "converged",
+               "convergence",
                "period_multiple")
 
 

@@ -21,6 +21,7 @@ from ..excitation.te_file import read_te_csv
 from ..models.geared3d import CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS, \
     default_max_frequency_hz
 from ..rigs.factory import build_model
+from .backlash import backlash_key, backlash_record
 from .scenario import (Scenario, Speeds, input_digests, linspace_option, nlte_options_of,
                        nlte_reaction_of, rig_notes, rig_of, scenario_modifications, speeds_of)
 
@@ -92,7 +93,7 @@ def case_name(args, scenario: Scenario | None = None) -> str:
         parts.append(f"nlte-{args.nlte_reaction}")
     if args.model == "3d":
         parts.append(f"enc{args.encoders}")
-    return "-".join(parts)
+    return "-".join(parts + [k for k in (backlash_key(args),) if k])
 
 
 def formulations_of(text: str) -> list[str]:
@@ -162,17 +163,18 @@ class DynamicsCase:
     def speeds(self) -> np.ndarray:
         return self.spec.rad_s
 
-    def build(self, formulation: str):
+    def build(self, formulation: str, back_flanks: bool = True):
         """The model of ``formulation`` (:func:`gearjax.rigs.factory.build_model`, forward
-        only); a cut-off that keeps no vibration mode is reported as ``--max-frequency``'s
-        error."""
+        only; ``back_flanks=False``: without the rig's backlash, the linear equations); a
+        cut-off that keeps no vibration mode is reported as ``--max-frequency``'s error."""
         a = self.args
+        extra = {} if back_flanks else {"backlash_m": None}
         try:
             return build_model(self.rig, self.scenario.mods, model=a.model, formulation=formulation,
                                law=a.stiffness, damping_ratio=a.damping,
                                encoder_position=a.encoders, **self.nlte,
                                max_frequency_hz=self.cutoff_hz, nlte_reaction=self.reaction,
-                               te_table=self.te, moving_events=False)
+                               te_table=self.te, moving_events=False, **extra)
         except ModelError as exc:
             if exc.field != "max_frequency_hz":
                 raise
@@ -237,6 +239,7 @@ class SweepCase(DynamicsCase):
             "formulations": list(self.forms),
             **({"te_file": os.path.abspath(a.te_file)} if a.te_file else {}),
             **input_digests(a), "pinion_torque_Nm": self.rig.pinion_torque_Nm,
+            **backlash_record(self.rig),
             **{k: v for k, v in self.spec.record().items() if k != "speeds_source"},
             **({"rtol": float(a.rtol)} if a.rtol is not None else {}),
             **({"direction": a.direction} if a.direction != "independent" else {}),

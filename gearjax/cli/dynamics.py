@@ -21,7 +21,8 @@ Section 6.3 cases (Velex & Ajmi), one command each (``--speeds`` to taste)::
 Several hosts (or several processes on one host): start the same command on every process
 with ``--distributed`` (cluster auto-detection: SLURM, Open MPI, ...) or with
 ``--coordinator HOST:PORT --num-processes N --process-id I``; the speeds are shared over
-every device of every process and process 0 writes the outputs.
+every device of every process and process 0 writes the outputs. ``--backlash`` (sweep):
+:mod:`gearjax.cli.backlash`; stability analyses the linear equations, without back flanks.
 
 3D modal cut-off: without ``--max-frequency`` the model keeps the modes below 3 mesh
 harmonics of the highest requested speed times 1.5, at least 6 kHz
@@ -53,6 +54,7 @@ from ..gears.quasistatic import static_mesh_force
 from ..rigs.campbell import campbell
 from ..rigs.figures import predicted_critical_speeds
 from .ahead import Ahead, build_and_compile_ahead
+from .backlash import add_backlash
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .case import (DynamicsCase, SweepCase, dynamics_case, sweep_case,
                    transient_tolerances)
@@ -83,6 +85,7 @@ def register(sub, add_rig, add_scenario):
                     help="comma-separated subset of reference,te,perturbation (default all; "
                          "te,perturbation with --te-file)")
     add_speeds(sw, "sweep")
+    add_backlash(sw)
     sw.add_argument("--signals", default=None, metavar="SPEEDS",
                     help="comma-separated pinion speeds (rad/s) whose mesh force over the last "
                          "mesh period is also written and plotted (Fig. 11), e.g. 100,400,800")
@@ -217,7 +220,7 @@ def _summary_head(case: SweepCase, devices, notes: list[str]) -> dict:
         **case.record(), "relief": a.relief or case.scenario.key,
         "nlte_inertia": case.nlte["nlte_inertia"], "te_file": a.te_file,
         "max_frequency_source": case.cutoff_source, "rtol": a.rtol,
-        "devices": device_count(devices),
+        "devices": device_count(devices), "backlash_m": case.rig.backlash_m,
         "static_mesh_force_N": static_mesh_force(case.rig.pair, case.rig.pinion_torque_Nm),
         **case.spec.record(),
         **({"excitation": _excitation(a, case.te, case.scenario)} if case.te is not None else {}),
@@ -496,7 +499,7 @@ def cmd_stability(args) -> int:
         _stderr("stability", "warning", warning)
     for note in notes:
         _stderr("stability", "note", note)
-    model = case.build(args.formulation)
+    model = case.build(args.formulation, back_flanks=False)  # linear: no back flanks
     method = args.method
     if method == "auto":  # the monodromy costs n columns: cheap for the sdof model only
         method = "steady" if model.state_size <= HARMONIC_FLOQUET_MAX_STATES else "harmonic"

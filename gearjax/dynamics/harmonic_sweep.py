@@ -33,7 +33,9 @@ __all__ = ["harmonic_sweep", "HarmonicSweepResult", "HarmonicBalance",
 class HarmonicSweepResult(SweepResult):
     """:class:`gearjax.dynamics.results.SweepResult` of :func:`harmonic_sweep` (same
     meaning per field; ``convergence`` is ``error_estimate``, ``contact_loss`` is ``not
-    contact_holds``, ``n_steps`` and ``transient_periods`` are 0: nothing is integrated),
+    contact_holds``, ``back_contact`` is False (where contact holds no back flank is
+    reached; the other speeds are not this solver's), ``n_steps`` and
+    ``transient_periods`` are 0: nothing is integrated),
     with per speed:
 
     n_harmonics : harmonics used (the first power of two whose estimate met ``rtol``).
@@ -173,7 +175,8 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
         speed_rad_s=speeds, max_mesh_force_N=out["max_mesh_force_N"],
         min_mesh_force_N=out["min_mesh_force_N"], dynamic_factor=out["dynamic_factor"],
         dte_ptp_m=out["dte_ptp_m"], accel_ptp_m_s2=out["accel_ptp_m_s2"],
-        contact_loss=ok & ~holds, convergence=out["error_estimate"],
+        contact_loss=ok & ~holds, back_contact=np.zeros(speeds.size, bool),
+        convergence=out["error_estimate"],
         converged=conv, period_multiple=np.where(conv, 1, 0), solver_ok=ok,
         n_steps=zero.astype(np.int64), transient_periods=zero, formulation=model.formulation,
         n_harmonics=n_used, error_estimate=out["error_estimate"], contact_holds=holds,

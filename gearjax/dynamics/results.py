@@ -16,8 +16,8 @@ import numpy as np
 from ..errors import GearjaxError
 from .orders import N_MESH_ORDERS
 
-__all__ = ["SweepResult", "merge_results", "CSV_COLUMNS", "METRIC_FIELDS", "ORDER_FIELDS",
-           "SOLVE_FIELDS", "ORDER_COLUMNS",
+__all__ = ["SweepResult", "merge_results", "CSV_COLUMNS", "METRIC_FIELDS", "FLAG_FIELDS",
+           "ORDER_FIELDS", "SOLVE_FIELDS", "ORDER_COLUMNS",
            "csv_rows", "order_rows", "empty_metrics", "append_rows", "check_header"]
 
 CSV_COLUMNS = (
@@ -29,6 +29,7 @@ CSV_COLUMNS = (
     "accel_ptp_m_s2",
     "min_mesh_force_N",
     "contact_loss",
+    "back_contact",  # the back flanks met (backlash): min_mesh_force_N < 0
     "converged",
     "convergence",  # the periodicity measure behind `converged` (the achieved residual)
     "period_multiple",  # the response's period in excitation periods (0: not periodic)
@@ -41,8 +42,8 @@ class SweepResult(eqx.Module):
     Attributes
     ----------
     speed_rad_s, max_mesh_force_N, min_mesh_force_N, dynamic_factor, dte_ptp_m,
-    accel_ptp_m_s2, contact_loss, convergence, converged, solver_ok, n_steps,
-    transient_periods, period_multiple : NumPy arrays of shape (n_speeds,), see
+    accel_ptp_m_s2, contact_loss, back_contact, convergence, converged, solver_ok,
+    n_steps, transient_periods, period_multiple : NumPy arrays of shape (n_speeds,), see
         :class:`gearjax.dynamics.simulate.SimulationResult`.
     mesh_force_orders_N, dte_orders_m, accel_orders_m_s2 : (n_speeds, 5) single-sided
         peak amplitudes of mesh orders 1..5 (column k-1: order k, k times the mesh
@@ -70,6 +71,7 @@ class SweepResult(eqx.Module):
     dte_ptp_m: np.ndarray
     accel_ptp_m_s2: np.ndarray
     contact_loss: np.ndarray
+    back_contact: np.ndarray
     convergence: np.ndarray
     converged: np.ndarray
     solver_ok: np.ndarray
@@ -128,9 +130,11 @@ ORDER_FIELDS = ("mesh_force_orders_N", "dte_orders_m", "accel_orders_m_s2")
 SOLVE_FIELDS = ("solver", "spectral_radius", "status")
 METRIC_FIELDS = (
     "speed_rad_s", "max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
-    "accel_ptp_m_s2", "contact_loss", "convergence", "converged", "solver_ok", "n_steps",
-    "transient_periods", "period_multiple",
+    "accel_ptp_m_s2", "contact_loss", "back_contact", "convergence", "converged", "solver_ok",
+    "n_steps", "transient_periods", "period_multiple",
 ) + ORDER_FIELDS
+# the boolean fields (stored as floats, NaN where a speed was not computed, while a sweep runs)
+FLAG_FIELDS = ("contact_loss", "back_contact", "converged", "solver_ok")
 
 # orders.csv: order<k>_<signal>_<unit>, single-sided peak amplitudes (SI), DTE first
 _CSV_ORDER = (("dte", "m"), ("force", "N"), ("accel", "m_s2"))
@@ -172,6 +176,7 @@ def csv_rows(res, sl=slice(None)):
             "accel_ptp_m_s2": fmt_value(g("accel_ptp_m_s2")),
             "min_mesh_force_N": fmt_value(g("min_mesh_force_N")),
             "contact_loss": str(bool(g("contact_loss"))),
+            "back_contact": str(bool(g("back_contact"))),
             "converged": str(bool(g("converged"))),
             "convergence": fmt_value(g("convergence")),
             "period_multiple": _fmt_int(g("period_multiple")),

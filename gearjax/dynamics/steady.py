@@ -53,7 +53,7 @@ import numpy as np
 from ..linalg import solve as dense_solve
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .batching import over_speeds, sequential_for
-from .results import METRIC_FIELDS, SweepResult, empty_metrics
+from .results import FLAG_FIELDS, METRIC_FIELDS, SweepResult, empty_metrics
 from .integrate import integrate, jump_controller
 from .orbit import RESULTS, Orbit, measure, metric_status
 from .simulate import SimulationError, SimulationResult, simulate
@@ -258,13 +258,14 @@ def steady_state(model, omega, shooting: "Shooting | None" = None, *,
     res = eqx.tree_at(
         lambda r: (r.max_mesh_force_N, r.min_mesh_force_N, r.dynamic_factor, r.dte_ptp_m,
                    r.accel_ptp_m_s2, r.converged, r.period_multiple, r.solver_ok,
-                   r.contact_loss, r.n_steps, r.mesh_force_orders_N, r.dte_orders_m,
-                   r.accel_orders_m_s2),
+                   r.contact_loss, r.back_contact, r.n_steps, r.mesh_force_orders_N,
+                   r.dte_orders_m, r.accel_orders_m_s2),
         res,
         (bad(res.max_mesh_force_N), bad(res.min_mesh_force_N), bad(res.dynamic_factor),
          bad(res.dte_ptp_m), bad(res.accel_ptp_m_s2), converged,
          jnp.where(converged, 1, 0).astype(res.period_multiple.dtype), good,
-         res.contact_loss & good, res.n_steps + orbit.n_steps, bad(res.mesh_force_orders_N),
+         res.contact_loss & good, res.back_contact & good, res.n_steps + orbit.n_steps,
+         bad(res.mesh_force_orders_N),
          bad(res.dte_orders_m), bad(res.accel_orders_m_s2)),
     )
     return SteadyStateResult(result=res, orbit=orbit)
@@ -373,7 +374,7 @@ def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
                             f"continued {idx.size} speed(s) with contact loss or without a "
                             f"stable orbit by simulate in {time.perf_counter() - t0:.2f} s",
                             elapsed_s=time.perf_counter() - t_start)
-    for f in ("contact_loss", "converged", "solver_ok"):
+    for f in FLAG_FIELDS:
         out[f] = out[f] > 0
     out["n_steps"] = out["n_steps"].astype(np.int64)
     measured = metric_status(out["solver_ok"], out["converged"])
