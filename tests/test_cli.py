@@ -96,7 +96,7 @@ def test_sweep_writes_csv_json_and_figure(torsional_cli_sweep):
                          encoding="utf-8")
     assert data.dtype.names == ("speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor",
                                 "dte_ptp_m", "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss",
-                                "converged", "convergence", "period_multiple")
+                                "back_contact", "converged", "convergence", "period_multiple")
     assert len(data) == 6 and set(data["formulation"]) == {"reference", "te"}
     # Eq. (24): max F_D / F_S is the dynamic factor
     f_s = 254.8 / baud_velex_pair(False).base_radii_m[0]
