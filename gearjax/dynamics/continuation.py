@@ -54,7 +54,7 @@ import numpy as np
 from ..errors import SimulationError
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .orbit import metric_status
-from .results import METRIC_FIELDS, SweepResult, empty_metrics
+from .results import FLAG_FIELDS, METRIC_FIELDS, SweepResult, empty_metrics
 from .integrate import integrate, jump_controller
 from .simulate import (default_solver, jump_density, simulate,
                        transient_periods)
@@ -209,7 +209,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
                         f"{', restarted' if restarted[i] else ''}"
                         f"{'' if ok else ', NO stable orbit'}",
                         elapsed_s=time.perf_counter() - t_start)
-    for f in ("contact_loss", "converged", "solver_ok"):
+    for f in FLAG_FIELDS:
         out[f] = out[f] > 0
     out["converged"] = out["converged"] & stable
     out["n_steps"] = np.nan_to_num(out["n_steps"]).astype(np.int64)
