@@ -168,7 +168,7 @@ def test_back_vectors_rigid_body_motions(helical):
     np.testing.assert_allclose(vb @ ax, -(v @ ax), atol=1e-20)
 
 
-def _torsional_3d(formulation, clearance, **kw):
+def _torsional_3d(formulation, clearance, n_table=32, **kw):
     """A torsional-only 3D structure (two inertias, a soft resisting spring) with the long
     relief (gaps and NLTE on both flanks), and its mesh."""
     from gearjax.models.geared3d import Geared3DModel
@@ -184,7 +184,7 @@ def _torsional_3d(formulation, clearance, **kw):
     b.set_node(0, line="pinion").set_node(1, line="gear")
     b.set_pinion_node(0).set_gear_node(1)
     fixed = [d for d in range(12) if d not in (5, 11)]
-    m3 = Geared3DModel.build(b.build(), mesh, mods, fixed_dofs=fixed, n_table=32,
+    m3 = Geared3DModel.build(b.build(), mesh, mods, fixed_dofs=fixed, n_table=n_table,
                              formulation=formulation, backlash_m=clearance, **kw)
     return m3, mesh, mods
 
@@ -239,6 +239,34 @@ def test_3d_te_back_flanks_are_the_sdof_law_in_torsion(formulation):
                 assert f3 == pytest.approx(f0, rel=1e-12, abs=1e-9)
             else:
                 assert f3 < 0.0 == f0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("formulation", ["reference", "te"])
+def test_3d_torsional_structure_with_backlash_is_the_sdof_model(formulation):
+    """Through double-sided impacts, the 3D model on a torsional-only structure (its NLTE''
+    reaction on the pinion node: the sdof ``nlte_reaction="pinion"``) and the sdof model
+    with the same backlash give the same steady response (tight tolerances; the two codes
+    scale their states differently)."""
+    from gearjax.dynamics.simulate import simulate
+    from gearjax.models.torsional import TorsionalModel
+
+    clearance = 5e-6
+    mesh = Mesh.build(baud_velex_pair(False), "iso6336", cells_per_line=2)
+    m1 = TorsionalModel.build(mesh, table1_relief("long"), inertias_kg_m2=(0.002, 0.05),
+                              excitation="inline", nlte_reaction="pinion",
+                              formulation=formulation, damping_ratio=0.02, backlash_m=clearance)
+    m3, _, _ = _torsional_3d(formulation, clearance, n_table=64, damping_ratio=0.02,
+                             mean_stiffness_N_per_m=float(m1.mean_stiffness_N_per_m()))
+    omega = 1500.0  # above 1450 rad/s both models strike the back flanks (sdof sweep)
+    run = lambda m: simulate(m, omega, n_transient_periods=300, n_measured_periods=2,  # noqa: E731
+                             rtol=1e-9, atol=1e-11)
+    r3, r1 = run(m3), run(m1)
+    assert bool(r1.back_contact) and bool(r3.back_contact)
+    # a fixed offset between the two codes (their states and tables differ), not integration
+    # error; the bound is about four times the largest offset of the four extremes
+    np.testing.assert_allclose(float(r3.max_mesh_force_N), float(r1.max_mesh_force_N), rtol=2e-5)
+    np.testing.assert_allclose(float(r3.min_mesh_force_N), float(r1.min_mesh_force_N), rtol=2e-5)
 
 
 # ------------------------------------------------------------------ without backlash
