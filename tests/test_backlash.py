@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gearjax.errors import GearjaxError, ModelError, RigError
+from gearjax.errors import ModelError, RigError
 from gearjax.gears.backlash import back_flank_angle_rad, cell_backlash_force
 from gearjax.gears.contact import te_backlash_contact, te_contact, three_state_force
 from gearjax.gears.geometry import GearPair, involute
