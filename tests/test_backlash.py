@@ -198,13 +198,30 @@ def _state_at(m3, delta):
 DELTAS = (8e-6, 1e-7, -5e-6, -24e-6, -50e-6)  # drive, free flight, back (clearance 20 um)
 
 
-def test_3d_reference_back_flanks_are_the_sdof_law_in_torsion():
+@pytest.fixture(scope="module")
+def torsional_3d_models():
+    """The torsional-structure 3D models with a 20 um backlash (reference, te; perturbation
+    shares te's build) and te's without."""
+    ref, mesh, mods = _torsional_3d("reference", 20e-6)
+    te, _, _ = _torsional_3d("te", 20e-6)
+    te0, _, _ = _torsional_3d("te", None)
+    return dict(reference=ref, te=te, perturbation=te.with_formulation("perturbation"),
+                te0=te0, perturbation0=te0.with_formulation("perturbation"), mesh=mesh,
+                mods=mods)
+
+
+def test_3d_reference_back_flanks_are_the_sdof_law_in_torsion(torsional_3d_models):
     """On a torsional-only structure the 3D reference formulation's mesh force with
     back-flank cells (vectors ``H V``) equals the sdof per-cell law at the same approach, on
-    both flanks and in free flight."""
+    both flanks and in free flight; the back cells' engagement angles are integrator jumps."""
+    from gearjax.excitation.events import engagement_angles
+
     clearance = 20e-6
-    m3, mesh, mods = _torsional_3d("reference", clearance)
-    assert len(m3.jump_thetas) > len(_torsional_3d("reference", None)[0].jump_thetas)
+    m3, mesh, mods = (torsional_3d_models[k] for k in ("reference", "mesh", "mods"))
+    p = mesh.pair.mesh_period_rad
+    back = np.mod(back_flank_angle_rad(mesh.pair) - engagement_angles(mesh, p), p)
+    jumps = np.asarray(m3.jump_thetas)
+    assert all(np.min(np.abs(np.mod(jumps - t + p / 2, p) - p / 2)) < 1e-9 * p for t in back)
     for theta in np.linspace(0.0, mesh.pair.mesh_period_rad, 7)[:-1]:
         for delta in DELTAS:
             f3 = float(m3.outputs(jnp.asarray(theta), _state_at(m3, delta), 300.0).mesh_force_N)
@@ -213,15 +230,14 @@ def test_3d_reference_back_flanks_are_the_sdof_law_in_torsion():
 
 
 @pytest.mark.parametrize("formulation", ["te", "perturbation"])
-def test_3d_te_back_flanks_are_the_sdof_law_in_torsion(formulation):
+def test_3d_te_back_flanks_are_the_sdof_law_in_torsion(torsional_3d_models, formulation):
     """The 3D te/perturbation formulations' back-flank law along ``H V`` is, in torsion, the
     sdof mesh-level law: back-flank contact ``b`` behind the drive flanks' no-load position,
     the equation's stiffness, the loaded one reported (a force, N, against
     :func:`gearjax.gears.contact.te_backlash_contact` on the 3D model's own excitation);
     before the back flanks, the paper's law."""
     clearance = 20e-6
-    m3, mesh, _ = _torsional_3d(formulation, clearance)
-    m0, _, _ = _torsional_3d(formulation, None)
+    m3, m0, mesh = (torsional_3d_models[k] for k in (formulation, formulation + "0", "mesh"))
     f_s = float(m3.static_force_N)
     for theta in np.linspace(0.0, mesh.pair.mesh_period_rad, 5)[:-1]:
         d, k = (float(v) for v in m3.table(jnp.asarray(theta))[0][:2])
@@ -439,8 +455,18 @@ def test_bad_backlash_rig_file(tmp_path, text, words):
     with pytest.raises(RigError) as exc:
         load_rig(p)
     assert words in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_rig_file_backlash(tmp_path):
+    from pathlib import Path
+
+    from gearjax.rigs.rigfile import load_rig
+
+    src = (Path(__file__).resolve().parents[1] / EXAMPLE).read_text()
+    p = tmp_path / "rig.toml"
     p.write_text(src.replace("[gear_pair]         # Table 1\n", "[gear_pair]\nbacklash_m = 1e-4\n"))
     assert load_rig(p).backlash_m == 1e-4
+    assert load_rig(Path(__file__).resolve().parents[1] / EXAMPLE).backlash_m is None
 
 
 @pytest.mark.parametrize("argv, words", [
