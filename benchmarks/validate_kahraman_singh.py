@@ -42,8 +42,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import jax.numpy as jnp  # noqa: E402
 
 from oscillators import (KS_LENGTH_M, KS_STIFFNESS_N_PER_M, KahramanSingh,  # noqa: E402
-                         _settle_measure, impact_regime, ks_gear_model, ks_gearjax_sweep,
-                         ks_speed_rad_s, ks_state, ks_te_file)
+                         impact_regime, ks_gear_model, ks_gearjax_sweep, ks_speed_rad_s,
+                         ks_state, ks_te_file)
 
 CASES = {  # name: (F_te, dimensionless speeds)
     "A": ((0.01, 0.004, 0.002), np.round(np.arange(0.40, 1.6001, 0.05), 3)),

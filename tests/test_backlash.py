@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from gearjax.errors import GearjaxError, ModelError, RigError
+from gearjax.errors import ModelError, RigError
 from gearjax.gears.backlash import back_flank_angle_rad, cell_backlash_force
 from gearjax.gears.contact import te_backlash_contact, te_contact, three_state_force
 from gearjax.gears.geometry import GearPair, involute
@@ -168,7 +168,7 @@ def test_back_vectors_rigid_body_motions(helical):
     np.testing.assert_allclose(vb @ ax, -(v @ ax), atol=1e-20)
 
 
-def _torsional_3d(formulation, clearance, **kw):
+def _torsional_3d(formulation, clearance, n_table=32, **kw):
     """A torsional-only 3D structure (two inertias, a soft resisting spring) with the long
     relief (gaps and NLTE on both flanks), and its mesh."""
     from gearjax.models.geared3d import Geared3DModel
@@ -184,7 +184,7 @@ def _torsional_3d(formulation, clearance, **kw):
     b.set_node(0, line="pinion").set_node(1, line="gear")
     b.set_pinion_node(0).set_gear_node(1)
     fixed = [d for d in range(12) if d not in (5, 11)]
-    m3 = Geared3DModel.build(b.build(), mesh, mods, fixed_dofs=fixed, n_table=32,
+    m3 = Geared3DModel.build(b.build(), mesh, mods, fixed_dofs=fixed, n_table=n_table,
                              formulation=formulation, backlash_m=clearance, **kw)
     return m3, mesh, mods
 
@@ -198,13 +198,30 @@ def _state_at(m3, delta):
 DELTAS = (8e-6, 1e-7, -5e-6, -24e-6, -50e-6)  # drive, free flight, back (clearance 20 um)
 
 
-def test_3d_reference_back_flanks_are_the_sdof_law_in_torsion():
+@pytest.fixture(scope="module")
+def torsional_3d_models():
+    """The torsional-structure 3D models with a 20 um backlash (reference, te; perturbation
+    shares te's build) and te's without."""
+    ref, mesh, mods = _torsional_3d("reference", 20e-6)
+    te, _, _ = _torsional_3d("te", 20e-6)
+    te0, _, _ = _torsional_3d("te", None)
+    return dict(reference=ref, te=te, perturbation=te.with_formulation("perturbation"),
+                te0=te0, perturbation0=te0.with_formulation("perturbation"), mesh=mesh,
+                mods=mods)
+
+
+def test_3d_reference_back_flanks_are_the_sdof_law_in_torsion(torsional_3d_models):
     """On a torsional-only structure the 3D reference formulation's mesh force with
     back-flank cells (vectors ``H V``) equals the sdof per-cell law at the same approach, on
-    both flanks and in free flight."""
+    both flanks and in free flight; the back cells' engagement angles are integrator jumps."""
+    from gearjax.excitation.events import engagement_angles
+
     clearance = 20e-6
-    m3, mesh, mods = _torsional_3d("reference", clearance)
-    assert len(m3.jump_thetas) > len(_torsional_3d("reference", None)[0].jump_thetas)
+    m3, mesh, mods = (torsional_3d_models[k] for k in ("reference", "mesh", "mods"))
+    p = mesh.pair.mesh_period_rad
+    back = np.mod(back_flank_angle_rad(mesh.pair) - engagement_angles(mesh, p), p)
+    jumps = np.asarray(m3.jump_thetas)
+    assert all(np.min(np.abs(np.mod(jumps - t + p / 2, p) - p / 2)) < 1e-9 * p for t in back)
     for theta in np.linspace(0.0, mesh.pair.mesh_period_rad, 7)[:-1]:
         for delta in DELTAS:
             f3 = float(m3.outputs(jnp.asarray(theta), _state_at(m3, delta), 300.0).mesh_force_N)
@@ -213,15 +230,14 @@ def test_3d_reference_back_flanks_are_the_sdof_law_in_torsion():
 
 
 @pytest.mark.parametrize("formulation", ["te", "perturbation"])
-def test_3d_te_back_flanks_are_the_sdof_law_in_torsion(formulation):
+def test_3d_te_back_flanks_are_the_sdof_law_in_torsion(torsional_3d_models, formulation):
     """The 3D te/perturbation formulations' back-flank law along ``H V`` is, in torsion, the
     sdof mesh-level law: back-flank contact ``b`` behind the drive flanks' no-load position,
     the equation's stiffness, the loaded one reported (a force, N, against
     :func:`gearjax.gears.contact.te_backlash_contact` on the 3D model's own excitation);
     before the back flanks, the paper's law."""
     clearance = 20e-6
-    m3, mesh, _ = _torsional_3d(formulation, clearance)
-    m0, _, _ = _torsional_3d(formulation, None)
+    m3, m0, mesh = (torsional_3d_models[k] for k in (formulation, formulation + "0", "mesh"))
     f_s = float(m3.static_force_N)
     for theta in np.linspace(0.0, mesh.pair.mesh_period_rad, 5)[:-1]:
         d, k = (float(v) for v in m3.table(jnp.asarray(theta))[0][:2])
@@ -239,6 +255,34 @@ def test_3d_te_back_flanks_are_the_sdof_law_in_torsion(formulation):
                 assert f3 == pytest.approx(f0, rel=1e-12, abs=1e-9)
             else:
                 assert f3 < 0.0 == f0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("formulation", ["reference", "te"])
+def test_3d_torsional_structure_with_backlash_is_the_sdof_model(formulation):
+    """Through double-sided impacts, the 3D model on a torsional-only structure (its NLTE''
+    reaction on the pinion node: the sdof ``nlte_reaction="pinion"``) and the sdof model
+    with the same backlash give the same steady response (tight tolerances; the two codes
+    scale their states differently)."""
+    from gearjax.dynamics.simulate import simulate
+    from gearjax.models.torsional import TorsionalModel
+
+    clearance = 5e-6
+    mesh = Mesh.build(baud_velex_pair(False), "iso6336", cells_per_line=2)
+    m1 = TorsionalModel.build(mesh, table1_relief("long"), inertias_kg_m2=(0.002, 0.05),
+                              excitation="inline", nlte_reaction="pinion",
+                              formulation=formulation, damping_ratio=0.02, backlash_m=clearance)
+    m3, _, _ = _torsional_3d(formulation, clearance, n_table=64, damping_ratio=0.02,
+                             mean_stiffness_N_per_m=float(m1.mean_stiffness_N_per_m()))
+    omega = 1500.0  # above 1450 rad/s both models strike the back flanks (sdof sweep)
+    run = lambda m: simulate(m, omega, n_transient_periods=300, n_measured_periods=2,  # noqa: E731
+                             rtol=1e-9, atol=1e-11)
+    r3, r1 = run(m3), run(m1)
+    assert bool(r1.back_contact) and bool(r3.back_contact)
+    # a fixed offset between the two codes (their states and tables differ), not integration
+    # error; the bound is about four times the largest offset of the four extremes
+    np.testing.assert_allclose(float(r3.max_mesh_force_N), float(r1.max_mesh_force_N), rtol=2e-5)
+    np.testing.assert_allclose(float(r3.min_mesh_force_N), float(r1.min_mesh_force_N), rtol=2e-5)
 
 
 # ------------------------------------------------------------------ without backlash
@@ -411,8 +455,18 @@ def test_bad_backlash_rig_file(tmp_path, text, words):
     with pytest.raises(RigError) as exc:
         load_rig(p)
     assert words in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_rig_file_backlash(tmp_path):
+    from pathlib import Path
+
+    from gearjax.rigs.rigfile import load_rig
+
+    src = (Path(__file__).resolve().parents[1] / EXAMPLE).read_text()
+    p = tmp_path / "rig.toml"
     p.write_text(src.replace("[gear_pair]         # Table 1\n", "[gear_pair]\nbacklash_m = 1e-4\n"))
     assert load_rig(p).backlash_m == 1e-4
+    assert load_rig(Path(__file__).resolve().parents[1] / EXAMPLE).backlash_m is None
 
 
 @pytest.mark.parametrize("argv, words", [

@@ -261,6 +261,7 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
         root.fail("first_node", first, "must be 0 or 1")
 
     pair = _gear_pair(root)
+    backlash = read_backlash(root, pair)  # checked before the structure is assembled
     if not root.has("operating"):
         root.missing("operating", "the [operating] table with pinion_torque_Nm")
     op = Reader(source, "operating", root.data["operating"], ("pinion_torque_Nm",))
@@ -443,7 +444,7 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
         modifications_default=mods,
         relief_presets=table1_relief,  # --relief short/long: the Table 1 reliefs
         accuracy=_accuracy(root),
-        backlash_m=read_backlash(root, pair),
+        backlash_m=backlash,
     )
 
 
