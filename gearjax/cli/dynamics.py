@@ -66,7 +66,10 @@ from .ahead import Ahead, build_and_compile_ahead
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
 from .iso import iso_dynamic_factor
-from .signals import last_mesh_period_signals, write_order_tracks, write_signals
+from .contact import add_te_contact, contact_record, contact_suffix, model_options_of
+from .refine import add_refine, refine_sweeps, refinement_of
+from .signals import (last_mesh_period_signals, parse_signal_speeds, write_order_tracks,
+                      write_signals)
 from .solvers import METHODS, STABILITY_METHODS, solver_for
 from .scenario import (add_nlte_reaction, add_nlte_switches, add_speeds, add_torque,
                        input_digests, linspace_option, missed_critical_speed, nlte_options_of,
@@ -147,6 +150,8 @@ def register(sub, add_rig, add_scenario):
     from .iso import add_iso_options
 
     add_iso_options(sw)
+    add_te_contact(sw)
+    add_refine(sw)
     dist = sw.add_argument_group("several hosts (jax.distributed)")
     dist.add_argument("--distributed", action="store_true",
                       help="join a multi-process run (jax.distributed.initialize with cluster "
@@ -213,19 +218,6 @@ def parse_speeds(text: str | None) -> np.ndarray:
     if text is None:
         text = "20:900:45"
     return linspace_option(text, "--speeds", example="20:900:60", unit="rad/s")
-
-
-def _parse_signal_speeds(text: str | None) -> list[float]:
-    if not text:
-        return []
-    try:
-        vals = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise ValueError(f"--signals={text!r}: expected comma-separated speeds in rad/s, "
-                         "e.g. 100,400,800") from None
-    if not vals or not all(math.isfinite(v) and v > 0 for v in vals):
-        raise ValueError(f"--signals={text!r}: speeds must be finite and > 0 (rad/s)")
-    return vals
 
 
 def _check_damping(z: float):
@@ -335,7 +327,7 @@ def cmd_sweep(args) -> int:
     forms = _forms(args.formulations or ("te,perturbation" if args.te_file
                                          else "reference,te,perturbation"))
     _check_te_file(args, forms)
-    sig_speeds = _parse_signal_speeds(args.signals)
+    sig_speeds = parse_signal_speeds(args.signals)
     _check_damping(args.damping)
     if args.model == "torsional" and args.encoders != 1:
         raise ValueError("--encoders: the torsional model has no encoder positions (3d only)")
@@ -352,10 +344,11 @@ def cmd_sweep(args) -> int:
     spec = speeds_of(args, rig, "sweep", law=args.stiffness, model=args.model,
                      damping=args.damping)
     speeds = spec.rad_s
+    refinement = refinement_of(args, speeds.size)
     scen = scenario_modifications(rig, args)
     mods = scen.mods
     te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
-    case = case_name(args, scen)
+    case = case_name(args, scen) + contact_suffix(args)
     out = args.out or os.path.join("gearjax-out", case)
     # a plain re-run (no --out) replaces the earlier run of its own default folder
     replace = (args.out is None and not args.resume and not args.overwrite
@@ -376,7 +369,7 @@ def cmd_sweep(args) -> int:
         "encoders": args.encoders, "max_frequency_hz": cutoff_hz, "formulations": forms,
         **({"te_file": os.path.abspath(args.te_file)} if args.te_file else {}),
         # the rig and TE files' contents, not only their names: an edited file is another case
-        **input_digests(args), "pinion_torque_Nm": rig.pinion_torque_Nm,
+        **input_digests(args), "pinion_torque_Nm": rig.pinion_torque_Nm, **contact_record(args),
         # the specification, not the speeds (ten million of them are 231 MB of JSON)
         **{k: v for k, v in spec.record().items() if k != "speeds_source"},
     }
@@ -384,6 +377,8 @@ def cmd_sweep(args) -> int:
         record["rtol"] = float(args.rtol)
     if args.direction != "independent":
         record["direction"] = args.direction
+    if refinement is not None:
+        record["refine_max_speeds"] = refinement.max_speeds
     done: dict = {}
     if lead:  # every output problem is reported now, before any computing
         prepare_output_dir("--out", out, results=RESULT_FILES, resume=args.resume,
@@ -400,7 +395,7 @@ def cmd_sweep(args) -> int:
             read_rows(orders_path, repair=True)
         write_case(out, record)
     devices = sweep_devices(args.method)
-    nlte = nlte_options_of(args)
+    nlte = model_options_of(args)  # and the te/perturbation contact law
     notes = rig_notes(rig, args.model)
     estimate = work_estimate(args.model, speeds.size, len(forms))
     if estimate:
@@ -415,7 +410,7 @@ def cmd_sweep(args) -> int:
         "nlte_terms": not args.zero_nlte, "nlte_inertia": nlte["nlte_inertia"],
         "nlte_reaction": reaction, "encoders": args.encoders, "te_file": args.te_file,
         "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
-        "rtol": args.rtol, "devices": device_count(devices),
+        "rtol": args.rtol, "devices": device_count(devices), **contact_record(args),
         "pinion_torque_Nm": rig.pinion_torque_Nm,
         "static_mesh_force_N": static_mesh_force(rig.pair, rig.pinion_torque_Nm),
         **spec.record(),
@@ -451,7 +446,7 @@ def cmd_sweep(args) -> int:
             return dict(solver=solver_for(args.method, model, args.rtol, tolerances),
                         chunk_size=size, devices=devices)
 
-        linear = None  # a 3D te/perturbation model: the other one shares its build
+        linear, models = None, {}  # a 3D te/perturbation model: the other one shares its build
         early, ahead = {}, Ahead()  # programs compiling on threads, a model built ahead
         for form in forms:
             t0 = time.perf_counter()
@@ -504,9 +499,14 @@ def cmd_sweep(args) -> int:
                 res = sweep(model, todo, progress=command_meter(not args.json), out_csv=csv_path,
                             orders_csv=orders_path, **sweep_options(model))
                 methods[form] = method_counts(res)
-            times[form] = (t_build, time.perf_counter() - t0 + traced)
+            times[form], models[form] = (t_build, time.perf_counter() - t0 + traced), model
             if sig_speeds and lead:
                 signals[form] = last_mesh_period_signals(model, sig_speeds)
+        if refinement is not None:  # every formulation at every added speed, one chunk size
+            run = lambda m, w: sweep(m, w, out_csv=csv_path, orders_csv=orders_path, **{  # noqa: E731
+                **sweep_options(m), "chunk_size": args.chunk or min(speeds.size, 64)})
+            summary["refinement"] = refine_sweeps(models, csv_path, (csv_path, orders_path), run,
+                                                  refinement, command_meter(not args.json))
     except KeyboardInterrupt:
         interrupted = True
     if not lead:

@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import ModelError
 from ..excitation.mesh3d import QuasiStaticMesh3D
 from ..excitation.te_file import TETable
+from ..gears.contact import TEContactLaw
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.quasistatic import static_mesh_force
@@ -64,6 +65,7 @@ def build_geared3d(
     te_table: TETable | None = None,
     nlte_inertia: bool = True,
     moving_events: bool = True,
+    contact_law: TEContactLaw = TEContactLaw.MESH,
 ):
     """Build a complete 3D model, a :class:`~gearjax.models.geared3d.Geared3DModel`
     (outside ``jit``: checks, modal basis, k_m, jump and event angles, excitation table).
@@ -118,6 +120,9 @@ def build_geared3d(
     moving_events : te/perturbation table: False keeps the switching angles at the build
         angles (no angle map: the same model at the build design, built faster for
         forward sweeps; :meth:`with_modifications` then moves no switching angle).
+    contact_law : te/perturbation contact law (:class:`gearjax.gears.contact.TEContactLaw`):
+        ``MESH`` (default, the mesh as a whole) or ``CELLS`` (cell by cell; the table then
+        also holds the element dofs of X_S; not with ``te_table``); the reference ignores it.
 
     Raises
     ------
@@ -130,6 +135,12 @@ def build_geared3d(
         raise ModelError("mesh_vectors", mesh_vectors, f"must be one of {MESH_VECTORS}")
     if excitation not in EXCITATIONS:
         raise ModelError("excitation", excitation, f"must be one of {EXCITATIONS}")
+    if not isinstance(contact_law, TEContactLaw):
+        raise ModelError("contact_law", contact_law,
+                         f"must be a TEContactLaw ({', '.join(c.name for c in TEContactLaw)})")
+    if contact_law is TEContactLaw.CELLS and te_table is not None:
+        raise ModelError("contact_law", "CELLS", "the per-cell contact law needs the cells' "
+                         "gaps; a TE file gives TE_S alone (use TEContactLaw.MESH)")
     if mods is None:
         mods = ToothModifications.none()
     mods.check_against(mesh.pair)
@@ -206,7 +217,8 @@ def build_geared3d(
         free12=jnp.asarray(mask12), static_force_N=jnp.asarray(f_s), v_x0=v_r_j @ q0_j,
         c_vv=v_r_j @ c_v_r_j, c_wv=w_r_j @ c_v_r_j, mesh_vectors=mesh_vectors,
         qs_max_iter=int(qs_max_iter), nlte_terms=bool(nlte_terms),
-        loaded_codes=formulation != "reference")
+        loaded_codes=formulation != "reference",
+        cell_states=contact_law is TEContactLaw.CELLS and formulation != "reference")
 
     # speed-independent RHS jumps (te/perturbation: + table events: NLTE' jumps at zone kinks)
     tabulated = formulation != "reference" and excitation == "table"
@@ -231,5 +243,6 @@ def build_geared3d(
         te_source=None if te_table is None else te_table.source,
         nlte_inertia=bool(nlte_inertia), **modal_structure(red.kbar_r, red.c_r, red.n_modes),
         te_weight=None if formulation == "reference" else jnp.asarray(float(formulation == "te")),
+        contact_law=contact_law,
         **layout,
     )

@@ -23,6 +23,11 @@ Eqs. (17)-(19))::
 (20)/(47a): the mesh term (stiffness and TE forcing together) acts while its force ``F_S +
 k cos(b_b) x_D`` is compressive and is zero when that would be tensile
 (:func:`gearjax.gears.contact.te_contact`; unchanged, bit for bit, while contact holds).
+``contact_law=TEContactLaw.CELLS`` resolves it cell by cell instead
+(:func:`gearjax.gears.contact.te_cell_contact`: Eq. (22) with each cell's quasi-static
+approach ``x_S cos b_b - de_i``; unchanged, bit for bit, while every cell keeps its
+quasi-static state). On this model Eq. (20) with that law is Eq. (16) again: undoing (18a)
+cell by cell restores the reference's force ``sum_i k_i max(0, x cos b_b - de_i)``.
 
 Here ``m_eq = J1 J2 / (J1 Rb2^2 + J2 Rb1^2)`` (kg), ``F_t = C_m0 / Rb1`` (N) and the viscous
 damping is ``c = 2 zeta sqrt(k_m cos^2(b_b) m_eq)`` (N s/m), the same ``k_m`` for all three
@@ -129,7 +134,8 @@ import numpy as np
 from ..gears.geometry import STEEL_DENSITY_KG_M3, GearPair, solid_cylinder_inertias  # re-exported
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
-from ..gears.contact import solve_unilateral, te_contact, unilateral_solve_pairwise
+from ..gears.contact import (TEContactLaw, solve_unilateral, te_cell_contact, te_contact,
+                             unilateral_solve_pairwise)
 from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..excitation.events import EV_FIXED, NEWTON_STEPS, code_jnp, moved_event_angles
 from ..excitation.sdof import sdof_signature, sdof_switch
@@ -177,6 +183,7 @@ class _TorsionalInputs(eqx.Module):
     nlte_inertia: bool = eqx.field(static=True, default=True)
     table_codes: jax.Array | None = None
     te_input: PeriodicHermiteTable | None = None  # from a TE file (with_te): the table itself
+    contact_law: TEContactLaw = eqx.field(static=True, default=TEContactLaw.MESH)
 
     @property
     def pair(self) -> GearPair:
@@ -375,6 +382,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
     kappa : ``J2 / (Rb2^2 m_eq)`` (pinion reaction) or 1 (drive) with the substitution,
         else 0.
     nlte_dd_coeffs : complex Fourier coefficients of NLTE'' (spectral method), else None.
+    contact_law : :class:`gearjax.gears.contact.TEContactLaw` of te/perturbation (static;
+        the reference is always cell by cell).
     """
 
     angle_map: AngleMap | None = eqx.field(kw_only=True)
@@ -394,6 +403,12 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         if self.table.values.shape != (self.table_knots.shape[0], 3):
             raise ModelError("table", self.table.values.shape,
                              "must hold (x_S, (sum k)^S, NLTE) at every table knot")
+        if not isinstance(self.contact_law, TEContactLaw):
+            raise ModelError("contact_law", self.contact_law,
+                             f"must be a TEContactLaw ({', '.join(c.name for c in TEContactLaw)})")
+        if self.contact_law is TEContactLaw.CELLS and self.te_input is not None:
+            raise ModelError("contact_law", "CELLS", "the per-cell contact law needs the cells' "
+                             "gaps; a TE file gives TE_S alone (use TEContactLaw.MESH)")
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -439,6 +454,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         merge_spur_lines: bool = True,
         nlte_reaction: str = "drive",
         nlte_inertia: bool = True,
+        contact_law: TEContactLaw = TEContactLaw.MESH,
     ) -> "TorsionalModel":
         """Build a torsional model (outside ``jit``: inputs are checked, jump angles found).
 
@@ -466,6 +482,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             line is merged into one cell (``cells_per_line=1``, same total stiffness):
             identical results up to round-off, 10-30x cheaper reference right-hand sides.
             The stored ``mesh`` is then the merged one.
+        contact_law : te/perturbation contact law (:class:`gearjax.gears.contact.TEContactLaw`,
+            module docstring): ``MESH`` (default) or ``CELLS``; the reference ignores it.
 
         Raises
         ------
@@ -514,9 +532,14 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             pinion_torque_Nm=jnp.asarray(torque), damping_ratio=jnp.asarray(zeta),
             formulation=formulation, nlte_terms=bool(nlte_terms), nlte_method=nlte_method,
             nlte_reaction=nlte_reaction, nlte_inertia=bool(nlte_inertia),
-            nlte_harmonics=int(nlte_harmonics),
+            nlte_harmonics=int(nlte_harmonics), contact_law=contact_law,
             excitation=excitation, period_rad=period, n_table=n_table, **layout,
         )
+
+    @property
+    def mesh_level_contact(self) -> bool:
+        """False with the per-cell contact law (:attr:`contact_law` ``CELLS``)."""
+        return self.contact_law is TEContactLaw.MESH
 
     def angle(self, s):
         """(theta, dtheta/ds): the pinion angle (rad) at the simulation angle ``s`` (rad).
@@ -566,13 +589,14 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         return z, zp
 
     def _static_part(self, theta, exc):
-        """(x_static, k_S) used by te/perturbation: x_S, or TE_S without NLTE terms."""
+        """(x_static, k_S, x_S) used by te/perturbation: x_S, or TE_S without NLTE terms,
+        the loaded stiffness and the quasi-static approach x_S itself (m)."""
         if self.excitation == "inline":
             q = self._qs(theta)
         else:
             q = exc[0]
         x_static = q[_X_S] if self.nlte_terms else q[_X_S] + q[_NLTE]
-        return x_static, q[_K_S]
+        return x_static, q[_K_S], q[_X_S]
 
     def _mesh_terms(self, theta, x, exc, contact=True):
         """((F_elastic - F_t) / F_t, F_D (N)) at theta for the transverse approach x; te
@@ -583,13 +607,20 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             loads = cells.stiffness_N_per_m * jnp.maximum(x * self.cos_bb - delta_e, 0.0)
             f_d = jnp.sum(loads)  # Eq. (22)
             return f_d / f_s - 1.0, f_d
-        x_static, k_s = self._static_part(theta, exc)
+        x_static, k_s, x_s = self._static_part(theta, exc)
         x_d = x - x_static
         stiff = k_s if self.formulation == "te" else self.k_m
-        # Eq. (24) with the loaded stiffness for both; contact law: gears.contact.te_contact
-        cut, f_d = te_contact(f_s + stiff * self.cos_bb * x_d, f_s + k_s * self.cos_bb * x_d)
+        # Eq. (24) with the loaded stiffness for both; contact law: gears.contact
+        f_eq, f_ld = f_s + stiff * self.cos_bb * x_d, f_s + k_s * self.cos_bb * x_d
         if not contact:
-            cut, f_d = 0.0, f_s + k_s * self.cos_bb * x_d
+            cut, f_d = 0.0, f_ld
+        elif self.contact_law is TEContactLaw.CELLS:  # each cell's approach x_S cos b_b - de_i
+            cells, delta_e, _ = contact_gaps(self.mesh, self.mods, theta)
+            cut, f_d = te_cell_contact(f_eq, f_ld, cells.stiffness_N_per_m,
+                                       x_s * self.cos_bb - delta_e, x_d * self.cos_bb,
+                                       stiff / k_s)
+        else:
+            cut, f_d = te_contact(f_eq, f_ld)
         return (stiff * self.cos_bb * x_d - cut) / f_s, f_d
 
     def _exc(self, s):
