@@ -67,7 +67,7 @@ from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .devices import device_count, init_distributed, sweep_devices
 from .iso import iso_dynamic_factor
 from .contact import add_te_contact, contact_record, contact_suffix, model_options_of
-from .refine import add_refine, refine_sweeps, refinement_of
+from .refine import add_refine, refine_runner, refine_sweeps, refinement_of
 from .signals import (last_mesh_period_signals, parse_signal_speeds, write_order_tracks,
                       write_signals)
 from .solvers import METHODS, STABILITY_METHODS, solver_for
@@ -502,9 +502,9 @@ def cmd_sweep(args) -> int:
             times[form], models[form] = (t_build, time.perf_counter() - t0 + traced), model
             if sig_speeds and lead:
                 signals[form] = last_mesh_period_signals(model, sig_speeds)
-        if refinement is not None:  # every formulation at every added speed, one chunk size
-            run = lambda m, w: sweep(m, w, out_csv=csv_path, orders_csv=orders_path, **{  # noqa: E731
-                **sweep_options(m), "chunk_size": args.chunk or min(speeds.size, 64)})
+        if refinement is not None:  # every formulation at every added speed
+            run = refine_runner(lambda m, w, **o: sweep(m, w, out_csv=csv_path, progress=command_meter(
+                not args.json), orders_csv=orders_path, **o), sweep_options, speeds.size)
             summary["refinement"] = refine_sweeps(models, csv_path, (csv_path, orders_path), run,
                                                   refinement, command_meter(not args.json))
     except KeyboardInterrupt:

@@ -23,7 +23,8 @@ from ..dynamics.refine import Refinement, refine_common
 from ..dynamics.results import SweepResult, empty_metrics
 from .results import read_rows
 
-__all__ = ["add_refine", "refinement_of", "result_of_rows", "sort_rows", "refine_sweeps"]
+__all__ = ["add_refine", "refinement_of", "result_of_rows", "sort_rows", "refine_runner",
+           "refine_sweeps"]
 
 
 def add_refine(p) -> None:
@@ -100,6 +101,25 @@ def sort_rows(path: str) -> None:
         wr.writeheader()
         wr.writerows(rows)
     os.replace(tmp, path)
+
+
+def refine_runner(sweep_fn, options_of, n_grid: int):
+    """``run(model, speeds)`` for :func:`refine_sweeps`: ``sweep_fn(model, speeds,
+    **options)`` with the command's options ``options_of(model)`` (solver, devices, chunk)
+    and, without ``--chunk``, the chunk of the grid's sweep
+    (:func:`gearjax.dynamics.sweep.planned_chunk` for ``n_grid`` speeds), so that the added
+    speeds run the program compiled for the grid instead of one per round's count."""
+    from ..dynamics.sweep import planned_chunk
+
+    def run(model, speeds):
+        opts = dict(options_of(model))
+        if opts.get("chunk_size") is None:
+            opts["chunk_size"] = planned_chunk(model, n_grid, opts["solver"], opts.get("devices"))
+        else:
+            opts["chunk_size"] = max(1, int(opts["chunk_size"]))
+        return sweep_fn(model, speeds, **opts)
+
+    return run
 
 
 def refine_sweeps(models: dict, csv_path: str, paths, run, refinement: Refinement,

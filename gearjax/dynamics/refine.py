@@ -195,9 +195,11 @@ def find_peaks(result: SweepResult, options: Refinement = Refinement()) -> list:
         top = float(np.max(np.abs(y)))
         cands = []
         for i in range(1, w.size - 1):
-            if not ((y[i] >= y[i - 1] and y[i] > y[i + 1]) or (y[i] > y[i - 1] and y[i] >= y[i + 1])):
+            if not ((y[i] >= y[i - 1] and y[i] > y[i + 1])
+                    or (y[i] > y[i - 1] and y[i] >= y[i + 1])):
                 continue
-            if y[i] < options.min_height * top or _prominence(y, i) < options.prominence * abs(y[i]):
+            if (y[i] < options.min_height * top
+                    or _prominence(y, i) < options.prominence * abs(y[i])):
                 continue
             w3, y3 = w[i - 1:i + 2], y[i - 1:i + 2]
             v = _vertex(w3, y3)
@@ -214,8 +216,9 @@ def find_peaks(result: SweepResult, options: Refinement = Refinement()) -> list:
 
 
 def _edges(result: SweepResult, options: Refinement):
-    """[(lower, upper, reason)] of the neighbours that bracket a jump or a change of the
-    contact-loss flag and are more than ``speed_tol`` apart."""
+    """[(lower, upper, reason, score)] of the neighbours that bracket a jump (score: the
+    step over the larger value) or a change of the contact-loss flag (score 1) and are more
+    than ``speed_tol`` apart."""
     edges = []
     for metric in options.metrics:
         w, y = _curve(result, metric)
@@ -225,38 +228,42 @@ def _edges(result: SweepResult, options: Refinement):
             steep = slope[i] > JUMP_SLOPE_RATIO * max(slope[i - 1] if i > 0 else 0.0,
                                                       slope[i + 1] if i + 1 < slope.size else 0.0)
             if big > 0 and abs(y[i + 1] - y[i]) > options.jump * big and steep:
-                edges.append((w[i], w[i + 1], f"jump of {metric}"))
+                edges.append((w[i], w[i + 1], f"jump of {metric}", abs(y[i + 1] - y[i]) / big))
     w = np.asarray(result.speed_rad_s, dtype=float)
     ok = np.isfinite(w) & np.asarray(result.converged, dtype=bool)
     order = np.argsort(w[ok], kind="stable")
     ws, lost = w[ok][order], np.asarray(result.contact_loss, dtype=bool)[ok][order]
     for i in range(ws.size - 1):
         if lost[i] != lost[i + 1]:
-            edges.append((ws[i], ws[i + 1], "contact-loss edge"))
+            edges.append((ws[i], ws[i + 1], "contact-loss edge", 1.0))
     return [e for e in edges if (e[1] - e[0]) > options.speed_tol * e[1]]
 
 
 def propose_speeds(result: SweepResult, options: Refinement = Refinement()) -> Proposal:
     """The speeds that would locate the peaks and jumps of ``result`` better (module
     docstring), none closer than ``min_spacing`` to a swept speed or to each other,
-    in order of priority (the peaks, highest first, then the jumps and contact-loss
-    edges), returned sorted by speed with their reasons."""
+    returned sorted by speed with their reasons and ranks: by score, a peak's its height
+    over its curve's maximum, a jump's its step over the larger value, a contact-loss
+    edge's 1 (so each curve's main peaks and the contact-loss edges come first)."""
     have = np.sort(np.asarray(result.speed_rad_s, dtype=float))
+    top = {m: float(np.max(np.abs(_curve(result, m)[1]), initial=0.0)) for m in options.metrics}
     cands = []
     for p in find_peaks(result, options):
         if p.converged:
             continue
         why = f"peak of {p.metric} near {p.speed_rad_s:.6g} rad/s"
+        score = abs(p.value) / top[p.metric]
         if not math.isnan(p.vertex_rad_s):
-            cands.append((p.vertex_rad_s, why + " (parabola vertex)"))
-        cands += [(0.5 * (p.lower_rad_s + p.speed_rad_s), why),
-                  (0.5 * (p.speed_rad_s + p.upper_rad_s), why)]
-    cands += [(0.5 * (lo + hi), f"{why} between {lo:.6g} and {hi:.6g} rad/s")
-              for lo, hi, why in _edges(result, options)]
+            cands.append((score, p.vertex_rad_s, why + " (parabola vertex)"))
+        cands += [(score, 0.5 * (p.lower_rad_s + p.speed_rad_s), why),
+                  (score, 0.5 * (p.speed_rad_s + p.upper_rad_s), why)]
+    cands += [(score, 0.5 * (lo + hi), f"{why} between {lo:.6g} and {hi:.6g} rad/s")
+              for lo, hi, why, score in _edges(result, options)]
+    cands.sort(key=lambda c: -c[0])  # stable: a peak's three speeds stay together
     taken, reasons = [], []
-    for w, why in cands:
-        near = lambda pts: np.size(pts) and np.min(np.abs(np.asarray(pts) - w)) <= options.min_spacing * w  # noqa: E731
-        if near(have) or near(taken):
+    for _, w, why in cands:
+        pts = np.concatenate([have, taken])
+        if pts.size and np.min(np.abs(pts - w)) <= options.min_spacing * w:
             continue
         taken.append(float(w))
         reasons.append(why)
