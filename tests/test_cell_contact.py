@@ -238,7 +238,9 @@ def test_3d_mean_vector_cell_law_is_the_reference(rig3d_mean):
 def test_3d_limit_every_cell_keeps_its_state(rig3d_mean):
     """States displaced along C_v = K_bar^-1 V by less than each angle's smallest cell
     approach |V^T x_S - de_i| (the model's quasi-static solve, Eq. (25)): the per-cell
-    te vector field and force are the mesh-level ones bit for bit."""
+    te vector field and force are the mesh-level ones to round-off (1e-12 relative: the law
+    adds exactly 0, but the two compiled 3D programs may split their modal dot products
+    differently; measured 0 alone, 2.8e-14 under a loaded machine)."""
     m, c = rig3d_mean["te"], rig3d_mean["cells"]
     omega, n = 600.0, 32
     rng = np.random.default_rng(3)
@@ -257,6 +259,6 @@ def test_3d_limit_every_cell_keeps_its_state(rig3d_mean):
     th = jnp.asarray(th)
     for f in (lambda mm, t, yy: mm.vector_field(t, yy, omega),
               lambda mm, t, yy: mm.outputs(t, yy, omega).mesh_force_N):
-        fa = jax.vmap(lambda t, yy: f(m, t, yy))(th, y)
-        fb = jax.vmap(lambda t, yy: f(c, t, yy))(th, y)
-        np.testing.assert_array_equal(np.asarray(fa), np.asarray(fb))
+        fa = np.asarray(jax.vmap(lambda t, yy: f(m, t, yy))(th, y))
+        fb = np.asarray(jax.vmap(lambda t, yy: f(c, t, yy))(th, y))
+        assert np.max(np.abs(fb - fa)) <= 1e-12 * np.max(np.abs(fa))

@@ -125,8 +125,7 @@ _COMMAND_EXAMPLES = {
   gearjax sweep                           the paper's spur case (Fig. 9): 3D rig, 45 speeds
   gearjax sweep --model torsional --damping 0.03 --speeds 300:900:25 --out sdof
                                           the sdof model; then sdof/response_curves.png
-  gearjax sweep --damping 0.03 --refine   Fig. 8 with speeds added around peaks and jumps
-  gearjax sweep --te-contact cells        te/perturbation with the per-cell contact law""",
+  gearjax sweep --damping 0.03 --refine   Fig. 8, speeds added around its peaks and jumps""",
     "stability": """examples:
   gearjax stability --model torsional --speeds 300:900:13
                                           Floquet spectral radius per speed (te)
