@@ -26,6 +26,11 @@ __all__ = ["READINGS", "reading_rows", "readings_table"]
 READINGS = (("0.1", "fig09", "fig09-cells"), ("0.03", "fig08", "fig08-cells"))
 
 
+def _pct(x: float) -> str:
+    """A fraction in %: one decimal from 1 %, two significant digits below."""
+    return f"{100 * x:.1f}" if x >= 0.01 else f"{100 * x:.2g}"
+
+
 def _numbers(rows, form, col):
     """(text, max difference or None) of ``form`` against the reference of the same
     rows on panel ``col``."""
@@ -36,8 +41,8 @@ def _numbers(rows, form, col):
         return "no converged speed in common", None
     unit = " of F_S" if absolute else ""
     i = int(np.argmax(d))
-    text = (f"max {100 * d[i]:.1f} %{unit} at {w[i]:.0f} rad/s, median "
-            f"{100 * np.median(d):.2f} %{unit}")
+    text = (f"max {_pct(d[i])} %{unit} at {w[i]:.0f} rad/s, median "
+            f"{_pct(np.median(d))} %{unit}")
     if flags:
         text += (f"; contact-loss flags differ at {len(flags)} speed{'s' * (len(flags) != 1)}"
                  f" ({', '.join(f'{x:.0f}' for x in flags[:4])}{' ...' if len(flags) > 4 else ''})")
