@@ -54,32 +54,13 @@ at every right-hand side with ``excitation="inline"`` (kept to check the table).
 
 NLTE' and NLTE'' (no-load transmission error derivatives)
 --------------------------------------------------------
-NLTE (a minimum over cells of the removed material) has kinks, so NLTE'' holds Dirac terms
-that AD of the sampled function misses, and a spectral NLTE'' with H harmonics converges
-slowly: well above resonance the response to ``-Omega^2 (J2/Rb2^2) NLTE''`` is ``x_h = -kappa
-NLTE_h`` (kappa: see "Where the NLTE'' reaction torque acts"; 1 by default, about 30 with
-``"pinion"``), so the error of x is ``kappa`` times the NLTE spectrum tail (O(1/H)).
-We therefore remove NLTE'' *exactly* by a change of variable (``nlte_method="substitution"``,
-the default)::
-
-    z = x + kappa NLTE        =>   Omega^2 m_eq z'' + Omega c (z' - kappa NLTE') + ... = F_t
-
-so the state ``(z, z')`` is continuous and only NLTE (continuous) and NLTE' (piecewise
-smooth, with jumps at the kinks, obtained exactly by forward-mode differentiation of the
-minimum, which picks the active branch) enter the vector field; the kinks are passed to the
-integrator as ``jump_thetas``. The 3D model (Eq. (42)) substitutes ``X = Z - NLTE M^-1 E``.
-``nlte_method="spectral"`` (to check the substitution) keeps x and evaluates NLTE'' from
-the Fourier series of NLTE over one period (``nlte_harmonics`` mesh harmonics).
-
-``nlte_terms=False`` sets NLTE = 0 in the equations of motion, as the paper's Fig. 10
-"TE-based formulation (with NLTE = 0)": the NLTE'' inertial term is dropped and, in the
-te and perturbation formulations, ``TE_S - NLTE`` is replaced by ``TE_S`` (the model then
-treats TE_S as the static approach and reports ``DTE = x``). In the reference formulation
-only NLTE'' is dropped (the gaps de_i contain the errors). When NLTE is identically zero
-(e.g. spur Table 1 short relief) the default ``nlte_terms=None`` resolves to False and the
-scenario compiles without these terms. ``nlte_inertia=False`` (Section 6.3.2: "NLTE'' set
-at zero in the equations of motion") drops the NLTE'' term alone: ``TE_S - NLTE`` stays in
-the forcing and ``DTE = x + NLTE``; no substitution is needed then (``z = x``, kappa = 0).
+NLTE has kinks, so NLTE'' holds Dirac terms: ``nlte_method="substitution"`` (default) removes
+it exactly by ``z = x + kappa NLTE`` (only NLTE and NLTE', exact by forward-mode AD, enter
+the vector field; the kinks are ``jump_thetas``); ``"spectral"`` keeps x with a Fourier
+NLTE'' (``nlte_harmonics``), to check it. ``nlte_terms=False``: NLTE = 0 in the equations
+(Fig. 10's "TE-based formulation (with NLTE = 0)"; None: False where NLTE is identically
+zero); ``nlte_inertia=False``: the NLTE'' term alone dropped (Section 6.3.2). The reasoning:
+docs/concepts/formulations.md, "NLTE'' terms and where their reaction acts".
 
 TE from a file (Section 6.2, :meth:`TorsionalModel.with_te`): TE_S, NLTE and, if given, the
 loaded stiffness of a :class:`~gearjax.excitation.te_file.TETable` replace the quasi-static
@@ -100,14 +81,8 @@ Default inertias: solid steel cylinders of the pitch radii and face widths
 
 Where the NLTE'' reaction torque acts (``nlte_reaction``)
 -------------------------------------------------------
-The torque ``J2 Rb1 / Rb2^2 Omega^2 NLTE''`` keeps the pinion speed constant (Eq. (5)); the
-forcing of x is ``-Omega^2 kappa m_eq NLTE''``. ``"drive"`` (default, the convention of
-every command and of the 3D model, whose Eq. (14) puts it on the torque node: the motor,
-behind the pinion shaft and the flexible coupling, torsional mode about 500 Hz, far below
-the 3.4 kHz mesh modes): the pinion does not feel it at mesh frequencies, ``kappa = 1``.
-``"pinion"`` (option): Eqs. (15)-(16) as written, the torque on the pinion inertia,
-``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (about 30 for the Baud-Velex
-bodies: the whole gear rigidly coupled to the mesh; ``--nlte-reaction pinion``).
+``"drive"`` (default, as the 3D model): ``kappa = 1``; ``"pinion"``: Eqs. (15)-(16) as
+written, ``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (docs/concepts/formulations.md).
 
 Backlash (``backlash_m``)
 ------------------------
