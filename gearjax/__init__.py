@@ -29,6 +29,7 @@ from .gears.quasistatic import QuasiStatic as QuasiStatic
 from .gears.quasistatic import contact_gaps as contact_gaps
 from .gears.quasistatic import quasi_static as quasi_static
 from .gears.contact import solve_unilateral as solve_unilateral
+from .gears.contact import TEContactLaw as TEContactLaw
 from .gears.quasistatic import static_mesh_force as static_mesh_force
 from .rigs.rigfile import load_rig as load_rig
 from .rigs.rig import Rig as Rig
@@ -47,6 +48,10 @@ from .dynamics.steady import steady_state as steady_state
 from .dynamics.steady import steady_sweep as steady_sweep
 from .dynamics.continuation import BranchResult as BranchResult
 from .dynamics.continuation import continuation_sweep as continuation_sweep
+from .dynamics.refine import Refinement as Refinement
+from .dynamics.refine import propose_speeds as propose_speeds
+from .dynamics.refine import refine as refine
+from .dynamics.refine import refine_common as refine_common
 
 from .dynamics.simulate import simulate as simulate
 from .dynamics.sweep import sweep as sweep

@@ -256,3 +256,31 @@ def test_fig8_up_and_down_is_an_opt_in_case(tmp_path, capsys, monkeypatch):
     text = (tmp_path / "README.md").read_text()
     unfinished = next(line for line in text.splitlines() if line.startswith("**Not finished:**"))
     assert "fig08," in unfinished and "fig08-branches" not in unfinished
+
+
+def test_two_readings_of_section_62_side_by_side(tmp_path):
+    """fig09 (mesh-level law): te 10 % off the reference's force at 800 rad/s and losing
+    contact there alone; fig09-cells (per-cell law): te 0.5 % off and its flags the
+    reference's. The table gives each reading's max, where and the flags, and says which
+    is closer; without the per-cell case it is left out."""
+    from gearjax.cli.paper_readings import reading_rows, readings_table
+
+    speeds = [400.0, 600.0, 800.0]
+    ref = {w: (1000.0 + w, 1e-5, 100.0, 500.0, False) for w in speeds}
+
+    def te(scale, lose):
+        return {w: (ref[w][0] * (scale if w == 800.0 else 1.0), 1e-5, 100.0,
+                    0.0 if (lose and w == 800.0) else 500.0, lose and w == 800.0) for w in speeds}
+
+    _full_case(tmp_path, "fig09", {"reference": ref, "te": te(1.10, True)})
+    assert readings_table(str(tmp_path)) == []
+    _full_case(tmp_path, "fig09-cells", {"reference": ref, "te": te(1.005, False)})
+    rows = {(r["formulation"], r["panel"]): r for r in reading_rows(str(tmp_path))}
+    force = rows[("te", "max force")]
+    assert force["mesh"].startswith("max 10.0 % at 800 rad/s")
+    assert "contact-loss flags differ at 1 speed (800)" in force["mesh"]
+    assert force["cells"].startswith("max 0.5 % at 800 rad/s")
+    assert "flags as the reference's" in force["cells"] and force["closer"] == "per cell"
+    assert rows[("te", "DTE p-p")]["closer"] == "tie"
+    assert rows[("perturbation", "max force")]["closer"] == "-"  # not run
+    assert "## Two readings of Section 6.2" in readings_table(str(tmp_path))[0]

@@ -22,6 +22,9 @@ from ..models.geared3d import CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMON
     default_max_frequency_hz
 from ..rigs.factory import build_model
 from .backlash import backlash_key, backlash_record
+from .contact import contact_record, contact_suffix, model_options_of
+from .refine import refinement_of
+from .signals import parse_signal_speeds
 from .scenario import (Scenario, Speeds, input_digests, linspace_option, nlte_options_of,
                        nlte_reaction_of, rig_notes, rig_of, scenario_modifications, speeds_of)
 
@@ -118,19 +121,6 @@ def _check_te_file(args, forms) -> None:
                          "te,perturbation (the default with --te-file)")
 
 
-def _signal_speeds(text: str | None) -> list[float]:
-    if not text:
-        return []
-    try:
-        vals = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise ValueError(f"--signals={text!r}: expected comma-separated speeds in rad/s, "
-                         "e.g. 100,400,800") from None
-    if not vals or not all(math.isfinite(v) and v > 0 for v in vals):
-        raise ValueError(f"--signals={text!r}: speeds must be finite and > 0 (rad/s)")
-    return vals
-
-
 def transient_tolerances(args) -> dict:
     """``--rtol`` as :func:`gearjax.dynamics.sweep.tolerance_options` reads it, its range
     error as a command-line error."""
@@ -208,7 +198,8 @@ def dynamics_case(args, command: str, forms, extra_speeds=()) -> dict:
 @dataclasses.dataclass(frozen=True)
 class SweepCase(DynamicsCase):
     """A validated ``gearjax sweep``: the :class:`DynamicsCase` plus its formulations,
-    ``--signals`` speeds (rad/s), transient tolerances, name and output folder."""
+    ``--signals`` speeds (rad/s), transient tolerances, name, output folder and ``--refine``
+    (:func:`gearjax.cli.refine.refinement_of`; None without it)."""
 
     forms: tuple = ()
     signal_speeds: tuple = ()
@@ -216,6 +207,7 @@ class SweepCase(DynamicsCase):
     name: str = ""
     out: str = ""
     replace: bool = False
+    refinement: object = None
 
     @property
     def csv_path(self) -> str:
@@ -243,6 +235,8 @@ class SweepCase(DynamicsCase):
             **{k: v for k, v in self.spec.record().items() if k != "speeds_source"},
             **({"rtol": float(a.rtol)} if a.rtol is not None else {}),
             **({"direction": a.direction} if a.direction != "independent" else {}),
+            **contact_record(a),
+            **({"refine_max_speeds": self.refinement.max_speeds} if self.refinement else {}),
         }
 
 
@@ -253,7 +247,7 @@ def sweep_case(args) -> SweepCase:
 
     forms = formulations_of(args.formulations or ("te,perturbation" if args.te_file
                                                   else "reference,te,perturbation"))
-    signals = _signal_speeds(args.signals)
+    signals = parse_signal_speeds(args.signals)
     if args.model == "torsional" and args.encoders != 1:
         raise ValueError("--encoders: the torsional model has no encoder positions (3d only)")
     if args.resume and args.overwrite:
@@ -265,10 +259,13 @@ def sweep_case(args) -> SweepCase:
         raise ValueError(f"--rtol={args.rtol!r}: for independent sweeps (the continuation of "
                          "--direction keeps its shooting tolerances)")
     common = dynamics_case(args, "sweep", forms, extra_speeds=signals)
-    name = case_name(args, common["scenario"])
+    common["nlte"] = model_options_of(args)  # and the te/perturbation contact law
+    refinement = refinement_of(args, common["spec"].rad_s.size)
+    name = case_name(args, common["scenario"]) + contact_suffix(args)
     out = args.out or os.path.join("gearjax-out", name)
     # a plain re-run (no --out) replaces the earlier run of its own default folder
     replace = (args.out is None and not args.resume and not args.overwrite
                and any(os.path.exists(os.path.join(out, n)) for n in RESULT_FILES))
     return SweepCase(**common, forms=tuple(forms), signal_speeds=tuple(signals),
-                     tolerances=tolerances, name=name, out=out, replace=replace)
+                     tolerances=tolerances, name=name, out=out, replace=replace,
+                     refinement=refinement)

@@ -59,7 +59,9 @@ from .branches import DIRECTION_CHOICES, check_direction, run_branches
 from .case import (DynamicsCase, SweepCase, dynamics_case, sweep_case,
                    transient_tolerances)
 from .devices import device_count, init_distributed, sweep_devices
+from .contact import add_te_contact
 from .iso import iso_dynamic_factor
+from .refine import add_refine, refine_runner, refine_sweeps
 from .signals import last_mesh_period_signals, write_order_tracks, write_signals
 from .solvers import METHODS, STABILITY_METHODS, solver_for
 from .scenario import (add_nlte_reaction, add_nlte_switches, add_speeds, add_torque,
@@ -124,6 +126,8 @@ def register(sub, add_rig, add_scenario):
     from .iso import add_iso_options
 
     add_iso_options(sw)
+    add_te_contact(sw)
+    add_refine(sw)
     dist = sw.add_argument_group("several hosts (jax.distributed)")
     dist.add_argument("--distributed", action="store_true",
                       help="join a multi-process run (jax.distributed.initialize with cluster "
@@ -283,7 +287,7 @@ def _sweep_formulations(case: SweepCase, first, done: dict, devices, lead: bool,
         return dict(solver=solver_for(a.method, model, a.rtol, case.tolerances),
                     chunk_size=size, devices=devices)
 
-    linear = None  # a 3D te/perturbation model: the other one shares its build
+    linear, models = None, {}  # a 3D te/perturbation model: the other one shares its build
     early, ahead = {case.forms[0]: first}, Ahead()  # models built ahead, compiling programs
     try:
         for form in case.forms:
@@ -325,9 +329,17 @@ def _sweep_formulations(case: SweepCase, first, done: dict, devices, lead: bool,
                             out_csv=case.csv_path, orders_csv=case.orders_path,
                             **sweep_options(model))
                 runs.methods[form] = method_counts(res)
-            runs.times[form] = (t_build, time.perf_counter() - t0 + traced)
+            runs.times[form], models[form] = (t_build, time.perf_counter() - t0 + traced), model
             if case.signal_speeds and lead:
                 runs.signals[form] = last_mesh_period_signals(model, list(case.signal_speeds))
+        if case.refinement is not None:  # every formulation at every added speed
+            meter = command_meter(not a.json)
+            run = refine_runner(lambda m, w, **o: sweep(
+                m, w, out_csv=case.csv_path, progress=meter, orders_csv=case.orders_path, **o),
+                sweep_options, speeds.size)
+            summary["refinement"] = refine_sweeps(models, case.csv_path,
+                                                  (case.csv_path, case.orders_path), run,
+                                                  case.refinement, meter)
     except KeyboardInterrupt:
         runs.interrupted = True
     if not summary.get("warnings"):

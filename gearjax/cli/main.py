@@ -123,10 +123,9 @@ _COMMAND_EXAMPLES = {
                                           your relief, written as a --te-file for sweep""",
     "sweep": """examples:
   gearjax sweep                           the paper's spur case (Fig. 9): 3D rig, 45 speeds
-  gearjax sweep --model torsional --damping 0.03 --speeds 300:900:25 --out sdof
-                                          the sdof model; then sdof/response_curves.png
   gearjax sweep --model torsional --damping 0.03 --backlash 10e-6 --speeds 600:900:31
-                                          10 um between the back flanks: double-sided impacts""",
+                                          10 um between the back flanks: double-sided impacts
+  gearjax sweep --damping 0.03 --refine   Fig. 8, speeds added around its peaks and jumps""",
     "stability": """examples:
   gearjax stability --model torsional --speeds 300:900:13
                                           Floquet spectral radius per speed (te)

@@ -22,6 +22,13 @@ comparisons, not only to the critical speeds: Fig. 8's case (zeta 0.03, 340-460 
 23.7 % off at 420 rad/s (issue 48's measurement). ``--compare DIR`` sets the verdicts of a
 second run (e.g. ``--stiffness iso6336``) beside this one's; ``--readme-only`` rewrites the
 README from the stored cases without running anything.
+
+Each case's grid is refined around the peaks and jumps of its curves (``gearjax sweep
+--refine``, :data:`PAPER_REFINE` speeds a case by default), so the claims near the critical
+speeds and the contact-loss edges rest on speeds within 1 % of them. The cases
+``fig08-cells`` and ``fig09-cells`` run te and perturbation with the per-cell contact law
+(``--te-contact cells``) beside their reference: the third table
+(:mod:`gearjax.cli.paper_readings`) sets the two readings of Section 6.2 side by side.
 """
 
 from __future__ import annotations
@@ -70,6 +77,12 @@ CASES = (
     Case("fig13", "6.3.4", "Fig. 13", "helical, short relief, pinion pitch errors, damping 0.03",
          ("--rig", "baud-velex-helical", "--pitch-errors", "--damping", "0.03",
           "--method", "transient")),
+    # the other reading of Section 6.2: te and perturbation with the contact resolved cell by
+    # cell (gearjax sweep --te-contact cells), the reference beside them on the same grid
+    Case("fig08-cells", "6.2", "Fig. 8", "damping 0.03, te/perturbation with the per-cell "
+         "contact law", ("--damping", "0.03", "--te-contact", "cells")),
+    Case("fig09-cells", "6.2", "Fig. 9", "damping 0.1, te/perturbation with the per-cell "
+         "contact law", ("--te-contact", "cells")),
     # Fig. 8's jumps: the reference and te followed up and down in speed from each
     # neighbour's periodic orbit (gearjax sweep --direction both, shooting) over the critical
     # band at 20 rad/s. Opt-in: the 3D continuation is the longest case by far
@@ -85,6 +98,10 @@ _DEFAULT_KEYS = tuple(c.key for c in CASES if c.default)
 # Section 6.1: "The tooth mesh model is based on the analytical formulae of Weber and
 # Banaschek [17] and O'Donnell [18]" -- gearjax's "weber" law (gearjax.gears.weber)
 PAPER_LAW = "weber"
+# each case's grid refined around its peaks and jumps up to this many speeds (gearjax sweep
+# --refine): the claims near the critical speeds and the contact-loss edges then rest on
+# speeds within 1 % of them instead of the 20 rad/s grid
+PAPER_REFINE = 120
 
 
 def _laws():
@@ -114,6 +131,10 @@ def register(sub, add_rig, add_scenario):
                    help=f"mesh stiffness law of every case (default {PAPER_LAW}: the paper's "
                         "Section 6.1 mesh model, Weber-Banaschek and O'Donnell; iso6336: the "
                         "ISO 6336-1 calibrated parabola, gearjax sweep's default)")
+    p.add_argument("--refine", type=int, default=PAPER_REFINE, metavar="MAX_SPEEDS",
+                   help="every case but the up/down one: the speed grid refined around the "
+                        "peaks and jumps of its curves (gearjax sweep --refine) up to MAX_SPEEDS "
+                        f"speeds (default {PAPER_REFINE}; 0: the uniform grid alone)")
     p.add_argument("--compare", default=None, metavar="DIR",
                    help="a second gearjax paper folder (e.g. the same cases run with "
                         "--stiffness iso6336): the README adds both folders' verdicts side by side")
@@ -136,6 +157,8 @@ def cmd_paper(args) -> int:
         raise ValueError(f"--cases={args.cases}: unknown case(s) {bad}; choose from {','.join(_KEYS)}")
     if args.resume and args.overwrite:
         raise ValueError("--resume --overwrite: choose one (continue the run, or replace it)")
+    if args.refine < 0:
+        raise ValueError(f"--refine={args.refine}: need a number of speeds (0: no refinement)")
     cases = [c for c in CASES if c.key in keys and not (c.needs_3d and args.model != "3d")]
     os.makedirs(args.out, exist_ok=True)
     t_all = time.perf_counter()
@@ -145,6 +168,8 @@ def cmd_paper(args) -> int:
         folder = os.path.join(args.out, c.key)
         argv = ["sweep", "--model", args.model, "--speeds", args.speeds, "--stiffness",
                 args.stiffness, *c.argv, "--out", folder]
+        if args.refine and "--direction" not in c.argv:
+            argv[-2:-2] = ["--refine", str(args.refine)]
         # a run stopped before its first rows leaves case.json only: the same folder state
         if any(os.path.exists(os.path.join(folder, f)) for f in ("results.csv", "case.json")):
             if args.resume:
@@ -167,7 +192,7 @@ def cmd_paper(args) -> int:
         with open(meta, "w") as fh:
             json.dump({"command": "gearjax " + " ".join(
                 a for a in argv if a not in ("--resume", "--overwrite")),
-                "stiffness_law": args.stiffness,
+                "stiffness_law": args.stiffness, "refine_max_speeds": args.refine,
                 "seconds": before + time.perf_counter() - t0}, fh, indent=1)
     path = write_readme(args.out, args, time.perf_counter() - t_all)
     print(f"  wrote {path}")
@@ -426,12 +451,19 @@ def write_readme(out, args, seconds) -> str:
         model = words[words.index("--model") + 1] if "--model" in words else model
         speeds = words[words.index("--speeds") + 1] if "--speeds" in words else speeds
         seconds = sum(t for _, _, t in runs)
+    refined = sorted({c.split("--refine ")[1].split()[0] for _, c, _ in runs if "--refine " in c})
     lines = [
         "# Section 6.3 of Velex & Ajmi on gearjax's Baud–Velex rig",
         "",
         "Generated by `gearjax paper` (do not edit by hand: rerun it; `--resume` continues). "
         f"Last run: model `{model}`, speeds `{speeds}` rad/s, {seconds / 60:.1f} min; "
-        f"{len(runs)} cases below, each with its own command and time (2-core CPU).",
+        f"{len(runs)} cases below, each with its own command and time (2-core CPU)."
+        + (f" Each grid is refined around the peaks and jumps of its curves (`--refine`, up to "
+           f"{' / '.join(refined)} speeds a case: peaks located to 1 % of their speed, "
+           "amplitudes to 1e-3, jumps and contact-loss edges to 1 %; every formulation of a "
+           "case at every added speed), so medians weigh the peaks more than a uniform grid "
+           "would; each case's summary.json lists the speeds added and why."
+           if refined else ""),
         "Rig data the paper does not print are stand-ins (documentation, "
         "`docs/concepts/baud-velex-data.md`), so critical speeds and amplitudes are ours; the claims compare "
         "formulations on the same model. In the first table differences are relative "
@@ -453,8 +485,9 @@ def write_readme(out, args, seconds) -> str:
     for sec, words, nums, verdict, crit in claims(out):
         lines.append(f"| {sec} | {words} | {nums} | **{verdict}** | {crit} |")
     from .paper_panels import panel_table
+    from .paper_readings import readings_table
 
-    lines += [""] + panel_table(out)
+    lines += [""] + panel_table(out) + readings_table(out)
     other = getattr(args, "compare", None)
     if other:
         lines += verdicts_side_by_side(out, other)

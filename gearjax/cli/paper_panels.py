@@ -12,7 +12,8 @@ the verdict is "disagree", its cause as far as the numbers show it:
 * **assumption (contact law)**: the largest difference sits at a speed where one curve
   loses contact and the other does not. te and perturbation apply the contact law to the
   whole mesh (Section 6.2 read at mesh level): their contact-loss flags and the response
-  where they lose contact are not comparable with the reference's cell-by-cell law.
+  where they lose contact are not comparable with the reference's cell-by-cell law (the
+  per-cell reading: :mod:`gearjax.cli.paper_readings`).
 * **assumption (18a)**: the te acceleration. Under assumption (18a) te's mesh force steps by
   ``Delta k v_xD`` at every quasi-static stiffness switch (issue 48 measured 1,574 N and
   2,172 N steps at 800 rad/s, long relief); the steps reach the acceleration, not the force
@@ -42,7 +43,7 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["case_rows", "PANELS", "COMPARISONS", "AGREE_TOLERANCE", "NEAR_SHARE", "panel_claims",
-           "critical_speeds"]
+           "critical_speeds", "panel_curve", "compare_curves"]
 
 # (results.csv column, panel name)
 PANELS = (("max_mesh_force_N", "max force"), ("dte_ptp_m", "DTE p-p"),
@@ -98,7 +99,7 @@ def case_rows(out, key):
         return list(csv.DictReader(fh))
 
 
-def _curve(rows, form, col):
+def panel_curve(rows, form, col):
     """{speed: (value, contact_loss)} of one formulation at its converged speeds; the
     minimum force relative to F_S."""
     out = {}
@@ -142,7 +143,7 @@ def _near(w: float, crit) -> float | None:
     return min(close, key=lambda c: abs(w - c)) if close else None
 
 
-def _compare(mine: dict, ref: dict, absolute: bool = False):
+def compare_curves(mine: dict, ref: dict, absolute: bool = False):
     """(speeds, differences, speeds where the contact-loss flags differ): relative
     differences, or with ``absolute`` plain ones (the minimum force / F_S, which reaches 0)."""
     w = np.array(sorted(set(mine) & set(ref)))
@@ -157,7 +158,8 @@ def _compare(mine: dict, ref: dict, absolute: bool = False):
 def _cause(c: Comparison, col: str, worst_w: float, flags, crit) -> str:
     if worst_w in flags:
         return ("assumption (contact law): at the worst speed one curve loses contact and the "
-                "other does not; te/perturbation apply the contact law to the whole mesh")
+                "other does not; te/perturbation apply the contact law to the whole mesh (the "
+                "per-cell reading: \"Two readings of Section 6.2\" below)")
     if c.formulation == "te" and col == "accel_ptp_m_s2":
         return ("assumption (18a): te's force steps by Delta k v_xD at each quasi-static "
                 "stiffness switch, which the acceleration shows")
@@ -200,10 +202,10 @@ def panel_claims(out: str) -> list[dict]:
             continue
         crit, source = critical_speeds(out, c.ref_case, R[c.ref_case])
         for col, panel in PANELS:
-            mine = _curve(R[c.case], c.formulation, col)
-            ref = _curve(R[c.ref_case], c.ref_formulation, col)
+            mine = panel_curve(R[c.case], c.formulation, col)
+            ref = panel_curve(R[c.ref_case], c.ref_formulation, col)
             absolute = col == "min_mesh_force_N"
-            w, d, flags = _compare(mine, ref, absolute)
+            w, d, flags = compare_curves(mine, ref, absolute)
             row = {"section": c.section, "figure": c.figure, "panel": panel,
                    "comparison": (f"{c.formulation} ({c.case}) vs {c.ref_formulation}"
                                   + (f" ({c.ref_case})" if c.ref_case != c.case else "")),
@@ -220,8 +222,8 @@ def panel_claims(out: str) -> list[dict]:
             where = f"near {at:.0f} rad/s" if at is not None else "away from the critical speeds"
             agreeing = None
             if c.statement in ("differ", "worse"):  # against te on the same case
-                te = _curve(R[c.ref_case if c.statement == "differ" else c.case], "te", col)
-                _, dt, _ = _compare(te, ref, absolute)
+                te = panel_curve(R[c.ref_case if c.statement == "differ" else c.case], "te", col)
+                _, dt, _ = compare_curves(te, ref, absolute)
                 agreeing = float(np.max(dt)) if dt.size else None
             ok, criterion = _judge(c, d, w, crit, agreeing)
             unit = " of F_S" if absolute else ""

@@ -11,9 +11,25 @@ import numpy as np
 
 from ..dynamics.simulate import simulate
 
-__all__ = ["last_mesh_period_signals", "write_signals", "write_order_tracks"]
+__all__ = ["parse_signal_speeds", "last_mesh_period_signals", "write_signals",
+           "write_order_tracks"]
 
 SAMPLES_PER_MESH_PERIOD = 128
+
+
+def parse_signal_speeds(text: str | None) -> list[float]:
+    """The pinion speeds (rad/s) of ``--signals A,B,...`` (none without it); ``ValueError``
+    (one line) unless they are finite and > 0."""
+    if not text:
+        return []
+    try:
+        vals = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"--signals={text!r}: expected comma-separated speeds in rad/s, "
+                         "e.g. 100,400,800") from None
+    if not vals or not all(np.isfinite(v) and v > 0 for v in vals):
+        raise ValueError(f"--signals={text!r}: speeds must be finite and > 0 (rad/s)")
+    return vals
 
 
 def write_order_tracks(orders_path, out, title) -> dict:

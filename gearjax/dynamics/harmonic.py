@@ -425,7 +425,9 @@ class HarmonicResult(eqx.Module):
 
 def check_linear_model(model):
     """Refuse (:class:`SimulationError`) what the frequency-domain solver cannot solve: a
-    non-model or the nonlinear reference formulation."""
+    non-model, the nonlinear reference formulation, or te/perturbation with the per-cell
+    contact law (its linear regime ends where a cell opens, which the mesh force does not
+    show: :attr:`~gearjax.models.base.AbstractGearModel.mesh_level_contact`)."""
     if not isinstance(model, AbstractGearModel):
         raise SimulationError("model", type(model).__name__,
                               "must be a gear model (gearjax.models.base.AbstractGearModel)")
@@ -435,6 +437,12 @@ def check_linear_model(model):
             "the frequency-domain solver needs a linear formulation (te, perturbation); the "
             "reference contact law is nonlinear: use gearjax.dynamics.steady (shooting) or "
             "simulate")
+    if not model.mesh_level_contact:
+        raise SimulationError(
+            "model", "contact_law=CELLS",
+            "the frequency-domain solver checks contact on the mesh force; with the per-cell "
+            "contact law a cell may open while the mesh stays loaded: use the transient or "
+            "the shooting (gearjax sweep --method transient or steady)")
 
 
 def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,

@@ -50,7 +50,7 @@ from .orbit import metric_status
 from .simulate import SimulationError, SimulationResult, simulate
 
 __all__ = ["sweep", "Transient", "Auto", "SweepResult", "CSV_COLUMNS", "tolerance_options",
-           "lower_sweep", "default_chunk_size", "memory_chunk"]
+           "lower_sweep", "default_chunk_size", "memory_chunk", "planned_chunk"]
 
 
 def _over_speeds(model, speeds, solver, sequential: bool):
@@ -355,9 +355,8 @@ CHUNK_MEMORY_FRACTION = 0.4
 _BYTES_PER_ENTRY = 20 * 8
 
 
-def _plan(model, speeds, chunk_size, devices, solver: Transient):
-    """How ``solver`` (a :class:`Transient`) runs ``speeds``: the compiled function, the
-    model it takes, the devices, the chunk and the speeds' padded, cost-sorted order."""
+def _chunking(model, n_speeds: int, chunk_size, devices, solver: Transient):
+    """``(devices, n_dev, first device, chunk)`` of a transient sweep of ``n_speeds``."""
     if devices is None and jax.process_count() > 1:
         devices = "all"
     if devices == "all":
@@ -366,13 +365,33 @@ def _plan(model, speeds, chunk_size, devices, solver: Transient):
     if n_dev < 1:
         raise SimulationError("devices", devices, "need at least one device")
     first = devices[0] if devices else jax.devices()[0]
-    sequential = sequential_on(first.platform, model.state_size)
     if chunk_size is None:
-        chunk_size = default_chunk_size(model, speeds.size, n_dev, solver.simulate_options(),
+        chunk_size = default_chunk_size(model, n_speeds, n_dev, solver.simulate_options(),
                                         first.platform, device_memory_bytes(first))
     if int(chunk_size) != chunk_size or chunk_size < 1:
         raise SimulationError("chunk_size", chunk_size, "must be a positive integer")
-    chunk = int(math.ceil(int(chunk_size) / n_dev) * n_dev)
+    return devices, n_dev, first, int(math.ceil(int(chunk_size) / n_dev) * n_dev)
+
+
+def planned_chunk(model, n_speeds: int, solver: AbstractPeriodicSolver = Auto(),
+                  devices=None) -> int | None:
+    """The speeds per compiled call that :func:`sweep` takes for ``n_speeds`` speeds of
+    ``model`` with ``solver`` (:class:`Auto` resolved) and ``devices`` and no
+    ``chunk_size``, or None where the solver is not a :class:`Transient`: a later sweep
+    given it as ``chunk_size`` runs the same compiled program (e.g. the added speeds of
+    :mod:`gearjax.dynamics.refine`)."""
+    if isinstance(solver, Auto):
+        solver = solver.choose(model)
+    if not isinstance(solver, Transient):
+        return None
+    return _chunking(model, int(n_speeds), None, devices, solver)[3]
+
+
+def _plan(model, speeds, chunk_size, devices, solver: Transient):
+    """How ``solver`` (a :class:`Transient`) runs ``speeds``: the compiled function, the
+    model it takes, the devices, the chunk and the speeds' padded, cost-sorted order."""
+    devices, n_dev, first, chunk = _chunking(model, speeds.size, chunk_size, devices, solver)
+    sequential = sequential_on(first.platform, model.state_size)
     n_chunks = int(math.ceil(speeds.size / chunk))
     total = n_chunks * chunk
     compiled = model.compiled_form()  # 3D te and perturbation: one program for both

@@ -69,6 +69,9 @@ class QuasiStaticMesh3D(eqx.Module):
     nlte_terms : NLTE kept in the equations (static): ``d`` is ``TE_S - NLTE - w_x0``,
         else ``TE_S - w_x0``.
     loaded_codes : the state code holds the loaded set (te, perturbation; static).
+    cell_states : :meth:`excitation` also gives the 12 element dofs of X_S (static; the
+        per-cell contact law of te/perturbation reads every cell's quasi-static approach
+        ``V_i^T x_S - de_i`` from them, :func:`gearjax.gears.contact.te_cell_contact`).
     """
 
     mesh: Mesh
@@ -85,6 +88,7 @@ class QuasiStaticMesh3D(eqx.Module):
     qs_max_iter: int = eqx.field(static=True)
     nlte_terms: bool = eqx.field(static=True)
     loaded_codes: bool = eqx.field(static=True)
+    cell_states: bool = eqx.field(static=True, default=False)
 
     def solve(self, theta) -> QuasiStatic3D:
         """Quasi-static 3D solution (Eq. (25)) at ``theta`` (rad, scalar)."""
@@ -98,7 +102,9 @@ class QuasiStaticMesh3D(eqx.Module):
         return jnp.broadcast_to(self.v_local, (cells.xi_m.shape[0], 12))
 
     def excitation(self, theta):
-        """(3,) stacked ``(d (m), k(theta) (N/m), NLTE (m))`` from the exact solve."""
+        """(3,) stacked ``(d (m), k(theta) (N/m), NLTE (m))`` from the exact solve; with
+        :attr:`cell_states` (15,): then the element dofs ``x_S`` (m, rad) of that solve."""
+        qs = self.solve(theta) if self.cell_states or self.mesh_vectors != "mean" else None
         if self.mesh_vectors == "mean":
             # exact shortcut: V^T X_S is the torsional root (total mesh force F_S), and
             # X_S = X_0 + phi C_v (Eq. (29)) gives TE_S - NLTE = w_x0 + phi C_wv.
@@ -108,12 +114,13 @@ class QuasiStaticMesh3D(eqx.Module):
             if not self.nlte_terms:
                 d = d + nlte
         else:
-            qs = self.solve(theta)
             d = self.cond.g_w @ (qs.x_local - self.cond.x0_local)  # W^T (X_S - X_0)
             if not self.nlte_terms:
                 d = d + qs.nlte_m
             k = qs.loaded_stiffness_N_per_m
         nlte = contact_gaps(self.mesh, self.mods, theta)[2]
+        if self.cell_states:
+            return jnp.concatenate([jnp.stack([d, k, nlte]), qs.x_local])
         return jnp.stack([d, k, nlte])
 
     def state_code(self, theta, kinks: bool):

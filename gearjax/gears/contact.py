@@ -22,9 +22,14 @@ almost everywhere.
   (backlash): drive-flank contact, free flight, back-flank contact; used per mesh by
   :func:`te_backlash_contact` (te and perturbation formulations) and with the cell sums of
   both flanks by the sdof reference formulation.
+* :func:`te_cell_contact` -- the same formulations with the contact resolved cell by cell
+  (Eq. (37) with the unilateral law per cell), the other reading of Section 6.2, chosen
+  by :class:`TEContactLaw`.
 """
 
 from __future__ import annotations
+
+import enum
 
 import jax
 import jax.numpy as jnp
@@ -32,7 +37,24 @@ import jax.numpy as jnp
 from ..linalg import solve as dense_solve
 
 __all__ = ["solve_unilateral", "unilateral_solve_pairwise", "active_set_solve", "te_contact",
-           "three_state_force", "te_backlash_contact"]
+           "three_state_force", "te_backlash_contact",
+           "te_cell_contact", "TEContactLaw"]
+
+
+class TEContactLaw(enum.Enum):
+    """How the TE-based formulations (Eqs. (20)/(42), (47a)/(48a)) read Section 6.2's "the
+    time-varying stiffness matrix ... evaluated at each step depending on the instantaneous
+    contact conditions between the mating teeth" (a static model field).
+
+    * ``MESH`` (default): the contact state of the whole mesh, from the linear mesh force
+      (:func:`te_contact`). Needs only TE_S, NLTE and k(theta): works with a TE file.
+    * ``CELLS``: the contact state of every cell, from its quasi-static approach and the
+      dynamic approach (:func:`te_cell_contact`). Needs the cells' gaps, i.e. a model that
+      computes its own TE_S (not a TE file).
+    """
+
+    MESH = "mesh"
+    CELLS = "cells"
 
 
 def solve_unilateral(k, gap, force):
@@ -156,8 +178,9 @@ def te_contact(f_equation, f_loaded):
     linear force is compressive, and then the equations are unchanged; separated
     otherwise, and then the mesh stiffness and its transmission-error forcing are both
     zero, so the mesh force is zero, never tensile. Partial loss of contact along the
-    lines (some cells unloading) needs each cell's gap, which is the reference
-    formulation (Eq. (14)/(16)).
+    lines (some cells unloading) needs each cell's gap: the reference formulation (Eq.
+    (14)/(16)), or these formulations with :func:`te_cell_contact`
+    (:attr:`TEContactLaw.CELLS`) where the model computes its own TE_S.
 
     Parameters
     ----------
@@ -243,3 +266,56 @@ def te_backlash_contact(f_equation, f_loaded, k_equation, k_loaded, clearance):
     f_d = jnp.where(drive, jnp.maximum(f_loaded, 0.0),
                     jnp.where(back, jnp.minimum(f_loaded + k_loaded * clearance, 0.0), 0.0))
     return f_equation - f, f_d
+def te_cell_contact(f_equation, f_loaded, k, approach, v_d, ratio):
+    """Section 6.2's contact algorithm cell by cell in the TE-based formulations.
+
+    Eq. (37) gives the mesh force of (42) cell by cell, ``F_D = sum_i k_i [V^T X -
+    de_i]``; with the unilateral law of every cell and ``V^T X = v_xS + v_xD`` (Eq. (36))
+    it reads ``F_D = sum_i k_i max(0, a_i + v_xD)``, ``a_i = V_i^T X_S - de_i`` the approach
+    of cell i in the quasi-static solution (Eq. (25); sdof: ``x_S cos b_b - de_i``, Eq.
+    (17)), > 0 for the loaded cells. While every cell keeps its quasi-static state
+    (assumption (18a)), the loaded cells carry ``sum k_i a_i = F_S`` (Eq. (17)/(39)) with
+    the stiffness ``sum k_i = k(theta)``, so the sum is ``F_S + k(theta) v_xD``, Eq.
+    (41)/(24): the linear force of (42)/(20). The force is therefore written as that
+    linear force plus the change of every cell that leaves its quasi-static state::
+
+        F = f_lin + sum_i k_i [max(0, z_i) - [a_i > 0] z_i],   z_i = a_i + r v_xD,
+
+    zero term by term (exactly, in floating point) while every loaded cell stays
+    compressed and every open cell open, so the linear equations are then kept bit for
+    bit; a loaded cell that opens gives back its tensile part, an open cell that closes
+    adds its load. Eq. (48a)/(47a) keeps the static cell loads ``k_i a_i`` and spreads the
+    mean stiffness over the loaded cells as k(theta) is spread (``r = k_m / k(theta)``),
+    so that its sum while every cell keeps its state is ``F_S + k_m v_xD``, the linear
+    force of (48a); its reported force is the same sum read with ``r = 1`` (Eq. (41), as
+    :func:`te_contact` reads it), zero where no cell of the equation is compressed. With
+    no cell compressed the force is 0, never tensile.
+
+    Parameters
+    ----------
+    f_equation : linear mesh force of the equation of motion (N): ``F_S + k(theta) v_xD``
+        (Eqs. (42)/(20)) or ``F_S + k_m v_xD`` (Eqs. (48a)/(47a)).
+    f_loaded : reported linear force ``F_S + k(theta) v_xD`` (N, Eq. (41)/(24)).
+    k : (n,) cell stiffnesses (N/m); cells with ``k == 0`` (outside the path) are ignored.
+    approach : (n,) quasi-static approach ``a_i`` of every cell (m).
+    v_d : dynamic approach ``v_xD`` along the averaged vector (m; sdof ``x_D cos b_b``).
+    ratio : ``r``, the equation's stiffness over k(theta): 1 for te, ``k_m / k(theta)``
+        for perturbation.
+
+    Returns
+    -------
+    (cut, f_d) : the force to remove from the linear equation (N; 0 while every cell keeps
+    its quasi-static state) and the reported mesh force (N, >= 0, read with ``r = 1``).
+    """
+    on = k > 0
+    loaded = on & (approach > 0.0)
+
+    def change(z):  # sum_i k_i [max(0, z_i) - [a_i > 0] z_i]: 0 while no cell switches
+        return jnp.sum(jnp.where(on, k * (jnp.maximum(z, 0.0) - jnp.where(loaded, z, 0.0)),
+                                 0.0))
+
+    z_eq = approach + ratio * v_d
+    touching = jnp.any(on & (z_eq > 0.0))  # some cell compressed in the equation
+    f_eq = jnp.where(touching, jnp.maximum(f_equation + change(z_eq), 0.0), 0.0)
+    f_d = jnp.where(touching, jnp.maximum(f_loaded + change(approach + v_d), 0.0), 0.0)
+    return f_equation - f_eq, f_d

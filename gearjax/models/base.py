@@ -167,6 +167,15 @@ class AbstractGearModel(eqx.Module):
         transient needs integrating). Default False."""
         return False
 
+    @property
+    def mesh_level_contact(self) -> bool:
+        """True when te/perturbation decide contact from the mesh force alone
+        (:func:`gearjax.gears.contact.te_contact`), so that a linear orbit is the model's
+        wherever its mesh force stays compressive (what the frequency-domain solver
+        checks). False with the per-cell law (:attr:`gearjax.gears.contact.TEContactLaw.CELLS`:
+        a cell may open while the mesh stays loaded). Default True."""
+        return True
+
     def compiled_form(self) -> "AbstractGearModel":
         """The model as a compiled sweep program receives it
         (:func:`gearjax.dynamics.sweep.sweep`): models whose equations differ only in

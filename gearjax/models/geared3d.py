@@ -24,7 +24,15 @@ term acts along ``V`` with the linear force ``F_S + k v_xD`` (``k_m`` in (48a)),
 compressive and cut to zero (stiffness and TE forcing together) when it would be tensile
 (:func:`gearjax.gears.contact.te_contact`); ``V`` the averaged structure vector (Eq. (A.1)), ``W``
 the TE projection vector (Rb1, Rb2 at the encoder torsional dofs, Eq. (10)),
-``X_0 = K_bar^-1 F_0``, ``w_x0 = W^T X_0``, ``v_x0 = V^T X_0``.
+``X_0 = K_bar^-1 F_0``, ``w_x0 = W^T X_0``, ``v_x0 = V^T X_0``. With
+``contact_law=TEContactLaw.CELLS`` the contact is resolved cell by cell
+(:func:`gearjax.gears.contact.te_cell_contact`): the force along ``V`` is Eq. (37) with the
+unilateral law per cell, ``sum_i k_i max(0, a_i + v_xD)``, ``a_i = V(M_i)^T X_S - de_i``
+each cell's approach in the quasi-static solution (Eq. (25); its element dofs are
+tabulated beside ``d, k``) and ``v_xD = V^T (X - X_S)`` (Eq. (41)); it is Eq. (42)/(48a)
+bit for bit while every cell keeps its quasi-static state, and differs from the reference
+Eq. (14) only through the averaged ``V`` of the dynamic approach and through ``X_S`` of Eq.
+(32).
 
 Quasi-static solution and excitation (Eqs. (25), (36)): the structure is condensed onto the
 12 pinion-gear dofs and solved with unilateral contact
@@ -94,7 +102,7 @@ from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.backlash import back_flank_angle_rad, back_flank_gaps
-from ..gears.contact import te_contact
+from ..gears.contact import TEContactLaw, te_cell_contact, te_contact
 from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..structure.condensation import Condensation, QuasiStatic3D
 from ..structure.element import PinionGearElement
@@ -141,6 +149,8 @@ class Geared3DModel(AbstractModalModel):
         the reference formulation.
     backlash_m : clearance between the back flanks (m), or None: no back flanks (module
         docstring, "Backlash").
+    contact_law : te/perturbation contact law, :class:`gearjax.gears.contact.TEContactLaw`
+        (static; ``CELLS``: the table also holds the 12 element dofs of X_S).
 
     Static attributes: formulation, mesh_vectors, nlte_terms, nlte_inertia, n_modes, n_static,
     diagonal_stiffness and damping_split (:func:`modal_structure`: ``kbar_r`` is applied as
@@ -203,6 +213,7 @@ class Geared3DModel(AbstractModalModel):
     damping_split: int = eqx.field(static=True, default=0)
     te_weight: jax.Array | None = None
     backlash_m: jax.Array | None = None
+    contact_law: TEContactLaw = eqx.field(static=True, default=TEContactLaw.MESH)
 
     def __check_init__(self):
         if self.formulation not in FORMULATIONS:
@@ -217,6 +228,15 @@ class Geared3DModel(AbstractModalModel):
             raise ModelError("event_kinds", len(self.event_kinds), "one kind and cell pair per event")
         if (self.angle_map is not None) and not self.event_thetas:
             raise ModelError("angle_map", "...", "an angle map needs moving events")
+        if not isinstance(self.contact_law, TEContactLaw):
+            raise ModelError("contact_law", self.contact_law,
+                             f"must be a TEContactLaw ({', '.join(c.name for c in TEContactLaw)})")
+        if self.cell_contact and self.te_source is not None:
+            raise ModelError("contact_law", "CELLS", "the per-cell contact law needs the cells' "
+                             "gaps; a TE file gives TE_S alone (use TEContactLaw.MESH)")
+        if self.cell_contact and self.table is not None and self.table.values.shape[1] != 15:
+            raise ModelError("table", self.table.values.shape, "the per-cell contact law needs "
+                             "(d, k, NLTE) and the 12 element dofs of X_S at every knot")
 
     # ------------------------------------------------------------------ construction
     build = classmethod(build_geared3d)
@@ -243,6 +263,16 @@ class Geared3DModel(AbstractModalModel):
         return self
 
     # ------------------------------------------------------------------ constants
+    @property
+    def cell_contact(self) -> bool:
+        """te/perturbation with the per-cell contact law (:attr:`contact_law` ``CELLS``)."""
+        return self.contact_law is TEContactLaw.CELLS and self.formulation != "reference"
+
+    @property
+    def mesh_level_contact(self) -> bool:
+        """False with the per-cell contact law (:attr:`cell_contact`)."""
+        return not self.cell_contact
+
     @property
     def cos_bb(self) -> float:
         """cos of the base helix angle b_b."""
@@ -292,7 +322,7 @@ class Geared3DModel(AbstractModalModel):
             v_local=self.v_local, free12=self.free12, static_force_N=self.static_force_N,
             v_x0=self.v_x0, c_vv=self.c_vv, c_wv=self.c_wv, mesh_vectors=self.mesh_vectors,
             qs_max_iter=self.qs_max_iter, nlte_terms=self.nlte_terms,
-            loaded_codes=self.formulation != "reference")
+            loaded_codes=self.formulation != "reference", cell_states=self.cell_contact)
 
     def with_modifications(self, mods: ToothModifications) -> "Geared3DModel":
         """The complete model of the design ``mods`` (same structure, modal basis, ``k_m``
@@ -338,8 +368,15 @@ class Geared3DModel(AbstractModalModel):
         if self.table is not None:
             vals, _ = self.table(theta)
             return vals[0], vals[1]
-        d, k, _ = self.quasi_static_mesh().excitation(theta)
-        return d, k
+        e = self.quasi_static_mesh().excitation(theta)
+        return e[0], e[1]
+
+    def _static_local(self, s):
+        """The 12 element dofs of the quasi-static X_S (Eq. (25)) at the simulation angle
+        ``s`` (m, rad): tabulated with the per-cell contact law, else solved."""
+        if self.table is not None:
+            return self.table(s)[0][3:]
+        return self.quasi_static(self.angle(s)[0]).x_local
 
     def _static_q(self, theta):
         """Modal coordinates of the quasi-static X_S seen by this formulation."""
@@ -413,7 +450,13 @@ class Geared3DModel(AbstractModalModel):
         force = stiffness_product(self, z) + (f_eq - self.k_m * v_q) * self.v_r
         if not contact:
             return force, f_d
-        cut, f_d = te_contact(f_eq, f_d)
+        if self.cell_contact:  # each cell's quasi-static approach V(M_i)^T X_S - de_i
+            cells, de, _ = contact_gaps(self.mesh, self.mods, self.angle(s)[0])
+            a = self.quasi_static_mesh().vectors(cells) @ self._static_local(s) - de
+            cut, f_d = te_cell_contact(f_eq, f_d, cells.stiffness_N_per_m, a, v_q - v_xs,
+                                       k_eq / k)
+        else:
+            cut, f_d = te_contact(f_eq, f_d)
         if self.backlash_m is not None:  # the back flanks: module docstring, "Backlash"
             vb_r = self.t_local.T @ self.element.back_vectors(self.v_local)
             q_s = self.q0 + d / self.c_wv * self.c_v_r  # X_S, Eq. (29)

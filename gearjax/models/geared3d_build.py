@@ -18,6 +18,7 @@ from ..excitation.events import distinct_angles, engagement_angles
 from ..excitation.mesh3d import QuasiStaticMesh3D
 from ..excitation.te_file import TETable
 from ..gears.backlash import back_flank_angle_rad, check_backlash, check_backlash_mods
+from ..gears.contact import TEContactLaw
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.quasistatic import static_mesh_force
@@ -67,6 +68,7 @@ def build_geared3d(
     nlte_inertia: bool = True,
     moving_events: bool = True,
     backlash_m: float | None = None,
+    contact_law: TEContactLaw = TEContactLaw.MESH,
 ):
     """Build a complete 3D model, a :class:`~gearjax.models.geared3d.Geared3DModel`
     (outside ``jit``: checks, modal basis, k_m, jump and event angles, excitation table).
@@ -125,6 +127,9 @@ def build_geared3d(
         reference formulation's back-flank cells on the second base plane with their
         structure vectors ``V'(M_i)``, te/perturbation's mesh-level back-flank law along
         ``V' = H V`` (:mod:`gearjax.models.geared3d`, "Backlash").
+    contact_law : te/perturbation contact law (:class:`gearjax.gears.contact.TEContactLaw`):
+        ``MESH`` (default, the mesh as a whole) or ``CELLS`` (cell by cell; the table then
+        also holds the element dofs of X_S; not with ``te_table``); the reference ignores it.
 
     Raises
     ------
@@ -137,10 +142,20 @@ def build_geared3d(
         raise ModelError("mesh_vectors", mesh_vectors, f"must be one of {MESH_VECTORS}")
     if excitation not in EXCITATIONS:
         raise ModelError("excitation", excitation, f"must be one of {EXCITATIONS}")
+    if not isinstance(contact_law, TEContactLaw):
+        raise ModelError("contact_law", contact_law,
+                         f"must be a TEContactLaw ({', '.join(c.name for c in TEContactLaw)})")
+    if contact_law is TEContactLaw.CELLS and te_table is not None:
+        raise ModelError("contact_law", "CELLS", "the per-cell contact law needs the cells' "
+                         "gaps; a TE file gives TE_S alone (use TEContactLaw.MESH)")
     if mods is None:
         mods = ToothModifications.none()
     mods.check_against(mesh.pair)
     backlash = check_backlash("backlash_m", backlash_m, mesh.pair)
+    if backlash is not None and contact_law is TEContactLaw.CELLS:
+        raise ModelError("contact_law", contact_law.value, "the per-cell te/perturbation "
+                         "contact law has no back flanks; with backlash_m use the mesh-level "
+                         "law (TEContactLaw.MESH)")
     if backlash is not None and formulation == "reference":
         check_backlash_mods(backlash, mods, mesh.pair)
     torque = float(pinion_torque_Nm)
@@ -216,7 +231,8 @@ def build_geared3d(
         free12=jnp.asarray(mask12), static_force_N=jnp.asarray(f_s), v_x0=v_r_j @ q0_j,
         c_vv=v_r_j @ c_v_r_j, c_wv=w_r_j @ c_v_r_j, mesh_vectors=mesh_vectors,
         qs_max_iter=int(qs_max_iter), nlte_terms=bool(nlte_terms),
-        loaded_codes=formulation != "reference")
+        loaded_codes=formulation != "reference",
+        cell_states=contact_law is TEContactLaw.CELLS and formulation != "reference")
 
     # speed-independent RHS jumps (te/perturbation: + table events: NLTE' jumps at zone kinks)
     tabulated = formulation != "reference" and excitation == "table"
@@ -245,5 +261,6 @@ def build_geared3d(
         nlte_inertia=bool(nlte_inertia), **modal_structure(red.kbar_r, red.c_r, red.n_modes),
         te_weight=None if formulation == "reference" else jnp.asarray(float(formulation == "te")),
         backlash_m=None if backlash is None else jnp.asarray(backlash),
+        contact_law=contact_law,
         **layout,
     )

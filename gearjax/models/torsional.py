@@ -23,6 +23,11 @@ Eqs. (17)-(19))::
 (20)/(47a): the mesh term (stiffness and TE forcing together) acts while its force ``F_S +
 k cos(b_b) x_D`` is compressive and is zero when that would be tensile
 (:func:`gearjax.gears.contact.te_contact`; unchanged, bit for bit, while contact holds).
+``contact_law=TEContactLaw.CELLS`` resolves it cell by cell instead
+(:func:`gearjax.gears.contact.te_cell_contact`: Eq. (22) with each cell's quasi-static
+approach ``x_S cos b_b - de_i``; unchanged, bit for bit, while every cell keeps its
+quasi-static state). On this model Eq. (20) with that law is Eq. (16) again: undoing (18a)
+cell by cell restores the reference's force ``sum_i k_i max(0, x cos b_b - de_i)``.
 
 Here ``m_eq = J1 J2 / (J1 Rb2^2 + J2 Rb1^2)`` (kg), ``F_t = C_m0 / Rb1`` (N) and the viscous
 damping is ``c = 2 zeta sqrt(k_m cos^2(b_b) m_eq)`` (N s/m), the same ``k_m`` for all three
@@ -49,32 +54,13 @@ at every right-hand side with ``excitation="inline"`` (kept to check the table).
 
 NLTE' and NLTE'' (no-load transmission error derivatives)
 --------------------------------------------------------
-NLTE (a minimum over cells of the removed material) has kinks, so NLTE'' holds Dirac terms
-that AD of the sampled function misses, and a spectral NLTE'' with H harmonics converges
-slowly: well above resonance the response to ``-Omega^2 (J2/Rb2^2) NLTE''`` is ``x_h = -kappa
-NLTE_h`` (kappa: see "Where the NLTE'' reaction torque acts"; 1 by default, about 30 with
-``"pinion"``), so the error of x is ``kappa`` times the NLTE spectrum tail (O(1/H)).
-We therefore remove NLTE'' *exactly* by a change of variable (``nlte_method="substitution"``,
-the default)::
-
-    z = x + kappa NLTE        =>   Omega^2 m_eq z'' + Omega c (z' - kappa NLTE') + ... = F_t
-
-so the state ``(z, z')`` is continuous and only NLTE (continuous) and NLTE' (piecewise
-smooth, with jumps at the kinks, obtained exactly by forward-mode differentiation of the
-minimum, which picks the active branch) enter the vector field; the kinks are passed to the
-integrator as ``jump_thetas``. The 3D model (Eq. (42)) substitutes ``X = Z - NLTE M^-1 E``.
-``nlte_method="spectral"`` (to check the substitution) keeps x and evaluates NLTE'' from
-the Fourier series of NLTE over one period (``nlte_harmonics`` mesh harmonics).
-
-``nlte_terms=False`` sets NLTE = 0 in the equations of motion, as the paper's Fig. 10
-"TE-based formulation (with NLTE = 0)": the NLTE'' inertial term is dropped and, in the
-te and perturbation formulations, ``TE_S - NLTE`` is replaced by ``TE_S`` (the model then
-treats TE_S as the static approach and reports ``DTE = x``). In the reference formulation
-only NLTE'' is dropped (the gaps de_i contain the errors). When NLTE is identically zero
-(e.g. spur Table 1 short relief) the default ``nlte_terms=None`` resolves to False and the
-scenario compiles without these terms. ``nlte_inertia=False`` (Section 6.3.2: "NLTE'' set
-at zero in the equations of motion") drops the NLTE'' term alone: ``TE_S - NLTE`` stays in
-the forcing and ``DTE = x + NLTE``; no substitution is needed then (``z = x``, kappa = 0).
+NLTE has kinks, so NLTE'' holds Dirac terms: ``nlte_method="substitution"`` (default) removes
+it exactly by ``z = x + kappa NLTE`` (only NLTE and NLTE', exact by forward-mode AD, enter
+the vector field; the kinks are ``jump_thetas``); ``"spectral"`` keeps x with a Fourier
+NLTE'' (``nlte_harmonics``), to check it. ``nlte_terms=False``: NLTE = 0 in the equations
+(Fig. 10's "TE-based formulation (with NLTE = 0)"; None: False where NLTE is identically
+zero); ``nlte_inertia=False``: the NLTE'' term alone dropped (Section 6.3.2). The reasoning:
+docs/concepts/formulations.md, "NLTE'' terms and where their reaction acts".
 
 TE from a file (Section 6.2, :meth:`TorsionalModel.with_te`): TE_S, NLTE and, if given, the
 loaded stiffness of a :class:`~gearjax.excitation.te_file.TETable` replace the quasi-static
@@ -95,14 +81,8 @@ Default inertias: solid steel cylinders of the pitch radii and face widths
 
 Where the NLTE'' reaction torque acts (``nlte_reaction``)
 -------------------------------------------------------
-The torque ``J2 Rb1 / Rb2^2 Omega^2 NLTE''`` keeps the pinion speed constant (Eq. (5)); the
-forcing of x is ``-Omega^2 kappa m_eq NLTE''``. ``"drive"`` (default, the convention of
-every command and of the 3D model, whose Eq. (14) puts it on the torque node: the motor,
-behind the pinion shaft and the flexible coupling, torsional mode about 500 Hz, far below
-the 3.4 kHz mesh modes): the pinion does not feel it at mesh frequencies, ``kappa = 1``.
-``"pinion"`` (option): Eqs. (15)-(16) as written, the torque on the pinion inertia,
-``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (about 30 for the Baud-Velex
-bodies: the whole gear rigidly coupled to the mesh; ``--nlte-reaction pinion``).
+``"drive"`` (default, as the 3D model): ``kappa = 1``; ``"pinion"``: Eqs. (15)-(16) as
+written, ``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (docs/concepts/formulations.md).
 
 Backlash (``backlash_m``)
 ------------------------
@@ -141,7 +121,8 @@ from ..gears.geometry import STEEL_DENSITY_KG_M3, GearPair, solid_cylinder_inert
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.backlash import cell_backlash_force, check_backlash, check_backlash_mods
-from ..gears.contact import (solve_unilateral, te_backlash_contact, te_contact,
+from ..gears.contact import (TEContactLaw, solve_unilateral, te_backlash_contact, te_cell_contact,
+                             te_contact,
                              unilateral_solve_pairwise)
 from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..excitation.events import EV_FIXED, NEWTON_STEPS, code_jnp, moved_event_angles
@@ -191,6 +172,7 @@ class _TorsionalInputs(eqx.Module):
     table_codes: jax.Array | None = None
     te_input: PeriodicHermiteTable | None = None  # from a TE file (with_te): the table itself
     backlash_m: jax.Array | None = None  # clearance of the back flanks (m); None: none
+    contact_law: TEContactLaw = eqx.field(static=True, default=TEContactLaw.MESH)
 
     @property
     def pair(self) -> GearPair:
@@ -390,6 +372,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         else 0.
     nlte_dd_coeffs : complex Fourier coefficients of NLTE'' (spectral method), else None.
     backlash_m : clearance between the back flanks (m), or None (module docstring).
+    contact_law : :class:`gearjax.gears.contact.TEContactLaw` of te/perturbation (static;
+        the reference is always cell by cell).
     """
 
     angle_map: AngleMap | None = eqx.field(kw_only=True)
@@ -409,6 +393,12 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         if self.table.values.shape != (self.table_knots.shape[0], 3):
             raise ModelError("table", self.table.values.shape,
                              "must hold (x_S, (sum k)^S, NLTE) at every table knot")
+        if not isinstance(self.contact_law, TEContactLaw):
+            raise ModelError("contact_law", self.contact_law,
+                             f"must be a TEContactLaw ({', '.join(c.name for c in TEContactLaw)})")
+        if self.contact_law is TEContactLaw.CELLS and self.te_input is not None:
+            raise ModelError("contact_law", "CELLS", "the per-cell contact law needs the cells' "
+                             "gaps; a TE file gives TE_S alone (use TEContactLaw.MESH)")
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -455,6 +445,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         nlte_reaction: str = "drive",
         nlte_inertia: bool = True,
         backlash_m: float | None = None,
+        contact_law: TEContactLaw = TEContactLaw.MESH,
     ) -> "TorsionalModel":
         """Build a torsional model (outside ``jit``: inputs are checked, jump angles found).
 
@@ -485,6 +476,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         backlash_m : clearance between the back flanks (m, normal backlash along the line
             of action, in ``[0, m_n]``); None (default): no back flanks, the model of the
             paper (module docstring, "Backlash").
+        contact_law : te/perturbation contact law (:class:`gearjax.gears.contact.TEContactLaw`,
+            module docstring): ``MESH`` (default) or ``CELLS``; the reference ignores it.
 
         Raises
         ------
@@ -503,6 +496,10 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             mods = ToothModifications.none()
         mods.check_against(mesh.pair)
         backlash = check_backlash("backlash_m", backlash_m, mesh.pair)
+        if backlash is not None and contact_law is TEContactLaw.CELLS:
+            raise ModelError("contact_law", contact_law.value, "the per-cell te/perturbation "
+                             "contact law has no back flanks; with backlash_m use the mesh-level "
+                             "law (TEContactLaw.MESH)")
         if backlash is not None and formulation == "reference":
             check_backlash_mods(backlash, mods, mesh.pair)
         torque = float(pinion_torque_Nm)
@@ -539,10 +536,15 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             pinion_torque_Nm=jnp.asarray(torque), damping_ratio=jnp.asarray(zeta),
             formulation=formulation, nlte_terms=bool(nlte_terms), nlte_method=nlte_method,
             nlte_reaction=nlte_reaction, nlte_inertia=bool(nlte_inertia),
-            nlte_harmonics=int(nlte_harmonics),
+            nlte_harmonics=int(nlte_harmonics), contact_law=contact_law,
             excitation=excitation, period_rad=period, n_table=n_table, **layout,
             backlash_m=None if backlash is None else jnp.asarray(backlash),
         )
+
+    @property
+    def mesh_level_contact(self) -> bool:
+        """False with the per-cell contact law (:attr:`contact_law` ``CELLS``)."""
+        return self.contact_law is TEContactLaw.MESH
 
     def angle(self, s):
         """(theta, dtheta/ds): the pinion angle (rad) at the simulation angle ``s`` (rad).
@@ -592,13 +594,14 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         return z, zp
 
     def _static_part(self, theta, exc):
-        """(x_static, k_S) used by te/perturbation: x_S, or TE_S without NLTE terms."""
+        """(x_static, k_S, x_S) used by te/perturbation: x_S, or TE_S without NLTE terms,
+        the loaded stiffness and the quasi-static approach x_S itself (m)."""
         if self.excitation == "inline":
             q = self._qs(theta)
         else:
             q = exc[0]
         x_static = q[_X_S] if self.nlte_terms else q[_X_S] + q[_NLTE]
-        return x_static, q[_K_S]
+        return x_static, q[_K_S], q[_X_S]
 
     def _mesh_terms(self, theta, x, exc, contact=True):
         """((F_elastic - F_t) / F_t, F_D (N)) at theta for the transverse approach x; te
@@ -615,17 +618,22 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             loads = cells.stiffness_N_per_m * jnp.maximum(x * self.cos_bb - delta_e, 0.0)
             f_d = jnp.sum(loads)  # Eq. (22)
             return f_d / f_s - 1.0, f_d
-        x_static, k_s = self._static_part(theta, exc)
+        x_static, k_s, x_s = self._static_part(theta, exc)
         x_d = x - x_static
         stiff = k_s if self.formulation == "te" else self.k_m
-        # Eq. (24) with the loaded stiffness for both; contact law: gears.contact.te_contact
+        # Eq. (24) with the loaded stiffness for both; contact law: gears.contact
         f_eq, f_ld = f_s + stiff * self.cos_bb * x_d, f_s + k_s * self.cos_bb * x_d
-        if self.backlash_m is not None:
+        if not contact:
+            cut, f_d = 0.0, f_ld
+        elif self.contact_law is TEContactLaw.CELLS:  # each cell's approach x_S cos b_b - de_i
+            cells, delta_e, _ = contact_gaps(self.mesh, self.mods, theta)
+            cut, f_d = te_cell_contact(f_eq, f_ld, cells.stiffness_N_per_m,
+                                       x_s * self.cos_bb - delta_e, x_d * self.cos_bb,
+                                       stiff / k_s)
+        elif self.backlash_m is not None:
             cut, f_d = te_backlash_contact(f_eq, f_ld, stiff, k_s, self.backlash_m)
         else:
             cut, f_d = te_contact(f_eq, f_ld)
-        if not contact:
-            cut, f_d = 0.0, f_s + k_s * self.cos_bb * x_d
         return (stiff * self.cos_bb * x_d - cut) / f_s, f_d
 
     def _exc(self, s):
