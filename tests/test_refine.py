@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from gearjax.cli.main import main
+from gearjax.dynamics.orbit import metric_status
 from gearjax.dynamics.refine import Refinement, find_peaks, merge_sorted, propose_speeds, refine
 from gearjax.dynamics.results import SweepResult, empty_metrics
 from gearjax.errors import SimulationError
@@ -37,7 +38,9 @@ def _result(speeds, force, loss=None, dte=None):
               contact_loss=np.zeros(w.size, bool) if loss is None else np.asarray(loss, bool))
     if dte is not None:
         kw["dte_ptp_m"] = np.asarray(dte, dtype=float)
-    return SweepResult(**kw, formulation="te", solver=np.array(["transient"] * w.size))
+    return SweepResult(**kw, formulation="te", solver=np.array(["transient"] * w.size),
+                       spectral_radius=np.full(w.size, np.nan),
+                       status=metric_status(kw["solver_ok"], kw["converged"]))
 
 
 def test_oscillator_peak_located_as_the_closed_form():

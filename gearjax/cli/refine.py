@@ -20,6 +20,7 @@ import os
 import numpy as np
 
 from ..dynamics.refine import Refinement, refine_common
+from ..dynamics.orbit import metric_status
 from ..dynamics.results import SweepResult, empty_metrics
 from .results import read_rows
 
@@ -76,11 +77,13 @@ def result_of_rows(rows: list[dict], formulation: str) -> SweepResult:
     for col in ("speed_rad_s", "max_mesh_force_N", "min_mesh_force_N", "dynamic_factor",
                 "dte_ptp_m", "accel_ptp_m_s2", "convergence", "period_multiple"):
         kw[col] = np.array([_float(r[col]) for r in rs], dtype=float)
-    for col in ("contact_loss", "converged"):
-        kw[col] = np.array([r[col] == "True" for r in rs], dtype=bool)
+    for col in ("contact_loss", "back_contact", "converged"):
+        kw[col] = np.array([r.get(col) == "True" for r in rs], dtype=bool)
     kw["solver_ok"] = kw["converged"] | np.isfinite(kw["max_mesh_force_N"])
     return SweepResult(**kw, formulation=formulation,
-                       solver=np.array(["" for _ in rs], dtype=object))
+                       solver=np.array(["" for _ in rs], dtype=object),
+                       spectral_radius=np.full(len(rs), np.nan),
+                       status=metric_status(kw["solver_ok"], kw["converged"]))
 
 
 def sort_rows(path: str) -> None:

@@ -59,8 +59,11 @@ it exactly by ``z = x + kappa NLTE`` (only NLTE and NLTE', exact by forward-mode
 the vector field; the kinks are ``jump_thetas``); ``"spectral"`` keeps x with a Fourier
 NLTE'' (``nlte_harmonics``), to check it. ``nlte_terms=False``: NLTE = 0 in the equations
 (Fig. 10's "TE-based formulation (with NLTE = 0)"; None: False where NLTE is identically
-zero); ``nlte_inertia=False``: the NLTE'' term alone dropped (Section 6.3.2). The reasoning:
-docs/concepts/formulations.md, "NLTE'' terms and where their reaction acts".
+zero); ``nlte_inertia=False``: the NLTE'' term alone dropped (Section 6.3.2). Its reaction
+torque (``nlte_reaction``) acts on the drive (``"drive"``, default, as the 3D model:
+``kappa = 1``) or on the pinion (``"pinion"``, Eqs. (15)-(16) as written: ``kappa = J2 /
+(Rb2^2 m_eq)``). The reasoning: docs/concepts/formulations.md, "NLTE'' terms and where
+their reaction acts".
 
 TE from a file (Section 6.2, :meth:`TorsionalModel.with_te`): TE_S, NLTE and, if given, the
 loaded stiffness of a :class:`~gearjax.excitation.te_file.TETable` replace the quasi-static
@@ -78,11 +81,6 @@ scaling (``f`` the elastic mesh force over F_t)::
 
 Default inertias: solid steel cylinders of the pitch radii and face widths
 (:func:`solid_cylinder_inertias`) when nothing better is known.
-
-Where the NLTE'' reaction torque acts (``nlte_reaction``)
--------------------------------------------------------
-``"drive"`` (default, as the 3D model): ``kappa = 1``; ``"pinion"``: Eqs. (15)-(16) as
-written, ``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (docs/concepts/formulations.md).
 
 Backlash (``backlash_m``)
 ------------------------
@@ -121,10 +119,10 @@ from ..gears.geometry import STEEL_DENSITY_KG_M3, GearPair, solid_cylinder_inert
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.backlash import cell_backlash_force, check_backlash, check_backlash_mods
-from ..gears.contact import (TEContactLaw, solve_unilateral, te_backlash_contact, te_cell_contact,
-                             te_contact,
-                             unilateral_solve_pairwise)
+from ..gears.contact import (TEContactLaw, solve_unilateral, te_backlash_contact,
+                             te_cell_contact, te_contact, unilateral_solve_pairwise)
 from ..gears.quasistatic import contact_gaps, static_mesh_force
+from ..excitation.mesh3d import fourier_coefficients
 from ..excitation.events import EV_FIXED, NEWTON_STEPS, code_jnp, moved_event_angles
 from ..excitation.sdof import sdof_signature, sdof_switch
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
@@ -301,11 +299,9 @@ class _TorsionalInputs(eqx.Module):
         kappa = self.nlte_inertia_ratio if self._substitution else jnp.zeros(())
         coeffs = None
         if self.nlte_method == "spectral" and self.nlte_inertial_terms:
-            n = self.n_table * n_mesh
-            th = jnp.arange(n) * (self.period_rad / n)
-            nlte = jax.vmap(lambda t: contact_gaps(self.mesh, self.mods, t)[2])(th)
-            c = jnp.fft.rfft(nlte) / n
             n_keep = self.nlte_harmonics * n_mesh
+            c = fourier_coefficients(lambda t: contact_gaps(self.mesh, self.mods, t)[2], 0.0,
+                                     self.period_rad, self.n_table * n_mesh, n_keep)
             h = jnp.arange(n_keep + 1)
             w = 2.0 * jnp.pi * h / self.period_rad
             coeffs = jnp.where(h > 0, -(w**2) * 2.0 * c[: n_keep + 1], 0.0)
@@ -357,9 +353,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         NLTE kinks); passed to the step-size controller as ``jump_ts``.
     table_knots, table_cell_first : layout of the excitation table (see
         :class:`PeriodicHermiteTable`).
-    table_side : (K,) -1 / +1 for the knots just left / right of a jump, 0 elsewhere: the
-        one-sided values there are extrapolated from ``1e-9`` periods inside the branch, so
-        that they do not depend on on which side round-off puts the knot itself.
+    table_side : (K,) -1 / +1 for the knots just left / right of a jump, 0 elsewhere: their
+        one-sided values come from ``1e-9`` periods inside the branch, not from round-off.
     angle_map : :class:`AngleMap` from the simulation angle to the pinion angle, None when
         no switching angle depends on the design.
     structure_ok : traced bool, the discrete quasi-static state at every knot is the
@@ -372,8 +367,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         else 0.
     nlte_dd_coeffs : complex Fourier coefficients of NLTE'' (spectral method), else None.
     backlash_m : clearance between the back flanks (m), or None (module docstring).
-    contact_law : :class:`gearjax.gears.contact.TEContactLaw` of te/perturbation (static;
-        the reference is always cell by cell).
+    contact_law : :class:`~gearjax.gears.contact.TEContactLaw` of te/perturbation (static).
     """
 
     angle_map: AngleMap | None = eqx.field(kw_only=True)
