@@ -63,7 +63,7 @@ from ..rigs.factory import build_model
 from ..rigs.campbell import campbell
 from ..rigs.figures import predicted_critical_speeds
 from .ahead import Ahead, build_and_compile_ahead
-from .branches import DIRECTION_CHOICES, check_direction, run_branches
+from .branches import DIRECTION_CHOICES, check_direction, plot_directions, run_branches
 from .devices import device_count, init_distributed, sweep_devices
 from .iso import iso_dynamic_factor
 from .signals import last_mesh_period_signals, write_order_tracks, write_signals
@@ -133,11 +133,11 @@ def register(sub, add_rig, add_scenario):
                          "harmonic truncation, transient decay and periodicity test "
                          "(gearjax.dynamics.sweep.tolerance_options); independent sweeps")
     sw.add_argument("--direction", default="independent", choices=DIRECTION_CHOICES,
-                    help="independent (default, as before): every speed from the quasi-static "
-                         "start; up/down/both: continuation, each speed started from its "
-                         "neighbour's periodic orbit (shooting; --method not used), showing "
-                         "jumps and coexisting branches near a critical speed with contact "
-                         "loss (results.csv gains direction, orbit, spectral_radius, restarted)")
+                    help="independent (default): every speed from the quasi-static start; "
+                         "up/down: each speed from its neighbour's periodic orbit (shooting; "
+                         "--method not used; results.csv gains direction, orbit, spectral_radius,"
+                         " restarted); both: up, down and the whole curve, stable and unstable, "
+                         "by arclength continuation with its folds and jumps (branches.csv)")
     sw.add_argument("--chunk", type=int, default=None,
                     help="speeds per compiled call (progress and CSV rows per chunk; default "
                          "gearjax.dynamics.sweep.default_chunk_size: on a CPU 16-64 speeds per "
@@ -542,7 +542,7 @@ def cmd_sweep(args) -> int:
              + (", NLTE = 0" if args.zero_nlte else ", NLTE'' = 0" if args.no_nlte_terms else "")
              + f"{' (interrupted)' if interrupted else ''}")
     if rows:
-        from ..plotting import plot_branches, plot_response_curves
+        from ..plotting import plot_response_curves
 
         fig_path = os.path.join(out, "response_curves.png")
         if args.direction == "independent":
@@ -550,8 +550,8 @@ def cmd_sweep(args) -> int:
             plot_response_curves(csv_path, fig_path, title=title,
                                  iso_kv=(dense, iso_dynamic_factor(args, rig, mods, dense)[
                                      "iso6336_kv"], iso["iso6336_resonance_speed_rad_s"]))
-        else:
-            plot_branches(csv_path, fig_path, title=title)
+        else:  # the continuations' figure (gearjax.cli.branches)
+            plot_directions(args.direction, out, summary, fig_path, title)
         summary["response_curves_png"] = fig_path
         summary.update(write_order_tracks(orders_path, out, title))
     if signals and not interrupted:

@@ -14,7 +14,7 @@ linearisation); this module is the host loop over points (Keller's method):
    :attr:`Arclength.speed_scale_rad_s` says otherwise).
 2. **Corrector**: Newton with the border ``t_k . (u - u_p) = 0``. A point is accepted where
    Newton converges, the new tangent turns by less than ``acos(min_cos)`` and the
-   correction is no longer than the step.
+   correction is at most ``max_correction`` steps.
 3. **Step control**: a failed step is retried at ``shrink`` times the length; a point
    reached in ``fast_newton`` iterations or fewer lets the next step grow by ``grow``;
    ``min_step <= ds <= max_step``; below ``min_step`` the segment stops (``point = "stop"``).
@@ -26,9 +26,9 @@ linearisation); this module is the host loop over points (Keller's method):
    inserted in the curve.
 
 A segment ends at the ends of the speed range (its last point corrected at fixed speed
-exactly there, ``point = "end"``) or where it joins a traced curve (``"join"``). Segment 0 starts at the lowest speed from the
-quasi-static start (Newton at fixed speed; where that finds no stable orbit, a transient
-first). Then the stable orbit of the highest speed and, at every bifurcation that ends a
+exactly there, ``point = "end"``) or where it joins a traced curve (``"join"``). Segment 0
+starts at the lowest speed from the quasi-static start (Newton at fixed speed; where that
+finds no stable orbit, a transient first). Then the stable orbit of the highest speed and, at every bifurcation that ends a
 stable branch, the orbit that a transient from the bifurcation orbit settles on at
 ``landing_offset`` beyond it (:func:`gearjax.dynamics.corrector.settle`: the jump of a slow
 sweep) are checked against the curve (a fixed-speed Newton from the curve interpolated
@@ -55,7 +55,7 @@ import numpy as np
 from ..errors import SimulationError
 from .bifurcation import (BIFURCATION_KINDS, Bifurcation, Jump, TracedBranches,
                           crossing_kinds, crossing_multiplier, crossing_test, metrics_dict,
-                          multipliers)
+                          metrics_of, multipliers)
 from .corrector import CorrectorOptions, correct, measure, settle
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .results import METRIC_FIELDS, empty_metrics
@@ -74,13 +74,15 @@ class Arclength(eqx.Module):
     grow, shrink : step factors after a fast point and after a failed step.
     fast_newton : Newton iterations at or below which the step grows.
     min_cos : smallest cosine between consecutive unit tangents.
+    max_correction : largest distance of a corrected point from its predictor, in steps
+        (a larger one means the curve bends within the step: a fold pair may hide in it).
     speed_scale_rad_s : ``Omega_s`` (rad/s); None: the median spacing of the speeds asked.
     max_points : points over all segments.
     max_segments : segments (the first and those started from orbits off the curve).
     locate_tol, max_locate : tolerance on a bifurcation's test function and secant
         iterations.
-    landing_offset_rad_s : how far beyond a bifurcation the landing transient runs (rad/s);
-        None: half the speed spacing.
+    landing_offset_rad_s : how far beyond a bifurcation the landing transient runs (rad/s;
+        at most to the end of the range); None: half the speed spacing.
     corrector : the Newton corrector's options
         (:class:`~gearjax.dynamics.corrector.CorrectorOptions`).
     convergence_tol : periodicity threshold of the metrics' ``converged``.
@@ -95,6 +97,7 @@ class Arclength(eqx.Module):
     shrink: float = 0.5
     fast_newton: int = 3
     min_cos: float = 0.9
+    max_correction: float = 0.25
     speed_scale_rad_s: float | None = None
     max_points: int = 2000
     max_segments: int = 4
@@ -122,6 +125,8 @@ class Arclength(eqx.Module):
                                   "need grow >= 1 and 0 < shrink < 1")
         if not 0.0 < self.min_cos < 1.0:
             raise SimulationError("min_cos", self.min_cos, "must lie in (0, 1)")
+        if not 0.0 < self.max_correction <= 1.0:
+            raise SimulationError("max_correction", self.max_correction, "must lie in (0, 1]")
         for name in ("max_points", "max_segments", "max_locate", "fast_newton"):
             v = getattr(self, name)
             if int(v) != v or v < 1:
@@ -209,7 +214,7 @@ class _Tracer:
             return False
         pred = self._u(a) + ds * a.tangent
         return (float(a.tangent @ b.tangent) >= self.opts.min_cos
-                and float(np.linalg.norm(self._u(b) - pred)) <= ds)
+                and float(np.linalg.norm(self._u(b) - pred)) <= self.opts.max_correction * ds)
 
     def _out(self, w) -> bool:
         return w < self.lo or w > self.hi
@@ -390,8 +395,8 @@ class _Tracer:
         if not sides:
             return None
         sweep = "up" if sides[0].omega < p.omega else "down"
-        w = p.omega + (offset if sweep == "up" else -offset)
-        if self._out(w):
+        w = min(p.omega + offset, self.hi) if sweep == "up" else max(p.omega - offset, self.lo)
+        if w == p.omega:  # at the end of the range: nothing beyond it to land on
             return sweep, w, None, None
         y = jax.device_get(self._settle(w, p.y))
         if not np.all(np.isfinite(y)):
@@ -511,24 +516,26 @@ def _result(model, tr: _Tracer, jumps, scale) -> TracedBranches:
                 crossing_test=float(crossing_test(p.point, p.mu, p.tangent[-1])),
                 located=bool(p.located), ends_stable_branch=bool(any(stable[near])),
                 metrics=metrics_dict(flat, j)))
-    force = METRIC_FIELDS.index("max_mesh_force_N")
     out_jumps = []
     for si, i, sweep, w, q, y_settled, where in jumps:
         j = int(first[si] + i)
-        after = float("nan")
+        after = {}
         if q is not None:
-            after = float(tr.metrics(q)[force])
+            after = metrics_of(tr.metrics(q))
         elif y_settled is not None:
-            after = float(jax.device_get(measure(model, jnp.asarray(w), jnp.asarray(y_settled),
-                                                 tr.opts.convergence_tol))[force])
+            met = jax.device_get(measure(model, jnp.asarray(w), jnp.asarray(y_settled),
+                                         tr.opts.convergence_tol))
+            after = metrics_of(met)
         landed = -1
         if where is not None:
             k = int(first[where[0]] + where[1])
             landed = int(branch[k + 1] if pts[k].point in BIFURCATION_KINDS else branch[k])
-        out_jumps.append(Jump(sweep=sweep, kind=pts[j].point, from_rad_s=pts[j].omega,
-                              to_rad_s=float(w), max_mesh_force_before_N=float(out["max_mesh_force_N"][j]),
-                              max_mesh_force_after_N=after, landed_branch=landed,
-                              landed_periodic=q is not None))
+        out_jumps.append(Jump(
+            sweep=sweep, kind=pts[j].point, from_rad_s=pts[j].omega, to_rad_s=float(w),
+            max_mesh_force_before_N=float(out["max_mesh_force_N"][j]),
+            max_mesh_force_after_N=float(after.get("max_mesh_force_N", float("nan"))),
+            landed_branch=landed, landed_periodic=q is not None, index=j,
+            metrics_after=after))
     return TracedBranches(
         **out, formulation=model.formulation, solver=np.full(n_pts, "arclength"),
         stable=stable, branch=branch, segment=np.array([p.segment for p in pts]),

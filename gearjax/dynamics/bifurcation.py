@@ -41,7 +41,8 @@ import numpy as np
 from .results import METRIC_FIELDS, SweepResult
 
 __all__ = ["BIFURCATION_KINDS", "Bifurcation", "Jump", "TracedBranches", "multipliers",
-           "crossing_kinds", "crossing_test", "crossing_multiplier", "coexistence"]
+           "crossing_kinds", "crossing_test", "crossing_multiplier", "coexistence",
+           "metrics_dict", "metrics_of"]
 
 BIFURCATION_KINDS = ("fold", "branch_point", "period_doubling", "torus")
 # the multipliers each kind watches, and the point they cross the unit circle at
@@ -145,6 +146,10 @@ class Jump(eqx.Module):
         bifurcation and on the landing orbit (N; NaN where no periodic orbit was found).
     landed_branch : the branch of the curve the landing orbit lies on (-1: none traced).
     landed_periodic : the transient settled on a stable orbit of the excitation period.
+    index : the bifurcation's point in the :class:`TracedBranches` arrays.
+    metrics_after : the landing orbit's metrics (as :attr:`Bifurcation.metrics`; of the
+        state the transient reached where it found no stable periodic orbit, measured
+        over two periods; empty where the landing speed is outside the range).
     """
 
     sweep: str
@@ -155,6 +160,16 @@ class Jump(eqx.Module):
     max_mesh_force_after_N: float
     landed_branch: int
     landed_periodic: bool
+    index: int
+    metrics_after: dict
+
+    @property
+    def discontinuous(self) -> bool:
+        """The response jumps: at a fold (the orbit ceases to exist) or where the transient
+        landed on a stable orbit of the excitation period elsewhere. Past a period doubling
+        or a torus a transient that finds no such orbit has met the period-doubled or
+        quasi-periodic response born there, which may grow from the orbit continuously."""
+        return self.kind == "fold" or self.landed_periodic
 
     @property
     def rises(self) -> bool:
@@ -190,7 +205,8 @@ class TracedBranches(SweepResult):
     newton_iterations : corrector iterations of the point.
     y0 : (n_points, n) periodic start at theta = 0 (the model's dimensionless state).
     bifurcations : the :class:`Bifurcation` points, in the order traced.
-    jumps : the :class:`Jump` s, one per bifurcation that ends a stable branch.
+    jumps : the :class:`Jump` s, one per bifurcation that ends a stable branch (where a
+        sweep leaves it; :attr:`Jump.discontinuous` says whether its response jumps).
     speed_scale_rad_s : the speed scale of the arclength norm (rad/s).
     """
 
@@ -212,13 +228,15 @@ class TracedBranches(SweepResult):
         return [b for b in self.bifurcations if b.kind == "fold"]
 
     def jump_up_rad_s(self) -> list[float]:
-        """Speeds (rad/s) of the jumps to a larger max mesh force (sorted)."""
-        return sorted(j.from_rad_s for j in self.jumps if j.rises)
+        """Speeds (rad/s) of the jumps (:attr:`Jump.discontinuous`) to a larger max mesh
+        force (sorted)."""
+        return sorted(j.from_rad_s for j in self.jumps if j.discontinuous and j.rises)
 
     def jump_down_rad_s(self) -> list[float]:
-        """Speeds (rad/s) of the jumps to a smaller max mesh force (sorted)."""
-        return sorted(j.from_rad_s for j in self.jumps
-                      if np.isfinite(j.max_mesh_force_after_N) and not j.rises)
+        """Speeds (rad/s) of the jumps (:attr:`Jump.discontinuous`) to a smaller max mesh
+        force (sorted)."""
+        return sorted(j.from_rad_s for j in self.jumps if j.discontinuous
+                      and np.isfinite(j.max_mesh_force_after_N) and not j.rises)
 
     def branch_stable(self) -> dict[int, bool]:
         """Per branch id, whether its points are stable (its bifurcation end points, on the
@@ -256,10 +274,16 @@ class TracedBranches(SweepResult):
 
 def metrics_dict(res, i: int) -> dict:
     """Metrics of entry ``i`` of a sweep-like result as JSON-ready values (SI units)."""
+    return metrics_of(tuple(np.asarray(getattr(res, f))[i] for f in METRIC_FIELDS))
+
+
+def metrics_of(values) -> dict:
+    """The metrics ``values`` (one orbit's, in :data:`~gearjax.dynamics.results.
+    METRIC_FIELDS` order) as a dict of JSON-ready values (SI units)."""
     out = {}
-    for f in METRIC_FIELDS:
-        v = np.asarray(getattr(res, f))[i]
-        if np.ndim(v):
+    for f, v in zip(METRIC_FIELDS, values):
+        v = np.asarray(v)
+        if v.ndim:
             out[f] = [float(x) for x in v]
         elif f in ("contact_loss", "converged", "solver_ok"):
             out[f] = bool(v)

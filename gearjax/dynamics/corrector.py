@@ -107,9 +107,9 @@ def correct(model, y_start, omega_start, u_predictor, border, speed_scale,
     speed_scale : ``Omega_s`` (rad/s).
     options : :class:`CorrectorOptions`.
     """
-    return _correct(model, jnp.asarray(y_start, dtype=float), jnp.asarray(omega_start, dtype=float),
-                    jnp.asarray(u_predictor, dtype=float), jnp.asarray(border, dtype=float),
-                    jnp.asarray(speed_scale, dtype=float), jnp.asarray(options.max_newton),
+    return _correct(model, jnp.asarray(y_start, dtype=float),
+                    jnp.asarray(omega_start, dtype=float), jnp.asarray(u_predictor, dtype=float), jnp.asarray(border, dtype=float),
+                    jnp.asarray(speed_scale, dtype=float), jnp.asarray(options.max_newton, dtype=int),
                     jnp.asarray(options.newton_tol, dtype=float),
                     (options.rtol, options.atol, options.max_steps))
 
@@ -166,25 +166,37 @@ def _correct(model, y_start, omega_start, u_predictor, border, s, max_newton, ne
                       iterations=it, converged=converged, n_steps=steps)
 
 
-@eqx.filter_jit
 def measure(model, omega, y0, convergence_tol: float = 1e-3) -> tuple:
     """The metrics (:data:`gearjax.dynamics.results.METRIC_FIELDS`, in that order) of the
     orbit started at ``y0`` at speed ``omega`` (rad/s): :func:`gearjax.dynamics.simulate.
     simulate` over two periods without transient, as :func:`gearjax.dynamics.steady.
     steady_state` measures a shooting orbit (exact extrema at the jumps,
     :mod:`gearjax.dynamics.metrics`)."""
+    return _measure(model, jnp.asarray(omega, dtype=float), jnp.asarray(y0, dtype=float),
+                    float(convergence_tol))
+
+
+@eqx.filter_jit
+def _measure(model, omega, y0, convergence_tol):
     r = simulate(model, omega, n_transient_periods=0, y0=y0, n_measured_periods=2,
                  convergence_tol=convergence_tol)
     return tuple(getattr(r, f) for f in METRIC_FIELDS)
 
 
-@eqx.filter_jit
 def settle(model, omega, y_start, transient_decay: float = 1e-6,
            min_transient_mesh_periods: int = 8, max_transient_mesh_periods: int = 400):
     """State at theta = k P after a transient from ``y_start`` at speed ``omega`` (rad/s),
     ``k`` from the decay rate of the slowest free mode as simulate's automatic transient
     (:func:`gearjax.dynamics.simulate.transient_periods`): where a branch ends, the
     attractor a slow run-up (or run-down) reaches."""
+    return _settle(model, jnp.asarray(omega, dtype=float), jnp.asarray(y_start, dtype=float),
+                   (float(transient_decay), int(min_transient_mesh_periods),
+                    int(max_transient_mesh_periods)))
+
+
+@eqx.filter_jit
+def _settle(model, omega, y_start, static):
+    transient_decay, min_transient_mesh_periods, max_transient_mesh_periods = static
     period = float(model.period_rad)
     k = transient_periods(model, omega, transient_decay, min_transient_mesh_periods,
                           max_transient_mesh_periods)
