@@ -47,6 +47,11 @@ from .dynamics.steady import steady_state as steady_state
 from .dynamics.steady import steady_sweep as steady_sweep
 from .dynamics.continuation import BranchResult as BranchResult
 from .dynamics.continuation import continuation_sweep as continuation_sweep
+from .dynamics.arclength import Arclength as Arclength
+from .dynamics.arclength import trace_speed as trace_speed
+from .dynamics.bifurcation import Bifurcation as Bifurcation
+from .dynamics.bifurcation import Jump as Jump
+from .dynamics.bifurcation import TracedBranches as TracedBranches
 
 from .dynamics.simulate import simulate as simulate
 from .dynamics.sweep import sweep as sweep

@@ -2,42 +2,41 @@
 stable and unstable, through folds (Velex & Ajmi, Section 6.3.1: the contact losses and
 amplitude jumps near the tooth critical speed, Fig. 8).
 
-Unknowns: the periodic start ``y`` at ``theta = 0`` (the model's dimensionless state) and
-the speed ``p = Omega / Omega_s``; equations: the shooting residual over one excitation
-period (a fixed angle ``P``: ``y(P; y, Omega) - y = 0``) and the arclength condition.
-:func:`gearjax.dynamics.corrector.correct` is the compiled Newton corrector on the bordered
-system (Jacobian ``[Phi - I | Omega_s dy(P)/dOmega]`` integrated with the orbit by forward
-linearisation); this module is the host loop over points (Keller's method):
+Unknowns: the periodic start ``y`` at ``theta = 0`` and the speed ``p = Omega /
+Omega_s``; equations: the shooting residual over one excitation period (a fixed angle:
+``y(P; y, Omega) - y = 0``) and the arclength condition (:mod:`gearjax.dynamics.corrector`:
+the bordered system and its Jacobian). This module is the host loop (Keller's method):
 
 1. **Predictor**: ``u_p = u_k + ds t_k`` along the unit tangent ``t_k`` (norm
    ``|dy|^2 + (dOmega / Omega_s)^2``; ``Omega_s`` the speed spacing of the request unless
    :attr:`Arclength.speed_scale_rad_s` says otherwise).
-2. **Corrector**: Newton with the border ``t_k . (u - u_p) = 0``. A point is accepted where
-   Newton converges, the new tangent turns by less than ``acos(min_cos)`` and the
-   correction is at most ``max_correction`` steps.
-3. **Step control**: a failed step is retried at ``shrink`` times the length; a point
-   reached in ``fast_newton`` iterations or fewer lets the next step grow by ``grow``;
-   ``min_step <= ds <= max_step``; below ``min_step`` the segment stops (``point = "stop"``).
-4. **Floquet multipliers** at every point (eigenvalues of the monodromy of the last Newton
-   iterate, :func:`gearjax.dynamics.bifurcation.multipliers`); between two points the
-   bifurcations crossed (:func:`gearjax.dynamics.bifurcation.crossing_kinds`) are located by
-   the Illinois variant of regula falsi on their test function along the predictor line of
-   the first point (each trial a corrected point), to ``|test| <= locate_tol``, and
-   inserted in the curve.
+2. **Corrector**: Newton with the border ``t_k . (u - u_p) = 0`` or (large models) chord
+   iterations with the Jacobian of ``u_k`` (:func:`gearjax.dynamics.corrector.chord`: one
+   period of the state per iteration), then the Jacobian of the new point (its tangent
+   and multipliers). A point is accepted where the corrector converges, the correction is at most
+   ``max_correction`` steps, and the secant and then the new tangent turn by less than
+   half of and all of ``acos(min_cos)``.
+3. **Step control**: a failed step is retried ``shrink`` times as long, a point reached in
+   ``fast_iterations`` or fewer lets the next grow by ``grow``, within ``[min_step,
+   max_step]``; below ``min_step`` the segment stops (``point = "stop"``).
+4. **Floquet multipliers** at every point (:func:`gearjax.dynamics.bifurcation.
+   multipliers`); the bifurcations crossed between two points (:func:`~gearjax.dynamics.
+   bifurcation.crossing_kinds`) are located by the Illinois regula falsi on their test
+   function along the first point's predictor line (``|test| <= locate_tol``).
 
 A segment ends at the ends of the speed range (its last point corrected at fixed speed
 exactly there, ``point = "end"``) or where it joins a traced curve (``"join"``). Segment 0
 starts at the lowest speed from the quasi-static start (Newton at fixed speed; where that
-finds no stable orbit, a transient first). Then the stable orbit of the highest speed and, at every bifurcation that ends a
-stable branch, the orbit that a transient from the bifurcation orbit settles on at
+finds no stable orbit, a transient first). Then the stable orbit of the highest speed and,
+at every bifurcation that ends a stable branch, the orbit that a transient from the bifurcation orbit settles on at
 ``landing_offset`` beyond it (:func:`gearjax.dynamics.corrector.settle`: the jump of a slow
 sweep) are checked against the curve (a fixed-speed Newton from the curve interpolated
 there must land on them); one that is not on it starts a new segment, traced both ways,
 up to ``max_segments``.
 
 Every point is measured as :func:`gearjax.dynamics.steady.steady_state` measures an orbit
-(:func:`gearjax.dynamics.corrector.measure`: exact extrema at the stiffness jumps). Not
-done: following the doubled period after a period doubling (flagged and located only).
+(:func:`gearjax.dynamics.corrector.measure`). Not done: following the doubled period
+after a period doubling (flagged and located only).
 """
 
 from __future__ import annotations
@@ -56,12 +55,18 @@ from ..errors import SimulationError
 from .bifurcation import (BIFURCATION_KINDS, Bifurcation, Jump, TracedBranches,
                           crossing_kinds, crossing_multiplier, crossing_test, metrics_dict,
                           metrics_of, multipliers)
-from .corrector import CorrectorOptions, correct, measure, settle
+from .corrector import (CorrectorOptions, chord, correct, linearise, measure, settle,
+                        tangent)
+from .steady import shooting_solver
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .results import METRIC_FIELDS, empty_metrics
 from .stability import check_speeds
 
-__all__ = ["Arclength", "trace_speed"]
+__all__ = ["Arclength", "trace_speed", "CHORD_MIN_STATES"]
+
+# above this many states the chord corrector is the default: a period of the state alone
+# then costs far less than one with the n + 1 variational columns
+CHORD_MIN_STATES = 8
 
 
 class Arclength(eqx.Module):
@@ -72,7 +77,13 @@ class Arclength(eqx.Module):
     ----------
     step, min_step, max_step : first, smallest and largest step.
     grow, shrink : step factors after a fast point and after a failed step.
-    fast_newton : Newton iterations at or below which the step grows.
+    fast_iterations : Newton iterations at or below which the step grows (twice as many
+        chord iterations).
+    chord : correct by chord iterations with the last point's Jacobian (each one period of
+        the state alone, at a hundredth of the corrector's tolerances) instead of Newton
+        (each one period of the state with its ``n + 1`` variational columns); None: where
+        the model has more than :data:`CHORD_MIN_STATES` states (the 3D model).
+    max_chord : chord iterations of a step.
     min_cos : smallest cosine between consecutive unit tangents.
     max_correction : largest distance of a corrected point from its predictor, in steps
         (a larger one means the curve bends within the step: a fold pair may hide in it).
@@ -95,13 +106,15 @@ class Arclength(eqx.Module):
     max_step: float = 2.0
     grow: float = 1.5
     shrink: float = 0.5
-    fast_newton: int = 3
+    fast_iterations: int = 3
+    chord: bool | None = None
+    max_chord: int = 12
     min_cos: float = 0.9
     max_correction: float = 0.25
     speed_scale_rad_s: float | None = None
     max_points: int = 2000
     max_segments: int = 4
-    locate_tol: float = 1e-7
+    locate_tol: float = 1e-6
     max_locate: int = 20
     landing_offset_rad_s: float | None = None
     corrector: CorrectorOptions = CorrectorOptions(newton_tol=1e-8)
@@ -127,7 +140,8 @@ class Arclength(eqx.Module):
             raise SimulationError("min_cos", self.min_cos, "must lie in (0, 1)")
         if not 0.0 < self.max_correction <= 1.0:
             raise SimulationError("max_correction", self.max_correction, "must lie in (0, 1]")
-        for name in ("max_points", "max_segments", "max_locate", "fast_newton"):
+        for name in ("max_points", "max_segments", "max_locate", "fast_iterations",
+                     "max_chord"):
             v = getattr(self, name)
             if int(v) != v or v < 1:
                 raise SimulationError(name, v, "must be an integer >= 1")
@@ -150,6 +164,7 @@ class _Point:
     segment: int = 0
     located: bool = True
     metrics: tuple | None = None
+    jac: np.ndarray | None = None  # the bordered Jacobian's first n rows, (n, n + 1)
 
 
 class _Tracer:
@@ -167,28 +182,42 @@ class _Tracer:
         self.t0 = time.perf_counter()
         self.count = 0
         self.segments: list[list[_Point]] = []
+        self.chord = opts.chord if opts.chord is not None else self.n > CHORD_MIN_STATES
+        # the chord's residual alone is integrated: 100 times tighter, so that its error
+        # stays below the corrector's tolerance (the Jacobian's columns tighten the
+        # corrector's steps)
+        c = opts.corrector
+        rtol, atol = shooting_solver(None, c.rtol, c.atol)[1:]
+        self.chord_options = dataclasses.replace(c, max_newton=opts.max_chord, rtol=rtol / 100,
+                                                 atol=atol / 100)
+        self.fast = opts.fast_iterations * (2 if self.chord else 1)
 
     # ---------------------------------------------------------------- corrections
     def _u(self, p: _Point) -> np.ndarray:
         return np.concatenate([p.y, [p.omega / self.s]])
 
-    def _correct(self, y0, w0, u_pred, border):
-        c = jax.device_get(correct(self.model, jnp.asarray(y0), jnp.asarray(float(w0)),
-                                   jnp.asarray(u_pred), jnp.asarray(border), self.scale,
+    def _linearised(self, y, w, orientation, iterations):
+        """The point ``(y, w)`` with its Jacobian, tangent and multipliers, or None."""
+        lin = jax.device_get(linearise(self.model, y, w, self.scale, self.opts.corrector))
+        if not bool(lin.ok):
+            return None
+        t = tangent(lin.jacobian, orientation)
+        if not np.all(np.isfinite(t)):
+            return None
+        return _Point(y=np.asarray(y, dtype=float), omega=float(w), tangent=t,
+                      mu=multipliers(lin.phi), iterations=int(iterations),
+                      jac=np.asarray(lin.jacobian))
+
+    def natural(self, w, y_start, direction: float = 1.0):
+        """The orbit at fixed speed ``w`` from ``y_start`` by Newton (tangent pointing to
+        ``direction`` in speed), or None."""
+        u = np.concatenate([np.asarray(y_start, float), [w / self.s]])
+        c = jax.device_get(correct(self.model, y_start, w, u, self.e_p, self.scale,
                                    self.opts.corrector))
         if not bool(c.converged):
             return None
-        return _Point(y=np.asarray(c.y), omega=float(c.omega), tangent=np.asarray(c.tangent),
-                      mu=multipliers(c.phi), iterations=int(c.iterations))
-
-    def natural(self, w, y_start, direction: float = 1.0):
-        """The orbit at fixed speed ``w`` from ``y_start`` (tangent pointing to
-        ``direction`` in speed), or None."""
-        u = np.concatenate([np.asarray(y_start, float), [w / self.s]])
-        p = self._correct(y_start, w, u, self.e_p)
-        if p is not None and direction < 0:
-            p.tangent = -p.tangent
-        return p
+        return self._linearised(np.asarray(c.y), float(c.omega), direction * self.e_p,
+                                int(c.iterations))
 
     def stable_orbit_at(self, w, y_start):
         """The stable orbit at ``w``: Newton from ``y_start``, else after a transient."""
@@ -203,18 +232,36 @@ class _Tracer:
         return settle(self.model, jnp.asarray(float(w)), jnp.asarray(y), o.transient_decay,
                       o.min_transient_mesh_periods, o.max_transient_mesh_periods)
 
-    def along(self, a: _Point, sigma: float):
-        """The corrected point at arclength ``sigma`` along ``a``'s predictor line."""
+    def along(self, a: _Point, sigma: float, check: bool = False):
+        """The corrected point at arclength ``sigma`` along ``a``'s predictor line, or
+        None: Newton, or chord iterations with ``a``'s Jacobian (:attr:`Arclength.chord`;
+        where they fail without ``check``, Newton). With ``check``, None also where the
+        corrected point is farther than ``max_correction`` steps from the predictor or the
+        secant turns from ``a``'s tangent by more than half ``acos(min_cos)`` (cheap tests
+        before its Jacobian)."""
+        o = self.opts
         u_pred = self._u(a) + sigma * a.tangent
-        return self._correct(u_pred[:-1], u_pred[-1] * self.s, u_pred, a.tangent)
+        c = None
+        if self.chord:
+            c = jax.device_get(chord(self.model, u_pred[:-1], u_pred[-1] * self.s, u_pred,
+                                     a.tangent, a.jac, self.scale, self.chord_options))
+        if c is None or (not bool(c.converged) and not check):
+            c = jax.device_get(correct(self.model, u_pred[:-1], u_pred[-1] * self.s, u_pred,
+                                       a.tangent, self.scale, o.corrector))
+        if not bool(c.converged):
+            return None
+        u = np.concatenate([np.asarray(c.y), [float(c.omega) / self.s]])
+        if check:
+            sec = u - self._u(a)
+            half = math.sqrt(0.5 * (1.0 + o.min_cos))
+            if (float(np.linalg.norm(u - u_pred)) > o.max_correction * sigma
+                    or float(a.tangent @ sec) < half * float(np.linalg.norm(sec))):
+                return None
+        return self._linearised(np.asarray(c.y), float(c.omega), a.tangent, int(c.iterations))
 
     # ------------------------------------------------------------------ tracing
-    def _accept(self, a: _Point, b: _Point | None, ds: float) -> bool:
-        if b is None:
-            return False
-        pred = self._u(a) + ds * a.tangent
-        return (float(a.tangent @ b.tangent) >= self.opts.min_cos
-                and float(np.linalg.norm(self._u(b) - pred)) <= self.opts.max_correction * ds)
+    def _accept(self, a: _Point, b: _Point | None) -> bool:
+        return b is not None and float(a.tangent @ b.tangent) >= self.opts.min_cos
 
     def _out(self, w) -> bool:
         return w < self.lo or w > self.hi
@@ -229,8 +276,8 @@ class _Tracer:
         if a.omega == bound:
             return pts
         while self.count < o.max_points:
-            b = self.along(a, ds)
-            if not self._accept(a, b, ds):
+            b = self.along(a, ds, check=True)
+            if not self._accept(a, b):
                 if ds * o.shrink < o.min_step:
                     a.point = "stop" if a.point == "regular" else a.point
                     break
@@ -253,7 +300,7 @@ class _Tracer:
             self._report(b)
             if end or joined:
                 break
-            if b.iterations <= o.fast_newton:
+            if b.iterations <= self.fast:
                 ds = min(ds * o.grow, o.max_step)
             a = b
         else:
@@ -353,7 +400,7 @@ class _Tracer:
         rho = float(np.max(np.abs(p.mu)))
         self.progress.update(
             self.task, self.count, max(self.count, self.estimate),
-            f"{p.omega:9.4f} rad/s, rho {rho:.4f}, {p.iterations} Newton"
+            f"{p.omega:9.4f} rad/s, rho {rho:.4f}, {p.iterations} iterations"
             f"{'' if p.point == 'regular' else ', ' + p.point}",
             elapsed_s=time.perf_counter() - self.t0)
 

@@ -91,13 +91,17 @@ def crossing_kinds(mu_a, mu_b, tangent_speed_a: float, tangent_speed_b: float) -
     """The bifurcations crossed between two neighbouring points of a curve (multipliers
     ``mu_a``, ``mu_b``; tangent speed components): ``fold`` where the tangent's speed
     component changes sign, ``branch_point`` where the sign of ``det(Phi - I)`` does without
-    it, ``period_doubling`` and ``torus`` where their test functions change sign."""
+    it, ``period_doubling`` where its test function does, ``torus`` where its test function
+    and the number of multipliers outside the unit circle change (not where a complex pair
+    merely becomes two real multipliers)."""
     out = []
     if np.sign(tangent_speed_a) * np.sign(tangent_speed_b) < 0:
         out.append("fold")
     for kind in ("branch_point", "period_doubling", "torus"):
         if kind == "branch_point" and out:
             continue  # the fold's multiplier +1 changes det(Phi - I) as well
+        if kind == "torus" and np.sum(np.abs(mu_a) > 1) == np.sum(np.abs(mu_b) > 1):
+            continue  # a pair meeting on the real axis (or leaving it) crosses nothing
         if crossing_test(kind, mu_a, 0.0) * crossing_test(kind, mu_b, 0.0) < 0:
             out.append(kind)
     return out

@@ -33,15 +33,18 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..errors import SimulationError
+from ..linalg import lu_factor, lu_solve
 from ..linalg import solve as dense_solve
 from .integrate import integrate, jump_controller
 from .results import METRIC_FIELDS
 from .simulate import default_solver, jump_density, simulate, transient_periods
 from .steady import period_map, shooting_solver
 
-__all__ = ["CorrectorOptions", "Correction", "correct", "measure", "settle"]
+__all__ = ["CorrectorOptions", "Correction", "correct", "Linearisation", "linearise",
+           "tangent", "Chord", "chord", "measure", "settle"]
 
 
 class CorrectorOptions(eqx.Module):
@@ -164,6 +167,129 @@ def _correct(model, y_start, omega_start, u_predictor, border, s, max_newton, ne
     converged = ok & small(u, res) & jnp.all(jnp.isfinite(t))
     return Correction(y=u[:n], omega=u[n] * s, phi=phi, tangent=t, residual=res,
                       iterations=it, converged=converged, n_steps=steps)
+
+
+class Linearisation(eqx.Module):
+    """The bordered system's rows at one point (:func:`linearise`; arrays).
+
+    Attributes
+    ----------
+    residual : (n,) ``G = y(P) - y``.
+    jacobian : (n, n + 1) ``[Phi - I | Omega_s dy(P)/dOmega]``.
+    phi : (n, n) the monodromy matrix (its eigenvalues: the Floquet multipliers).
+    ok : the integration succeeded with finite values.
+    n_steps : its steps.
+    """
+
+    residual: jax.Array
+    jacobian: jax.Array
+    phi: jax.Array
+    ok: jax.Array
+    n_steps: jax.Array
+
+
+def linearise(model, y, omega, speed_scale, options: CorrectorOptions = CorrectorOptions()
+              ) -> Linearisation:
+    """The residual and Jacobian of the bordered system at ``(y, omega)`` (rad/s): one
+    period of the state with its ``n + 1`` variational columns."""
+    return _linearise(model, jnp.asarray(y, dtype=float), jnp.asarray(omega, dtype=float),
+                      jnp.asarray(speed_scale, dtype=float),
+                      (options.rtol, options.atol, options.max_steps))
+
+
+@eqx.filter_jit
+def _linearise(model, y, omega, s, static) -> Linearisation:
+    rtol, atol, max_steps = static
+    solver, rtol, atol = shooting_solver(None, rtol, atol)
+    n = y.shape[0]
+    y_p, jac, ok, steps = period_map(model, omega, y, solver=solver, rtol=rtol, atol=atol,
+                                     max_steps=max_steps, speed_column=True)
+    a = jnp.concatenate([jac[:, :n] - jnp.eye(n), jac[:, n:] * s], axis=1)
+    return Linearisation(residual=y_p - y, jacobian=a, phi=jac[:, :n], ok=ok, n_steps=steps)
+
+
+def tangent(jacobian, orientation):
+    """The unit tangent ``t`` of the solution curve: ``jacobian t = 0`` with
+    ``orientation . t > 0`` (solves ``[jacobian; orientation] t = (0, ..., 0, 1)``; host
+    NumPy). NaN where the bordered matrix is singular."""
+    a = np.asarray(jacobian, dtype=float)
+    m = np.concatenate([a, np.asarray(orientation, dtype=float)[None, :]], axis=0)
+    rhs = np.zeros(m.shape[0])
+    rhs[-1] = 1.0
+    try:
+        t = np.linalg.solve(m, rhs)
+    except np.linalg.LinAlgError:
+        return np.full(m.shape[0], np.nan)
+    return t / np.linalg.norm(t)
+
+
+class Chord(eqx.Module):
+    """What :func:`chord` returns: ``y``, ``omega`` (rad/s) of the last iterate, the norm
+    of its last step (``residual``), ``iterations``, ``converged`` and the integration
+    steps ``n_steps``."""
+
+    y: jax.Array
+    omega: jax.Array
+    residual: jax.Array
+    iterations: jax.Array
+    converged: jax.Array
+    n_steps: jax.Array
+
+
+def chord(model, y_start, omega_start, u_predictor, border, jacobian, speed_scale,
+          options: CorrectorOptions = CorrectorOptions(), contraction: float = 0.7) -> Chord:
+    """The chord (simplified Newton) corrector of the bordered system (module docstring)
+    with a fixed ``jacobian`` (n, n + 1) (e.g. the last point's, :func:`linearise`): each
+    iteration integrates the state alone over one period and solves with the one LU of
+    ``[jacobian; border]``. Converges linearly, at a rate that shrinks with the step; stops
+    (not converged) after ``options.max_newton`` iterations, or where a step is not at
+    most ``contraction`` times the previous one (the predictor too far for the Jacobian).
+    """
+    return _chord(model, jnp.asarray(y_start, dtype=float), jnp.asarray(omega_start, dtype=float),
+                  jnp.asarray(u_predictor, dtype=float), jnp.asarray(border, dtype=float),
+                  jnp.asarray(jacobian, dtype=float), jnp.asarray(speed_scale, dtype=float),
+                  jnp.asarray(options.max_newton, dtype=int),
+                  jnp.asarray(options.newton_tol, dtype=float),
+                  jnp.asarray(contraction, dtype=float),
+                  (options.rtol, options.atol, options.max_steps))
+
+
+@eqx.filter_jit
+def _chord(model, y_start, omega_start, u_predictor, border, jac, s, max_iter, tol, rate,
+           static) -> Chord:
+    rtol, atol, max_steps = static
+    solver, rtol, atol = shooting_solver(None, rtol, atol)
+    n = y_start.shape[0]
+    lu, perm = lu_factor(jnp.concatenate([jac, border[None, :]], axis=0))
+
+    def step(u):
+        y_p, _, ok, steps = period_map(model, u[n] * s, u[:n], solver=solver, rtol=rtol,
+                                       atol=atol, max_steps=max_steps, jacobian=False)
+        r = jnp.concatenate([y_p - u[:n], (border @ (u - u_predictor))[None]])
+        du = -lu_solve(lu, perm, r)
+        u_new = u + du
+        good = ok & jnp.all(jnp.isfinite(du)) & (u_new[n] > 0)
+        return jnp.where(good, u_new, u), good, steps, jnp.sqrt(jnp.sum(du * du))
+
+    def small(u, res):
+        return res <= tol * (1.0 + jnp.sqrt(jnp.sum(u[:n] ** 2)))
+
+    u0 = jnp.concatenate([y_start, omega_start[None] / s])
+    u, ok, steps, res = step(u0)
+    c0 = (u, ok, steps, res, jnp.asarray(jnp.inf), jnp.ones((), dtype=jnp.int32))
+
+    def cond(c):
+        u, ok, _, res, prev, it = c
+        return ok & ~small(u, res) & (it < max_iter) & (res <= rate * prev)
+
+    def body(c):
+        u, _, steps, res, _, it = c
+        u2, ok2, st2, res2 = step(u)
+        return u2, ok2, steps + st2, res2, res, it + 1
+
+    u, ok, steps, res, _, it = jax.lax.while_loop(cond, body, c0)
+    return Chord(y=u[:n], omega=u[n] * s, residual=res, iterations=it,
+                 converged=ok & small(u, res), n_steps=steps)
 
 
 def measure(model, omega, y0, convergence_tol: float = 1e-3) -> tuple:

@@ -143,7 +143,7 @@ def _one_period(model, omega, y_start, solver, rtol, atol, max_steps):
 
 
 def period_map(model, omega, y_start, *, solver, rtol, atol, max_steps,
-               speed_column: bool = False):
+               speed_column: bool = False, jacobian: bool = True):
     """``(y(P), J, ok, steps)``: the state after one excitation period ``P`` from
     ``y_start`` at pinion speed ``omega`` (rad/s) and its Jacobian, by one diffeqsolve of
     the state with its variational equations (forward-mode linearisation of the model's
@@ -151,10 +151,18 @@ def period_map(model, omega, y_start, *, solver, rtol, atol, max_steps,
     ``Phi(P) = dy(P)/dy(0)`` (n, n), or with ``speed_column`` the (n, n + 1) matrix
     ``[Phi(P) | dy(P)/dOmega]`` whose last column (s/rad per unit of state) obeys
     ``s' = (df/dy) s + df/dOmega``, ``s(0) = 0``: the shooting residual's derivative in speed
-    for pseudo-arclength continuation (:mod:`gearjax.dynamics.arclength`). All columns share
-    the state's error control and the model's jump angles (``solver``, ``rtol``, ``atol``,
+    for pseudo-arclength continuation (:mod:`gearjax.dynamics.arclength`); without
+    ``jacobian``, ``J`` is None and only the state is integrated. All columns share the
+    state's error control and the model's jump angles (``solver``, ``rtol``, ``atol``,
     ``max_steps`` as :func:`periodic_state`). ``ok``: the solve succeeded with finite
     values; ``steps``: its steps."""
+    if not jacobian:
+        sol = integrate(lambda t, y, args: model.vector_field(t, y, args), solver,
+                        jump_controller(model, rtol, atol), 0.0, float(model.period_rad),
+                        y_start, omega, saveat=diffrax.SaveAt(t1=True), max_steps=max_steps)
+        y_p = sol.ys[-1]
+        return y_p, None, (sol.result == diffrax.RESULTS.successful) & jnp.all(
+            jnp.isfinite(y_p)), sol.stats["num_steps"]
     n = y_start.shape[0]
     k = n + 1 if speed_column else n
     dw = jnp.zeros(k, dtype=y_start.dtype).at[n].set(1.0) if speed_column else None
