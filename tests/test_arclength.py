@@ -43,6 +43,9 @@ from gearjax.rigs.registry import get_rig
 
 ZETA = 0.03
 
+# one worker runs both continuation files: they share the corrector's compiled programs
+pytestmark = pytest.mark.xdist_group("sdof_continuation")
+
 
 @pytest.fixture(scope="module")
 def model():
@@ -180,12 +183,14 @@ def test_stable_points_equal_transients_from_the_neighbouring_orbit(model, trace
     """Brute force: a transient of 150 excitation periods (an independent diffrax
     integration at rtol 1e-10) started on the neighbouring traced orbit of the same stable
     branch, wherever 150 periods settle it (Floquet radius^150 < 1e-9; not next to the
-    fold, where the radius tends to 1), ends on the traced orbit, and its end state
-    measured as the sweeps measure an orbit (gearjax.dynamics.corrector.measure) has the
-    traced metrics."""
-    from gearjax.dynamics.corrector import measure
+    fold, where the radius tends to 1), ends on the traced orbit; both measured alike
+    (simulate over two periods at rtol 1e-10, so that the comparison sees the orbits and
+    not the measurement's tolerance) give the same max force and DTE."""
+    from gearjax import simulate
 
     n = 150
+    meas = eqx.filter_jit(lambda m, w, y: simulate(m, w, n_transient_periods=0, y0=y,
+                                                   rtol=1e-10, atol=1e-12))
     f_s, x_ref = float(model.static_force_N), float(model.x_ref)
     checked = 0
     for b, ok in traced.branch_stable().items():
@@ -196,12 +201,10 @@ def test_stable_points_equal_transients_from_the_neighbouring_orbit(model, trace
             w, y_i = jnp.asarray(traced.speed_rad_s[i]), traced.y0[i]
             y_end = np.asarray(_transient_end(model, w, jnp.asarray(traced.y0[j]), n))
             assert np.linalg.norm(y_end - y_i) < 1e-7 * (1 + np.linalg.norm(y_i))
-            # simulate's extrema at its rtol 1e-7 move by a few 1e-6 F_S with the last digits
-            # of the start where the teeth separate (the contact kink is left to the error
-            # control): the sweeps' accuracy, 1e-5 (as tests/test_continuation.py)
-            met = measure(model, w, y_end)
-            assert abs(float(met[1]) - traced.max_mesh_force_N[i]) < 1e-5 * f_s
-            assert abs(float(met[4]) - traced.dte_ptp_m[i]) < 1e-5 * x_ref
+            brute, mine = meas(model, w, jnp.asarray(y_end)), meas(model, w, jnp.asarray(y_i))
+            assert bool(brute.converged) and bool(mine.converged)
+            assert abs(float(brute.max_mesh_force_N - mine.max_mesh_force_N)) < 1e-6 * f_s
+            assert abs(float(brute.dte_ptp_m - mine.dte_ptp_m)) < 1e-6 * x_ref
             checked += 1
     assert checked >= 3
 

@@ -314,6 +314,8 @@ class _Tracer:
         self._report(start)
         back_start = dataclasses.replace(start, tangent=-start.tangent)
         back = self.half(back_start, seg, self.segments + [[start]])
+        if back_start.point == "stop" and start.point == "regular":
+            start.point = "stop"
         for p in back:
             p.tangent = -p.tangent
         pts = back[::-1] + [start]
@@ -322,30 +324,33 @@ class _Tracer:
         return pts
 
     def _joins(self, b: _Point, known: list[list[_Point]], step: float) -> bool:
-        """``b`` lies on a traced curve of ``known``: within a tenth of a chord of it (the
-        sagitta of a chord whose tangents turn by at most ``acos(min_cos)``), the tangents
-        parallel (not a crossing); or within ``step`` of a lone point (a closed curve back
-        at its start)."""
-        u = self._u(b)
+        """``b`` lies on a traced curve of ``known`` (:meth:`_near`), or within ``step`` of
+        a lone point, the tangents parallel (a closed curve back at its start)."""
         for pts in known:
             if len(pts) == 1:
-                if (float(np.linalg.norm(self._u(pts[0]) - u)) <= step
+                if (float(np.linalg.norm(self._u(pts[0]) - self._u(b))) <= step
                         and abs(float(pts[0].tangent @ b.tangent)) >= self.opts.min_cos):
                     return True
-                continue
-            if not pts:
-                continue
-            us = np.stack([self._u(p) for p in pts])
-            p0, chord = us[:-1], np.diff(us, axis=0)
-            length = np.linalg.norm(chord, axis=1)
-            f = np.clip(np.einsum("ij,ij->i", u - p0, chord) / np.maximum(length ** 2, 1e-300),
-                        0.0, 1.0)
-            dist = np.linalg.norm(p0 + f[:, None] * chord - u, axis=1)
-            cos = np.abs(chord @ b.tangent) / np.maximum(length, 1e-300)
-            near = (dist <= 0.1 * length + 1e-6) & (cos >= self.opts.min_cos)
-            if near.any():
+            elif self._near(b, pts) is not None:
                 return True
         return False
+
+    def _near(self, b: _Point, pts: list[_Point]):
+        """The index ``i`` of the chord ``(pts[i], pts[i + 1])`` that ``b`` lies on: within
+        a tenth of its length of it (more than the sagitta of a chord whose tangents turn
+        by at most ``acos(min_cos)``), the tangents parallel (not a crossing); or None."""
+        if len(pts) < 2:
+            return None
+        u = self._u(b)
+        us = np.stack([self._u(p) for p in pts])
+        p0, chord = us[:-1], np.diff(us, axis=0)
+        length = np.linalg.norm(chord, axis=1)
+        f = np.clip(np.einsum("ij,ij->i", u - p0, chord) / np.maximum(length ** 2, 1e-300),
+                    0.0, 1.0)
+        dist = np.linalg.norm(p0 + f[:, None] * chord - u, axis=1)
+        cos = np.abs(chord @ b.tangent) / np.maximum(length, 1e-300)
+        near = np.flatnonzero((dist <= 0.1 * length + 1e-6) & (cos >= self.opts.min_cos))
+        return int(near[np.argmin(dist[near])]) if near.size else None
 
     def _between(self, a: _Point, b: _Point, seg: int) -> list[_Point]:
         """The bifurcations crossed from ``a`` to ``b``, located and sorted."""
@@ -412,9 +417,13 @@ class _Tracer:
         return p.metrics
 
     def on_curve(self, q: _Point):
-        """``(segment, index)`` of a traced point next to which ``q`` lies on the curve
-        (a fixed-speed Newton from the curve interpolated at ``q``'s speed lands on
-        ``q``), or None."""
+        """``(segment, index)`` of a traced point next to which ``q`` lies on the curve, or
+        None: on one of its chords (:meth:`_near`), else where a fixed-speed Newton from
+        the curve interpolated at ``q``'s speed lands on ``q``."""
+        for si, pts in enumerate(self.segments):
+            i = self._near(q, pts)
+            if i is not None:
+                return si, i
         cands = []
         for si, pts in enumerate(self.segments):
             for i in range(len(pts) - 1):
