@@ -170,10 +170,10 @@ def traced_summary(res, path: str) -> dict:
     stable = res.branch_stable()
     branches = []
     for b, ok in stable.items():
-        sel = res.branch == b
+        sel = res.branch_indices(b)
         w = res.speed_rad_s[sel]
         branches.append({"branch": b, "stable": ok, "speed_min_rad_s": float(w.min()),
-                         "speed_max_rad_s": float(w.max()), "n_points": int(sel.sum()),
+                         "speed_max_rad_s": float(w.max()), "n_points": int(sel.size),
                          "max_mesh_force_N": _num(np.nanmax(res.max_mesh_force_N[sel]))})
     return {
         "method": "pseudo-arclength continuation of the shooting residual in speed",

@@ -258,18 +258,17 @@ class TracedBranches(SweepResult):
         spans = []
         for b, ok in self.branch_stable().items():
             if ok:
-                w = self.speed_rad_s[(self.branch == b) | self._starts(b)]
+                w = self.speed_rad_s[self.branch_indices(b)]
                 spans.append((float(w.min()), float(w.max())))
         return coexistence(spans)
 
-    def _starts(self, b):
-        """The bifurcation point a branch starts from (its first point belongs to the branch
-        before it)."""
+    def branch_indices(self, b: int) -> np.ndarray:
+        """The points of branch ``b`` in order, with the bifurcation point it starts from
+        (which belongs to the branch before it): its whole polyline."""
         idx = np.flatnonzero(self.branch == b)
-        out = np.zeros(self.branch.size, bool)
         if idx.size and idx[0] > 0 and self.segment[idx[0] - 1] == self.segment[idx[0]]:
-            out[idx[0] - 1] = True
-        return out
+            idx = np.concatenate([[idx[0] - 1], idx])
+        return idx
 
     def point_metrics(self, i: int) -> dict:
         """The metrics of point ``i`` as a dict of floats (SI units)."""

@@ -116,7 +116,7 @@ def _orbit(model, omega, y_start, options: CorrectorOptions, convergence_tol: fl
 
 
 def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton: int = 12,
-                       newton_tol: float = 1e-10, convergence_tol: float = 1e-3,
+                       newton_tol: float = 1e-8, convergence_tol: float = 1e-3,
                        transient_decay: float = 1e-6, min_transient_mesh_periods: int = 8,
                        max_transient_mesh_periods: int = 400,
                        progress: AbstractProgressMeter = NoProgressMeter()) -> BranchResult:
@@ -131,7 +131,10 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
         formulation or the contact law of te/perturbation).
     speeds_rad_s : distinct pinion speeds Omega1 > 0 (rad/s), any order; the closer, the
         surer the continuation (15 rad/s on the sdof spur rig).
-    max_newton, newton_tol : Newton shooting of :func:`~gearjax.dynamics.steady.periodic_state`.
+    max_newton, newton_tol : Newton shooting at fixed speed
+        (:func:`gearjax.dynamics.corrector.correct`: a step below ``newton_tol (1 + |y|)``;
+        the 3D model's period integration at the shooting's tolerances does not reach a
+        much smaller one: ``benchmarks/results/code_notes.md``).
     convergence_tol : periodicity threshold of the metrics' ``converged`` (as simulate).
     transient_decay, min/max_transient_mesh_periods : the restart transient.
     progress : the meter told of every speed done (default none).
