@@ -124,7 +124,10 @@ _COMMAND_EXAMPLES = {
     "sweep": """examples:
   gearjax sweep                           the paper's spur case (Fig. 9): 3D rig, 45 speeds
   gearjax sweep --model torsional --damping 0.03 --speeds 300:900:25 --out sdof
-                                          the sdof model; then sdof/response_curves.png""",
+                                          the sdof model; then sdof/response_curves.png
+  gearjax sweep --model torsional --damping 0.03 --speeds 300:900:61 --direction both
+                                          up and down sweeps and the whole curve through its
+                                          folds, stable and unstable (branches.csv)""",
     "stability": """examples:
   gearjax stability --model torsional --speeds 300:900:13
                                           Floquet spectral radius per speed (te)

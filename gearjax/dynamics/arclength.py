@@ -454,6 +454,8 @@ class _Tracer:
         w = min(p.omega + offset, self.hi) if sweep == "up" else max(p.omega - offset, self.lo)
         if w == p.omega:  # at the end of the range: nothing beyond it to land on
             return sweep, w, None, None
+        self.progress.note(self.task, f"a transient at {w:.4f} rad/s, past the {p.point} at "
+                                      f"{p.omega:.4f} rad/s: where a sweep {sweep} lands")
         y = jax.device_get(self._settle(w, p.y))
         if not np.all(np.isfinite(y)):
             return sweep, w, None, None
@@ -534,6 +536,10 @@ def trace_speed(model, speeds_rad_s, arclength: Arclength = Arclength(), *,
                     pts = tr.segment(q)
                     where = (len(tr.segments) - 1, next(k for k, p in enumerate(pts) if p is q))
             jumps.append((si, i, sweep, w, q, y_settled, where))
+            progress.update(tr.task, tr.count, max(tr.count, tr.estimate),
+                            f"landed at {w:.4f} rad/s: " + ("no stable periodic orbit" if q is None
+                                                           else "a stable periodic orbit"),
+                            elapsed_s=time.perf_counter() - tr.t0)
     return _result(model, tr, jumps, scale)
 
 
@@ -543,9 +549,13 @@ def _result(model, tr: _Tracer, jumps, scale) -> TracedBranches:
     first = np.cumsum([0] + [len(s) for s in tr.segments])
     n_pts = len(pts)
     out = empty_metrics(n_pts)
+    task = f"measuring the orbits of the {model.formulation} curve"
+    tr.progress.start(task, n_pts)
     for j, p in enumerate(pts):
         for f, v in zip(METRIC_FIELDS, tr.metrics(p)):
             out[f][j] = v
+        tr.progress.update(task, j + 1, n_pts, f"{p.omega:9.4f} rad/s",
+                           elapsed_s=time.perf_counter() - tr.t0)
     branch = np.zeros(n_pts, dtype=np.int64)
     stable = np.array([p.point not in BIFURCATION_KINDS and float(np.max(np.abs(p.mu))) < 1.0
                        for p in pts])
