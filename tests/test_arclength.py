@@ -125,7 +125,7 @@ def test_fold_multiplier_is_one(model, traced):
     mu = np.linalg.eigvals(np.stack(cols, axis=1))
     assert np.min(np.abs(mu - 1.0)) < 1e-4
     # either side of it: one side stable, the other a saddle (a real multiplier above 1)
-    before, after = traced.floquet_radius[fold.index - 1], traced.floquet_radius[fold.index + 1]
+    before, after = traced.spectral_radius[fold.index - 1], traced.spectral_radius[fold.index + 1]
     assert min(before, after) < 1.0 < max(before, after)
 
 
@@ -196,7 +196,7 @@ def test_stable_points_equal_transients_from_the_neighbouring_orbit(model, trace
     for b, ok in traced.branch_stable().items():
         idx = np.flatnonzero((traced.branch == b) & np.isin(traced.point, ("regular", "end")))
         for i, j in zip(idx[1:], idx[:-1]):
-            if not (ok and traced.floquet_radius[i] ** n < 1e-9):
+            if not (ok and traced.spectral_radius[i] ** n < 1e-9):
                 continue
             w, y_i = jnp.asarray(traced.speed_rad_s[i]), traced.y0[i]
             y_end = np.asarray(_transient_end(model, w, jnp.asarray(traced.y0[j]), n))
@@ -233,7 +233,7 @@ def test_linear_case_equals_harmonic_balance():
     f_s, x_ref = float(te.static_force_N), float(te.x_ref)
     assert np.all(np.abs(res.max_mesh_force_N - [float(m[1]) for m in hb_met]) < 1e-6 * f_s)
     assert np.all(np.abs(res.dte_ptp_m - [float(m[4]) for m in hb_met]) < 1e-6 * x_ref)
-    np.testing.assert_allclose(res.floquet_radius, spectral_radius(te, res.speed_rad_s),
+    np.testing.assert_allclose(res.spectral_radius, spectral_radius(te, res.speed_rad_s),
                                rtol=1e-6)
 
 

@@ -36,7 +36,7 @@ from ..dynamics.continuation import (
     continuation_sweep,
     hysteresis_band,
 )
-from ..dynamics.arclength import trace_speed
+from ..dynamics.arclength import Arclength, trace_speed
 from ..dynamics.results import CSV_COLUMNS, append_rows, csv_rows, fmt_value
 
 __all__ = ["DIRECTION_CHOICES", "EXTRA_COLUMNS", "BRANCH_COLUMNS", "BRANCHES_FILE",
@@ -49,7 +49,7 @@ BRANCH_COLUMNS = CSV_COLUMNS + ("stable", "branch", "floquet_radius", "multiplie
                                 "multiplier_im", "point", "segment")
 # the metrics a summary entry of a bifurcation or a jump gives (SI units)
 _SUMMARY_METRICS = ("max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
-                    "accel_ptp_m_s2", "contact_loss", "converged")
+                    "accel_ptp_m_s2", "contact_loss", "back_contact", "converged")
 
 
 def check_direction(args) -> None:
@@ -104,7 +104,11 @@ def run_branches(model, speeds, direction: str, csv_path: str, progress) -> dict
         traced = trace_speed(model, speeds, progress=progress)
         path = os.path.join(os.path.dirname(csv_path), BRANCHES_FILE)
         append_rows(path, BRANCH_COLUMNS, traced_rows(traced))
-    branches = {d: continuation_sweep(model, speeds, d, progress=progress) for d in dirs}
+    # the natural sweeps at the arclength corrector's tolerance (the 3D model's shooting
+    # never reaches continuation_sweep's default: benchmarks/results/code_notes.md)
+    tol = Arclength().corrector.newton_tol
+    branches = {d: continuation_sweep(model, speeds, d, newton_tol=tol, progress=progress)
+                for d in dirs}
     append_rows(csv_path, CSV_COLUMNS + EXTRA_COLUMNS,
                 [row for br in branches.values() for row in _rows(br)])
     out = {"direction": direction, "jump_threshold": JUMP_THRESHOLD,
@@ -149,7 +153,7 @@ def traced_rows(res) -> list[dict]:
     for i, r in enumerate(base):
         mu = complex(res.multipliers[i][0])
         row = {**r, "stable": str(bool(res.stable[i])), "branch": str(int(res.branch[i])),
-               "floquet_radius": fmt_value(res.floquet_radius[i]),
+               "floquet_radius": fmt_value(res.spectral_radius[i]),
                "multiplier_re": fmt_value(mu.real), "multiplier_im": fmt_value(mu.imag),
                "point": str(res.point[i]), "segment": str(int(res.segment[i]))}
         rows.append(row)

@@ -58,8 +58,9 @@ from .bifurcation import (BIFURCATION_KINDS, Bifurcation, Jump, TracedBranches,
 from .corrector import (CorrectorOptions, chord, correct, linearise, measure, settle,
                         tangent)
 from .steady import shooting_solver
+from .orbit import metric_status
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
-from .results import METRIC_FIELDS, empty_metrics
+from .results import FLAG_FIELDS, METRIC_FIELDS, empty_metrics
 from .stability import check_speeds
 
 __all__ = ["Arclength", "trace_speed", "CHORD_MIN_STATES"]
@@ -566,8 +567,10 @@ def _result(model, tr: _Tracer, jumps, scale) -> TracedBranches:
                 or (p.point not in BIFURCATION_KINDS and stable[j] != stable[j - 1])):
             b += 1
         branch[j] = b
-    for f in ("contact_loss", "converged", "solver_ok"):
+    for f in FLAG_FIELDS:
         out[f] = out[f] > 0
+    rho = np.array([float(np.max(np.abs(p.mu))) for p in pts])
+    status = metric_status(out["solver_ok"], out["converged"], rho)
     out["converged"] = out["converged"] & np.array(
         [p.point not in BIFURCATION_KINDS for p in pts]) & stable
     out["n_steps"] = np.nan_to_num(out["n_steps"]).astype(np.int64)
@@ -605,7 +608,7 @@ def _result(model, tr: _Tracer, jumps, scale) -> TracedBranches:
     return TracedBranches(
         **out, formulation=model.formulation, solver=np.full(n_pts, "arclength"),
         stable=stable, branch=branch, segment=np.array([p.segment for p in pts]),
-        floquet_radius=np.array([float(np.max(np.abs(p.mu))) for p in pts]),
+        spectral_radius=rho, status=status,
         multipliers=np.stack([p.mu for p in pts]),
         tangent_speed=np.array([float(p.tangent[-1]) for p in pts]),
         point=np.array([p.point for p in pts]),

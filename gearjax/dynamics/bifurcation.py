@@ -38,7 +38,7 @@ from __future__ import annotations
 import equinox as eqx
 import numpy as np
 
-from .results import METRIC_FIELDS, SweepResult
+from .results import FLAG_FIELDS, METRIC_FIELDS, SweepResult
 
 __all__ = ["BIFURCATION_KINDS", "Bifurcation", "Jump", "TracedBranches", "multipliers",
            "crossing_kinds", "crossing_test", "crossing_multiplier", "coexistence",
@@ -198,7 +198,9 @@ class TracedBranches(SweepResult):
     segment : the traced segment (0: from the quasi-static start at the lowest speed;
         later ones from the orbits a jump landed on, or the highest speed's, where these
         were not on a traced segment).
-    floquet_radius : max |multiplier|.
+    spectral_radius : the Floquet radius, max |multiplier| (the
+        :class:`~gearjax.dynamics.results.SweepResult` field; ``status`` says ``unstable``
+        where it is >= 1).
     multipliers : (n_points, n) complex Floquet multipliers by decreasing modulus.
     tangent_speed : speed component of the unit tangent ``(dy, dOmega / speed_scale)``
         oriented along the segment (its sign changes at a fold).
@@ -217,7 +219,6 @@ class TracedBranches(SweepResult):
     stable: np.ndarray
     branch: np.ndarray
     segment: np.ndarray
-    floquet_radius: np.ndarray
     multipliers: np.ndarray
     tangent_speed: np.ndarray
     point: np.ndarray
@@ -288,7 +289,7 @@ def metrics_of(values) -> dict:
         v = np.asarray(v)
         if v.ndim:
             out[f] = [float(x) for x in v]
-        elif f in ("contact_loss", "converged", "solver_ok"):
+        elif f in FLAG_FIELDS:
             out[f] = bool(v)
         else:
             out[f] = float(v)

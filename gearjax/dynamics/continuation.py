@@ -54,7 +54,8 @@ from ..errors import SimulationError
 from .bifurcation import multipliers
 from .corrector import CorrectorOptions, correct, measure, settle
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
-from .results import METRIC_FIELDS, SweepResult, empty_metrics
+from .orbit import metric_status
+from .results import FLAG_FIELDS, METRIC_FIELDS, SweepResult, empty_metrics
 from .stability import check_speeds
 
 __all__ = ["continuation_sweep", "BranchResult", "branch_jumps", "hysteresis_band",
@@ -85,7 +86,6 @@ class BranchResult(SweepResult):
     unstable_y0 : (n_speeds, n) its start (NaN where none).
     """
 
-    spectral_radius: np.ndarray
     stable: np.ndarray
     restarted: np.ndarray
     newton_iterations: np.ndarray
@@ -116,7 +116,7 @@ def _orbit(model, omega, y_start, options: CorrectorOptions, convergence_tol: fl
 
 
 def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton: int = 12,
-                       newton_tol: float = 1e-8, convergence_tol: float = 1e-3,
+                       newton_tol: float = 1e-10, convergence_tol: float = 1e-3,
                        transient_decay: float = 1e-6, min_transient_mesh_periods: int = 8,
                        max_transient_mesh_periods: int = 400,
                        progress: AbstractProgressMeter = NoProgressMeter()) -> BranchResult:
@@ -133,8 +133,9 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
         surer the continuation (15 rad/s on the sdof spur rig).
     max_newton, newton_tol : Newton shooting at fixed speed
         (:func:`gearjax.dynamics.corrector.correct`: a step below ``newton_tol (1 + |y|)``;
-        the 3D model's period integration at the shooting's tolerances does not reach a
-        much smaller one: ``benchmarks/results/code_notes.md``).
+        the 3D model's period integration at the shooting's tolerances does not reach the
+        default's: give it 1e-8, as ``gearjax sweep --direction`` does,
+        ``benchmarks/results/code_notes.md``).
     convergence_tol : periodicity threshold of the metrics' ``converged`` (as simulate).
     transient_decay, min/max_transient_mesh_periods : the restart transient.
     progress : the meter told of every speed done (default none).
@@ -194,14 +195,16 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
                         f"{', restarted' if restarted[i] else ''}"
                         f"{'' if ok else ', NO stable orbit'}",
                         elapsed_s=time.perf_counter() - t_start)
-    for f in ("contact_loss", "converged", "solver_ok"):
+    for f in FLAG_FIELDS:
         out[f] = out[f] > 0
     out["converged"] = out["converged"] & stable
     out["n_steps"] = np.nan_to_num(out["n_steps"]).astype(np.int64)
     extra["newton_iterations"] = np.nan_to_num(extra["newton_iterations"]).astype(np.int64)
     return BranchResult(**out, formulation=model.formulation, direction=direction,
                         stable=stable, restarted=restarted, y0=y0s, unstable_y0=uy0s,
-                        solver=np.full(n, "continuation"), **extra)
+                        solver=np.full(n, "continuation"),
+                        status=metric_status(out["solver_ok"], out["converged"],
+                                             extra["spectral_radius"]), **extra)
 
 
 def forces_differ(f_a, f_b, threshold: float = JUMP_THRESHOLD):

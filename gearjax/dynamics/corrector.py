@@ -40,8 +40,11 @@ from ..linalg import lu_factor, lu_solve
 from ..linalg import solve as dense_solve
 from .integrate import integrate, jump_controller
 from .results import METRIC_FIELDS
-from .simulate import default_solver, jump_density, simulate, transient_periods
+from .orbit import RESULTS, Orbit
+from .orbit import measure as orbit_measure
+from .simulate import default_solver, jump_density, transient_periods
 from .steady import period_map, shooting_solver
+from .sweep import Transient
 
 __all__ = ["CorrectorOptions", "Correction", "correct", "Linearisation", "linearise",
            "tangent", "Chord", "chord", "measure", "settle"]
@@ -294,18 +297,21 @@ def _chord(model, y_start, omega_start, u_predictor, border, jac, s, max_iter, t
 
 def measure(model, omega, y0, convergence_tol: float = 1e-3) -> tuple:
     """The metrics (:data:`gearjax.dynamics.results.METRIC_FIELDS`, in that order) of the
-    orbit started at ``y0`` at speed ``omega`` (rad/s): :func:`gearjax.dynamics.simulate.
-    simulate` over two periods without transient, as :func:`gearjax.dynamics.steady.
-    steady_state` measures a shooting orbit (exact extrema at the jumps,
-    :mod:`gearjax.dynamics.metrics`)."""
+    orbit started at ``y0`` at speed ``omega`` (rad/s), measured the one way every solver's
+    orbit is (:func:`gearjax.dynamics.orbit.measure`: two periods from ``y0`` at
+    :class:`~gearjax.dynamics.sweep.Transient`'s measuring options, exact extrema at the
+    stiffness jumps, :mod:`gearjax.dynamics.metrics`)."""
     return _measure(model, jnp.asarray(omega, dtype=float), jnp.asarray(y0, dtype=float),
-                    float(convergence_tol))
+                    Transient(convergence_tol=float(convergence_tol)))
 
 
 @eqx.filter_jit
-def _measure(model, omega, y0, convergence_tol):
-    r = simulate(model, omega, n_transient_periods=0, y0=y0, n_measured_periods=2,
-                 convergence_tol=convergence_tol)
+def _measure(model, omega, y0, transient):
+    orbit = Orbit(state=y0, omega=omega, period_multiple=jnp.ones((), jnp.int32),
+                  residual=jnp.zeros(()), floquet_radius=jnp.asarray(jnp.nan),
+                  status=jnp.asarray(RESULTS.successful, jnp.int8),
+                  n_steps=jnp.zeros((), jnp.int32))
+    r = orbit_measure(model, orbit, transient)
     return tuple(getattr(r, f) for f in METRIC_FIELDS)
 
 
