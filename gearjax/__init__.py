@@ -52,6 +52,11 @@ from .dynamics.refine import Refinement as Refinement
 from .dynamics.refine import propose_speeds as propose_speeds
 from .dynamics.refine import refine as refine
 from .dynamics.refine import refine_common as refine_common
+from .dynamics.arclength import Arclength as Arclength
+from .dynamics.arclength import trace_speed as trace_speed
+from .dynamics.bifurcation import Bifurcation as Bifurcation
+from .dynamics.bifurcation import Jump as Jump
+from .dynamics.bifurcation import TracedBranches as TracedBranches
 
 from .dynamics.simulate import simulate as simulate
 from .dynamics.sweep import sweep as sweep

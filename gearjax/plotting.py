@@ -13,7 +13,7 @@ from .design.maps import HarrisMap
 from .design.optimise import OptimisationResult
 
 __all__ = ["plot_campbell", "plot_quasistatic", "plot_response_curves", "plot_order_tracks", "plot_branches",
-           "plot_mesh_force_signals",
+           "plot_traced_branches", "plot_mesh_force_signals",
            "plot_design_map", "plot_history", "plot_harris", "impact_regimes", "REGIMES"]
 
 
@@ -268,6 +268,78 @@ def plot_branches(csv_path: str, path: str, title: str = ""):
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
     axes[0].legend(loc="best", fontsize=8)
+    axes[-1].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
+    if title:
+        fig.suptitle(_mu(title))
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+_BIFURCATION_MARKS = {"fold": "o", "branch_point": "X", "period_doubling": "s", "torus": "D"}
+
+
+def plot_traced_branches(branches_csv: str, path: str, title: str = "", jumps=None,
+                         sweeps_csv: str | None = None):
+    """The curves of periodic orbits traced by pseudo-arclength continuation
+    (``branches.csv`` of ``gearjax sweep --direction both``,
+    :func:`gearjax.dynamics.arclength.trace_speed`): max dynamic tooth load and peak-to-peak
+    DTE against pinion speed, per formulation (colour) and branch: solid where the branch is
+    stable, dashed where unstable; bifurcations marked (fold: circle, period doubling:
+    square, torus: diamond, branch point: cross); ``jumps`` (per formulation, the jump
+    entries of ``summary.json``: ``metrics_before``, ``metrics_after``, ``from_rad_s``,
+    ``to_rad_s``, ``discontinuous``) as arrows from the end of a stable branch to the
+    response a sweep lands on (the discontinuous ones);
+    the up/down sweeps of ``sweeps_csv`` (``results.csv``, followed stable orbits) as
+    small triangles."""
+    import csv
+
+    plt = _pyplot()
+    rows = list(csv.DictReader(open(branches_csv)))
+    val = lambda r, k: float(r[k]) if r.get(k, "") != "" else np.nan  # noqa: E731
+    forms = list(dict.fromkeys(r["formulation"] for r in rows))
+    sweeps = list(csv.DictReader(open(sweeps_csv))) if sweeps_csv else []
+    panels = [("max_mesh_force_N", "max dynamic tooth load [N]", 1.0),
+              ("dte_ptp_m", "peak-to-peak DTE [µm]", 1e6)]
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 5.8), sharex=True, constrained_layout=True)
+    for ax, (key, ylabel, scale) in zip(axes, panels):
+        for c, form in enumerate(forms):
+            color = f"C{c}"
+            mine = [r for r in rows if r["formulation"] == form]
+            regular = [r for r in mine if r["point"] not in _BIFURCATION_MARKS]
+            labelled = set()
+            for b in dict.fromkeys(r["branch"] for r in mine):
+                pts = [r for r in mine if r["branch"] == b]
+                ok = all(r["stable"] == "True" for r in regular if r["branch"] == b)
+                style = "stable" if ok else "unstable"
+                ax.plot([val(r, "speed_rad_s") for r in pts],
+                        np.array([val(r, key) for r in pts]) * scale, "-" if ok else "--",
+                        color=color, lw=1.4 if ok else 1.0,
+                        label=None if style in labelled else f"{form}, {style}")
+                labelled.add(style)
+            for kind, mark in _BIFURCATION_MARKS.items():
+                pts = list({r["speed_rad_s"]: r for r in mine if r["point"] == kind}.values())
+                if pts:
+                    ax.plot([val(r, "speed_rad_s") for r in pts],
+                            np.array([val(r, key) for r in pts]) * scale, mark, mfc="none",
+                            color=color, ms=6, ls="none",
+                            label=f"{form}, {kind.replace('_', ' ')}")
+            for j in (jumps or {}).get(form, []):
+                y0, y1 = j["metrics_before"].get(key), j["metrics_after"].get(key)
+                if y0 is None or y1 is None or not j.get("discontinuous", True):
+                    continue
+                ax.annotate("", (j["to_rad_s"], y1 * scale), (j["from_rad_s"], y0 * scale),
+                            arrowprops=dict(arrowstyle="->", ls=":", color=color, lw=1.2))
+            for d, mark in (("up", "^"), ("down", "v")):
+                pts = [r for r in sweeps if r["formulation"] == form
+                       and r.get("direction") == d and r.get("orbit") == "followed"]
+                if pts:
+                    ax.plot([val(r, "speed_rad_s") for r in pts],
+                            np.array([val(r, key) for r in pts]) * scale, mark, color=color,
+                            ms=3, alpha=0.6, ls="none", label=f"{form}, sweep {d}")
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="best", fontsize=7)
     axes[-1].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
     if title:
         fig.suptitle(_mu(title))

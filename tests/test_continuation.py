@@ -34,6 +34,9 @@ from gearjax.dynamics.sweep import sweep
 from gearjax.rigs import build_model
 from gearjax.rigs.registry import get_rig
 
+# one worker runs both continuation files: they share the corrector's compiled programs
+pytestmark = pytest.mark.xdist_group("sdof_continuation")
+
 
 @pytest.fixture(scope="module")
 def model():
@@ -159,3 +162,16 @@ def test_cli_direction_both(tmp_path):
     assert br["jump_up_rad_s"] == [[640.0, 665.0]] and br["jump_down_rad_s"] == []
     assert br["hysteresis_band_rad_s"] == [615.0, 640.0]
     assert (out / "response_curves.png").stat().st_size > 0
+    # and the traced curve (gearjax.dynamics.arclength): the low branch's fold between the
+    # up sweep's 640 and 665 rad/s, the jump up there, two stable branches and the
+    # unstable one between them in branches.csv
+    from gearjax.cli.branches import BRANCH_COLUMNS
+
+    traced = br["traced"]
+    (fold,) = traced["folds"]
+    assert 640.0 < fold["speed_rad_s"] < 665.0 and abs(fold["multiplier"][0] - 1) < 1e-4
+    assert traced["jump_up_rad_s"] == [fold["speed_rad_s"]] and traced["jump_down_rad_s"] == []
+    rows = list(csv.DictReader(open(out / "branches.csv")))
+    assert tuple(rows[0]) == BRANCH_COLUMNS
+    stable = {r["branch"]: r["stable"] for r in rows if r["point"] == "regular"}
+    assert sorted(stable.values()) == ["False", "True", "True"]

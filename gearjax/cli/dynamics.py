@@ -55,7 +55,7 @@ from ..rigs.campbell import campbell
 from ..rigs.figures import predicted_critical_speeds
 from .ahead import Ahead, build_and_compile_ahead
 from .backlash import add_backlash
-from .branches import DIRECTION_CHOICES, check_direction, run_branches
+from .branches import DIRECTION_CHOICES, check_direction, plot_directions, run_branches
 from .case import (DynamicsCase, SweepCase, dynamics_case, sweep_case,
                    transient_tolerances)
 from .devices import device_count, init_distributed, sweep_devices
@@ -112,11 +112,11 @@ def register(sub, add_rig, add_scenario):
                          "harmonic truncation, transient decay and periodicity test "
                          "(gearjax.dynamics.sweep.tolerance_options); independent sweeps")
     sw.add_argument("--direction", default="independent", choices=DIRECTION_CHOICES,
-                    help="independent (default, as before): every speed from the quasi-static "
-                         "start; up/down/both: continuation, each speed started from its "
-                         "neighbour's periodic orbit (shooting; --method not used), showing "
-                         "jumps and coexisting branches near a critical speed with contact "
-                         "loss (results.csv gains direction, orbit, spectral_radius, restarted)")
+                    help="independent (default): every speed from the quasi-static start; "
+                         "up/down: each speed from its neighbour's periodic orbit (shooting; "
+                         "--method not used; results.csv gains direction, orbit, spectral_radius,"
+                         " restarted); both: up, down and the whole curve, stable and unstable, "
+                         "by arclength continuation with its folds and jumps (branches.csv)")
     sw.add_argument("--chunk", type=int, default=None,
                     help="speeds per compiled call (progress and CSV rows per chunk; default "
                          "gearjax.dynamics.sweep.default_chunk_size: on a CPU 16-64 speeds per "
@@ -368,7 +368,7 @@ def _agreement(rows: list[dict], forms) -> dict:
 def _finish(case: SweepCase, summary: dict, runs: _Runs, t_all: float) -> int:
     """Summarise whatever rows ``results.csv`` holds, draw the figures, write
     ``summary.json`` and print the closing table (or the JSON, or the interruption)."""
-    from ..plotting import plot_branches, plot_response_curves
+    from ..plotting import plot_response_curves
     from .results import print_summary, read_rows, summarise_rows
 
     a, speeds = case.args, case.speeds
@@ -400,8 +400,8 @@ def _finish(case: SweepCase, summary: dict, runs: _Runs, t_all: float) -> int:
             kv = iso_dynamic_factor(a, case.rig, scen.mods, dense)["iso6336_kv"]
             plot_response_curves(case.csv_path, fig_path, title=title,
                                  iso_kv=(dense, kv, summary["iso6336_resonance_speed_rad_s"]))
-        else:
-            plot_branches(case.csv_path, fig_path, title=title)
+        else:  # the continuations' figure (gearjax.cli.branches)
+            plot_directions(a.direction, case.out, summary, fig_path, title)
         summary["response_curves_png"] = fig_path
         summary.update(write_order_tracks(case.orders_path, case.out, title))
     if runs.signals and not runs.interrupted:

@@ -25,7 +25,8 @@ CASE_FILE = "case.json"
 MAX_LISTED = 1000  # speeds listed by name in summary.json (counts are always whole)
 # files a sweep writes in its folder (an earlier run is recognised by any of them)
 RESULT_FILES = ("results.csv", "summary.json", CASE_FILE, "response_curves.png",
-                "signals.csv", "mesh_force_signals.png", "orders.csv", "order_tracks.png")
+                "signals.csv", "mesh_force_signals.png", "orders.csv", "order_tracks.png",
+                "branches.csv")
 
 
 def write_case(out: str, record: dict) -> None:

@@ -8,31 +8,31 @@ and, over a band of speeds, a low orbit (contact kept) and a high orbit (contact
 are both stable: sweeping up stays on the low branch until it ends and jumps up, sweeping
 down stays on the high branch to *its* end and jumps down. ``gearjax.dynamics.sweep``
 solves every speed independently from the quasi-static start; this module follows one
-branch.
+branch in one direction (the whole curve, unstable parts and folds included, is
+:func:`gearjax.dynamics.arclength.trace_speed`'s).
 
-Continuation (natural parameter, sequential in speed: a Python loop over one compiled
-per-speed solve): at each speed the periodic start ``y*`` is found by the Newton shooting
-of :func:`gearjax.dynamics.steady.periodic_state` from the neighbour's ``y*``. The
-state is the model's dimensionless ``y = (z / x_ref, (dz/dt) / (omega_n x_ref))`` at
-``theta = 0`` (sdof; the 3D model's modal state is scaled alike): position and *time*
-velocity, so the orbit at one speed is the natural first iterate at the next, without
-rescaling. Where Newton fails (the branch ended at a fold) or converges onto an unstable
-orbit (``spectral_radius >= 1``, kept in the ``unstable_*`` fields), a transient from the
-neighbour's orbit (``transient_decay``, as :func:`gearjax.dynamics.simulate.simulate`'s)
-settles onto the attractor at the new speed, as a slow run-up on a rig does, and Newton
-refines it (``restarted``). The first speed starts from ``model.initial_state``.
+Continuation (natural parameter, a Python loop over the compiled steps of
+:mod:`gearjax.dynamics.corrector`, shared with the arclength continuation): at each speed
+the periodic start ``y*`` is found by Newton shooting at fixed speed
+(:func:`gearjax.dynamics.corrector.correct`) from the neighbour's ``y*``. The state is the
+model's dimensionless ``y = (z / x_ref, (dz/dt) / (omega_n x_ref))`` at ``theta = 0`` (sdof;
+the 3D modal state alike): position and *time* velocity, so the orbit at one speed is the
+natural first iterate at the next. Where Newton fails (the branch ended at a fold) or
+converges onto an unstable orbit (``spectral_radius >= 1``, kept in the ``unstable_*``
+fields), a transient from the neighbour's orbit (``transient_decay``, as
+:func:`gearjax.dynamics.simulate.simulate`'s) settles onto the attractor at the new speed,
+as a slow run-up on a rig does, and Newton refines it (``restarted``). The first speed
+starts from ``model.initial_state``.
 
-Stability: the Floquet multipliers are those of the monodromy ``Phi`` integrated with the
-orbit by :func:`gearjax.dynamics.steady.periodic_state` (``Phi' = (df/dy) Phi`` along the
-orbit). The contact laws are continuous in the state (``k_i max(0, .)`` per cell, and the
-force cut of :func:`gearjax.gears.contact.te_contact`): only ``df/dy`` jumps where a cell
-or the mesh loses or regains contact, so the saltation matrix at these crossings is the
-identity and ``Phi`` needs no correction (the crossing angles are left to the error
-control, as in ``simulate``). For the sdof model the trace of ``df/dy`` is ``-2 zeta
-omega_n / Omega`` whatever the contact, so ``det Phi = exp(-2 zeta omega_n T)`` on every
-orbit (Liouville) and while the two multipliers are complex ``rho = exp(-zeta omega_n
-T)``, ``T = P / Omega`` (a check used in the tests); an orbit is unstable only with a real
-multiplier above 1 (the saddle between the two branches).
+Stability: the Floquet multipliers are the eigenvalues of the monodromy ``Phi``
+integrated with the orbit (:func:`gearjax.dynamics.steady.period_map`). The contact laws
+are continuous in the state (``k_i max(0, .)`` per cell, the force cut of
+:func:`gearjax.gears.contact.te_contact`): only ``df/dy`` jumps where contact changes, so
+the saltation matrix there is the identity and ``Phi`` needs no correction. For the sdof
+model the trace of ``df/dy`` is ``-2 zeta omega_n / Omega`` whatever the contact, so ``det
+Phi = exp(-2 zeta omega_n T)`` (Liouville) and complex multipliers have ``rho =
+exp(-zeta omega_n T)``, ``T = P / Omega`` (a check used in the tests): an sdof orbit loses
+stability only through a real multiplier (:mod:`gearjax.dynamics.bifurcation`).
 
 Jumps (:func:`branch_jumps`): between neighbouring speeds, a change of the followed orbit's
 maximum mesh force larger than ``threshold`` (:data:`JUMP_THRESHOLD`) times the smaller of
@@ -45,21 +45,18 @@ from __future__ import annotations
 import math
 import time
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..errors import SimulationError
+from .bifurcation import multipliers
+from .corrector import CorrectorOptions, correct, measure, settle
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .orbit import metric_status
 from .results import FLAG_FIELDS, METRIC_FIELDS, SweepResult, empty_metrics
-from .integrate import integrate, jump_controller
-from .simulate import (default_solver, jump_density, simulate,
-                       transient_periods)
 from .stability import check_speeds
-from .steady import periodic_state
 
 __all__ = ["continuation_sweep", "BranchResult", "branch_jumps", "hysteresis_band",
            "forces_differ", "DIRECTIONS", "JUMP_THRESHOLD"]
@@ -100,34 +97,22 @@ class BranchResult(SweepResult):
     direction: str = eqx.field(static=True)
 
 
-@eqx.filter_jit
-def _orbit(model, omega, y_start, cfg):
-    """Newton shooting from ``y_start`` and the metrics of the orbit found."""
-    c = dict(cfg)
-    ps = periodic_state(model, omega, y_start=y_start, max_newton=c["max_newton"],
-                        newton_tol=c["newton_tol"])
-    y0 = jnp.where(ps.ok, ps.y0, y_start)
-    r = simulate(model, omega, n_transient_periods=0, y0=y0, n_measured_periods=2,
-                 convergence_tol=c["convergence_tol"])
-    scale = 1.0 + jnp.sqrt(jnp.sum(y0 * y0))
-    found = ps.ok & r.solver_ok & (ps.residual <= c["newton_tol"] * scale)
-    return found, ps.spectral_radius, ps.newton_iterations, y0, tuple(
-        getattr(r, f) for f in METRIC_FIELDS)
-
-
-@eqx.filter_jit
-def _settle(model, omega, y_start, cfg):
-    """State at theta = n P after a transient from ``y_start`` (n from the decay rate of
-    the slowest free mode, as simulate's automatic transient)."""
-    c = dict(cfg)
-    period = float(model.period_rad)
-    n = transient_periods(model, omega, c["transient_decay"], c["min_transient_mesh_periods"],
-                          c["max_transient_mesh_periods"])
-    solver, rtol, atol = default_solver(model.formulation, jump_density(model))
-    sol = integrate(lambda t, y, args: model.vector_field(t, y, args), solver,
-                    jump_controller(model, rtol, atol), 0.0, n * period, y_start, omega,
-                    saveat=diffrax.SaveAt(t1=True), max_steps=2_000_000)
-    return sol.ys[-1]
+def _orbit(model, omega, y_start, options: CorrectorOptions, convergence_tol: float):
+    """Newton shooting at fixed speed from ``y_start`` (the corrector of
+    :func:`gearjax.dynamics.corrector.correct` with the speed fixed) and the metrics of
+    the orbit found (of ``y_start`` where none): ``(found, spectral radius, Newton
+    iterations, y0, metrics)`` on the host."""
+    y_start = jnp.asarray(y_start, dtype=float)
+    n = y_start.shape[0]
+    border = jnp.zeros(n + 1).at[n].set(1.0)
+    c = jax.device_get(correct(model, y_start, omega, jnp.concatenate([y_start, omega[None]]),
+                               border, 1.0, options))
+    found = bool(c.converged)
+    y0 = np.asarray(c.y) if found else np.asarray(y_start)
+    met = jax.device_get(measure(model, omega, jnp.asarray(y0), convergence_tol))
+    found = found and bool(met[METRIC_FIELDS.index("solver_ok")])
+    rho = float(np.max(np.abs(multipliers(c.phi)))) if found else float("nan")
+    return found, rho, int(c.iterations), y0, met
 
 
 def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton: int = 12,
@@ -146,7 +131,11 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
         formulation or the contact law of te/perturbation).
     speeds_rad_s : distinct pinion speeds Omega1 > 0 (rad/s), any order; the closer, the
         surer the continuation (15 rad/s on the sdof spur rig).
-    max_newton, newton_tol : Newton shooting of :func:`~gearjax.dynamics.steady.periodic_state`.
+    max_newton, newton_tol : Newton shooting at fixed speed
+        (:func:`gearjax.dynamics.corrector.correct`: a step below ``newton_tol (1 + |y|)``;
+        the 3D model's period integration at the shooting's tolerances does not reach the
+        default's: give it 1e-8, as ``gearjax sweep --direction`` does,
+        ``benchmarks/results/code_notes.md``).
     convergence_tol : periodicity threshold of the metrics' ``converged`` (as simulate).
     transient_decay, min/max_transient_mesh_periods : the restart transient.
     progress : the meter told of every speed done (default none).
@@ -163,12 +152,9 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
         raise SimulationError("speeds_rad_s", speeds[:5].tolist(),
                               "speeds must be distinct (a branch visits each once)")
     model.require_structure()
-    cfg = tuple(sorted(dict(max_newton=int(max_newton), newton_tol=float(newton_tol),
-                            convergence_tol=float(convergence_tol)).items()))
-    settle_cfg = tuple(sorted(dict(
-        transient_decay=float(transient_decay),
-        min_transient_mesh_periods=int(min_transient_mesh_periods),
-        max_transient_mesh_periods=int(max_transient_mesh_periods)).items()))
+    options = CorrectorOptions(max_newton=int(max_newton), newton_tol=float(newton_tol))
+    settle_cfg = (float(transient_decay), int(min_transient_mesh_periods),
+                  int(max_transient_mesh_periods))
     order = np.argsort(speeds, kind="stable")
     if direction == "down":
         order = order[::-1]
@@ -186,8 +172,8 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     for j, i in enumerate(order):
         w = jnp.asarray(speeds[i])
         start = model.initial_state(w) if carry is None else carry
-        found, rho, it, y, met = jax.device_get(_orbit(model, w, start, cfg))
-        ok = bool(found) and float(rho) < 1.0
+        found, rho, it, y, met = _orbit(model, w, start, options, float(convergence_tol))
+        ok = found and rho < 1.0
         if bool(found) and not ok:  # an unstable orbit: keep it, then settle elsewhere
             extra["unstable_max_mesh_force_N"][i] = met[METRIC_FIELDS.index("max_mesh_force_N")]
             extra["unstable_dte_ptp_m"][i] = met[METRIC_FIELDS.index("dte_ptp_m")]
@@ -195,9 +181,9 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
             uy0s[i] = y
         if not ok:
             restarted[i] = True
-            settled = _settle(model, w, start, settle_cfg)
-            found, rho, it, y, met = jax.device_get(_orbit(model, w, settled, cfg))
-            ok = bool(found) and float(rho) < 1.0
+            settled = settle(model, w, start, *settle_cfg)
+            found, rho, it, y, met = _orbit(model, w, settled, options, float(convergence_tol))
+            ok = found and rho < 1.0
         for f, v in zip(METRIC_FIELDS, met):
             out[f][i] = v
         extra["spectral_radius"][i], extra["newton_iterations"][i] = rho, it

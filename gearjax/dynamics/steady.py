@@ -70,6 +70,8 @@ __all__ = [
     "orbit_of",
     "spectral_radius_of",
     "Shooting",
+    "period_map",
+    "shooting_solver",
 ]
 
 # Shooting solver: Dopri8 at rtol 1e-9 (benchmarks/bench_work_precision.py: the periodic
@@ -136,24 +138,57 @@ def spectral_radius_of(phi, squarings: int = 40):
 def _one_period(model, omega, y_start, solver, rtol, atol, max_steps):
     """(y(P), Phi(P), ok, steps): the state and the monodromy matrix of the linearised
     flow after one excitation period from ``y_start`` (one diffeqsolve)."""
+    return period_map(model, omega, y_start, solver=solver, rtol=rtol, atol=atol,
+                      max_steps=max_steps)
+
+
+def period_map(model, omega, y_start, *, solver, rtol, atol, max_steps,
+               speed_column: bool = False, jacobian: bool = True):
+    """``(y(P), J, ok, steps)``: the state after one excitation period ``P`` from
+    ``y_start`` at pinion speed ``omega`` (rad/s) and its Jacobian, by one diffeqsolve of
+    the state with its variational equations (forward-mode linearisation of the model's
+    ``vector_field``: ``Phi' = (df/dy) Phi``, ``Phi(0) = I``). ``J`` is the monodromy
+    ``Phi(P) = dy(P)/dy(0)`` (n, n), or with ``speed_column`` the (n, n + 1) matrix
+    ``[Phi(P) | dy(P)/dOmega]`` whose last column (s/rad per unit of state) obeys
+    ``s' = (df/dy) s + df/dOmega``, ``s(0) = 0``: the shooting residual's derivative in speed
+    for pseudo-arclength continuation (:mod:`gearjax.dynamics.arclength`); without
+    ``jacobian``, ``J`` is None and only the state is integrated. All columns share the
+    state's error control and the model's jump angles (``solver``, ``rtol``, ``atol``,
+    ``max_steps`` as :func:`periodic_state`). ``ok``: the solve succeeded with finite
+    values; ``steps``: its steps."""
+    if not jacobian:
+        sol = integrate(lambda t, y, args: model.vector_field(t, y, args), solver,
+                        jump_controller(model, rtol, atol), 0.0, float(model.period_rad),
+                        y_start, omega, saveat=diffrax.SaveAt(t1=True), max_steps=max_steps)
+        y_p = sol.ys[-1]
+        return y_p, None, (sol.result == diffrax.RESULTS.successful) & jnp.all(
+            jnp.isfinite(y_p)), sol.stats["num_steps"]
     n = y_start.shape[0]
+    k = n + 1 if speed_column else n
+    dw = jnp.zeros(k, dtype=y_start.dtype).at[n].set(1.0) if speed_column else None
 
     def vf(t, state, args):
-        y, phi = state
+        y, jac = state
+        if speed_column:
+            fy, lin = jax.linearize(lambda yy, ww: model.vector_field(t, yy, ww), y, args)
+            return fy, jax.vmap(lin, in_axes=(1, 0), out_axes=1)(jac, dw)
         fy, lin = jax.linearize(lambda yy: model.vector_field(t, yy, args), y)
-        return fy, jax.vmap(lin, in_axes=1, out_axes=1)(phi)
+        return fy, jax.vmap(lin, in_axes=1, out_axes=1)(jac)
 
+    jac0 = jnp.eye(n, k, dtype=y_start.dtype)
     sol = integrate(vf, solver, jump_controller(model, rtol, atol), 0.0,
-                    float(model.period_rad), (y_start, jnp.eye(n, dtype=y_start.dtype)), omega,
+                    float(model.period_rad), (y_start, jac0), omega,
                     saveat=diffrax.SaveAt(t1=True), max_steps=max_steps,
                     adjoint=diffrax.ForwardMode())
-    y_p, phi = sol.ys[0][-1], sol.ys[1][-1]
-    ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(phi)) & jnp.all(
+    y_p, jac = sol.ys[0][-1], sol.ys[1][-1]
+    ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(jac)) & jnp.all(
         jnp.isfinite(y_p))
-    return y_p, phi, ok, sol.stats["num_steps"]
+    return y_p, jac, ok, sol.stats["num_steps"]
 
 
-def _solver_options(solver, rtol, atol):
+def shooting_solver(solver=None, rtol=None, atol=None):
+    """``(solver, rtol, atol)`` of a shooting period integration: the given ones, None
+    replaced by the shooting's defaults (Dopri8, 1e-9, 1e-11)."""
     name, d_rtol, d_atol = _SHOOT_DEFAULT
     solver = diffrax.Dopri8() if solver is None else solver
     return solver, (d_rtol if rtol is None else rtol), (d_atol if atol is None else atol)
@@ -179,7 +214,7 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
         ``model.initial_state(omega)``); e.g. the periodic orbit at a neighbouring speed,
         for continuation (:mod:`gearjax.dynamics.continuation`).
     """
-    solver, rtol, atol = _solver_options(solver, rtol, atol)
+    solver, rtol, atol = shooting_solver(solver, rtol, atol)
     omega = jnp.asarray(omega, dtype=float)
     y_s = model.initial_state(omega) if y_start is None else jnp.asarray(y_start, dtype=float)
     n = y_s.shape[0]
