@@ -89,7 +89,7 @@ def test_sdof_perturbation_with_nlte_against_closed_form():
     model = TorsionalModel.build(spur, table1_relief("long"), formulation="perturbation")
     assert model.nlte_terms
     speeds = np.array([300.0, 780.0])
-    res = harmonic_sweep(model, speeds, rtol=1e-9, min_harmonics=512, max_harmonics=512,
+    res = harmonic_sweep(model, speeds, rtol=1e-9, harmonics=512, max_harmonics=512,
                          floquet=False)
     f_s = float(model.static_force_N)
     for i, omega in enumerate(speeds):
@@ -130,7 +130,7 @@ def test_sdof_te_against_exact_orbit(square_wave):
     model = models[ZETA]
     f_s = static_mesh_force(pair, TORQUE)
     speeds = np.array([100.0, 226.0, 353.0, 800.0, 1200.0])
-    res = harmonic_sweep(model, speeds, rtol=1e-7, min_harmonics=1024, max_harmonics=1024,
+    res = harmonic_sweep(model, speeds, rtol=1e-7, harmonics=1024, max_harmonics=1024,
                          floquet=False)
     inert = tuple(np.asarray(model.inertias_kg_m2))
     for i, w in enumerate(speeds):
@@ -169,7 +169,7 @@ def test_parametric_instability_is_flagged(square_wave):
     model = models[0.02]
     w_p = 2.0 * float(model.natural_frequency_rad_s()) / pair.z1
     speeds = np.array([w_p, 0.7 * w_p])
-    res = harmonic_sweep(model, speeds, rtol=1e-6, min_harmonics=1024, max_harmonics=1024)
+    res = harmonic_sweep(model, speeds, rtol=1e-6, harmonics=1024, max_harmonics=1024)
     inert = tuple(np.asarray(model.inertias_kg_m2))
     rho = [_exact_spectral_radius(pair, k1, k2, inert, 0.02, w) for w in speeds]
     assert rho[0] > 1.05 and rho[1] < 1.0
@@ -188,7 +188,7 @@ def test_clear_errors(square_wave):
     with pytest.raises(SimulationError, match="speeds_rad_s"):
         harmonic_sweep(model, [0.0])
     with pytest.raises(SimulationError, match="power of two"):
-        harmonic_sweep(model, [300.0], min_harmonics=100)
+        harmonic_sweep(model, [300.0], harmonics=100)
     with pytest.raises(SimulationError, match="rtol"):
         harmonic_sweep(model, [300.0], rtol=0.0)
 
@@ -237,7 +237,7 @@ def test_small_gain_bound_proves_only_what_floquet_confirms(square_wave):
     inert = tuple(np.asarray(models[ZETA].inertias_kg_m2))
     speeds = np.array([150.0, 600.0])
     for z in (ZETA,):  # 0.02: test_parametric_instability_is_flagged
-        res = harmonic_sweep(models[z], speeds, rtol=1e-6, min_harmonics=512,
+        res = harmonic_sweep(models[z], speeds, rtol=1e-6, harmonics=512,
                              max_harmonics=512)
         assert np.all(res.small_gain > 1.0)  # the bound cannot decide here
         exact = [_exact_spectral_radius(pair, k1, k2, inert, z, w) for w in speeds]
@@ -245,7 +245,7 @@ def test_small_gain_bound_proves_only_what_floquet_confirms(square_wave):
         assert np.all(res.stability_known)
     heavy = TorsionalModel.build(mesh, ToothModifications.none(), formulation="te",
                                  damping_ratio=0.4, pinion_torque_Nm=TORQUE)
-    res = harmonic_sweep(heavy, speeds, rtol=1e-6, min_harmonics=512, max_harmonics=512)
+    res = harmonic_sweep(heavy, speeds, rtol=1e-6, harmonics=512, max_harmonics=512)
     assert np.all(res.small_gain < 0.95) and np.all(res.stable)
     assert np.all(np.isnan(res.spectral_radius))  # proven: no monodromy integrated
     assert all(_exact_spectral_radius(pair, k1, k2, inert, 0.4, w) < 1.0 for w in speeds)

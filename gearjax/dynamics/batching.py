@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import jax
 
-__all__ = ["MAPPED_MIN_STATES", "sequential_on", "sequential_for", "on_cpu", "over_speeds"]
+__all__ = ["MAPPED_MIN_STATES", "sequential_on", "sequential_for", "on_cpu", "over_speeds",
+           "frequency_domain_sequential"]
 
 # Smallest state (first-order unknowns) whose speeds a CPU runs one after the other; the
 # sdof model (2) is vmapped, every 3D model (38 states and up) mapped (module docstring).
@@ -48,6 +49,16 @@ def on_cpu() -> bool:
     """Whether JAX's default backend is the CPU (read when traced): where a solver that
     calls LAPACK per speed maps its speeds whatever the model's size (module docstring)."""
     return jax.default_backend() == "cpu"
+
+
+def frequency_domain_sequential(lapack_per_speed: bool) -> bool:
+    """Whether the frequency-domain solver (:mod:`gearjax.dynamics.harmonic`) maps its
+    speeds: on a CPU always -- where each speed decomposes its own ``A0``
+    (``lapack_per_speed``) a vmapped batch would run batched LAPACK kernels (module
+    docstring), and mapped speeds skip the windows after the jumps where the grid resolves
+    the ringing (a ``lax.cond`` under ``vmap`` runs both branches); vmapped on
+    accelerators unless ``lapack_per_speed``."""
+    return on_cpu() or bool(lapack_per_speed)
 
 
 def over_speeds(one, *xs, sequential: bool):

@@ -445,6 +445,12 @@ class Geared3DModel(AbstractGearModel):
         return self.harmonic_start and self._constant_coefficients
 
     @property
+    def speed_scaled_state(self) -> bool:
+        """True: the state ``((q - q_0) / a, u / (r a))``, ``r_j = omega_j / Omega``, makes
+        the homogeneous part of Eqs. (14)/(42)/(48a) ``Omega^-1`` times one operator."""
+        return True
+
+    @property
     def _constant_coefficients(self) -> bool:
         """Eq. (48a) without NLTE inertial and eccentricity terms, excitation tabulated."""
         return (self.formulation == "perturbation" and not self.nlte_inertial_terms
