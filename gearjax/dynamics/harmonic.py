@@ -66,8 +66,7 @@ from .harmonic_split import (HarmonicPlan, HarmonicSplit, harmonic_split, saw_co
 from .krylov import gmres
 from .measure import N_REFINE, measure_grid, measure_orbit
 from .orders import N_MESH_ORDERS
-from .stability import check_speeds, monodromy
-from .steady import spectral_radius_of
+from .stability import check_speeds, monodromy, spectral_radius_of
 
 __all__ = ["PeriodicSeries", "HarmonicResult", "harmonic_steady_state",
            "harmonic_steady_states", "small_gain_bounds", "check_linear_model",
@@ -228,13 +227,13 @@ def _receptances(lam, h, nu):
     return (re - 1j * im) / den
 
 
-def _solve(split: HarmonicSplit, thj, sides, coeffs, omega, n_h: int, keep: int,
-           period: float, gmres_tol, sig0=None):
-    """Hill's equation (2) and the modal orbit with the harmonics ``|h| <= keep`` (``<=
-    n_h``; those above are zero: the arrays keep their ``n_h`` shapes), from the sampled
-    excitation at this speed (``sides`` (4, J, k + 1), ``coeffs`` (4H + 1, k + 1)); GMRES
-    from ``sig0`` (2H+1,) where given: (eta (2H+1, m), zeta0, fpoly, lam at this speed,
-    GMRES relative residual, sigma_h).
+def _solve(split: HarmonicSplit, thj, sides, coeffs, omega, n_h: int, keep, period: float,
+           gmres_tol, sig0=None):
+    """Hill's equation (2) and the modal orbit with the harmonics ``|h| <= keep`` (traced,
+    ``<= n_h``; those above are zero: the arrays keep their ``n_h`` shapes), from the
+    sampled excitation at this speed (``sides`` (4, J, k + 1), ``coeffs`` (4H + 1, k + 1));
+    GMRES from ``sig0`` (2H+1,) where given: (eta (2H+1, m), zeta0, fpoly, lam at this
+    speed, GMRES relative residual, sigma_h).
 
     The modal forcing ``p c sigma + b`` and its jumps lie in the span of the ``k + 1``
     rows ``F = [Q^-1 p; (Q^-1 U)^T]``: they are assembled there and taken to the modes once
@@ -256,7 +255,8 @@ def _solve(split: HarmonicSplit, thj, sides, coeffs, omega, n_h: int, keep: int,
     g = w1[:, 0] + jnp.conj(w2[::-1, 0])  # receptance of sigma, Eq. (2)
     f = jnp.sum(bh * w1[:, 1:], axis=1) + jnp.conj(jnp.sum(bh[::-1] * w2[::-1, 1:], axis=1))
     conv = _convolution(c_full, n_h)
-    x0 = None if sig0 is None else jnp.where(inside, sig0, 0.0)
+    x0 = f if sig0 is None else jnp.where(jnp.all(jnp.isfinite(sig0)),
+                                          jnp.where(inside, sig0, 0.0), f)
     sig, gm_res = gmres(lambda s: s - g * conv(s), f, gmres_tol, x0=x0)
     qh = jnp.where(inside, conv(sig), 0.0)
     # jumps of the forcing p c sigma + b at theta_j, and of its slope, in the rows F
@@ -402,11 +402,14 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
                                   f"a plan for n_harmonics={n_h} is needed")
     thj = excitation.thj
     sides, coeffs, c_radius = excitation.at(omega)
-    # H, then H/2 for the error estimate, from H's sigma
-    full = _solve(split, thj, sides, coeffs, omega, n_h, n_h, period, gmres_tol)
-    half = _solve(split, thj, sides, coeffs, omega, n_h, n_h // 2, period, gmres_tol,
-                  sig0=full[-1])
-    eta, zeta0, fpoly, lam, gm_res = (jnp.stack([a, b]) for a, b in zip(full[:5], half[:5]))
+    # H, then H/2 for the error estimate from H's sigma (one traced solve, scanned)
+    def solve(sig0, keep):
+        out = _solve(split, thj, sides, coeffs, omega, n_h, keep, period, gmres_tol, sig0)
+        return out[-1], out[:5]
+
+    f_start = jnp.full(2 * n_h + 1, jnp.nan, dtype=complex)  # NaN: GMRES from its default
+    _, (eta, zeta0, fpoly, lam, gm_res) = jax.lax.scan(solve, f_start,
+                                                       jnp.asarray([n_h, n_h // 2]))
     read = [_series(eta[i], zeta0[i], fpoly[i], lam[i], split.rqw, thj, n_h, period)
             for i in (0, 1)]
     mg = measure_grid(model, 2, samples_per_mesh_period, n_refine)

@@ -169,16 +169,17 @@ def _field(model, omega):
     return lambda th, y: model.vector_field(th, y, omega, contact=False)
 
 
-def _row_basis(a, cap: int):
-    """Orthonormal rows (cap, n) spanning the rows of ``a`` (N, n) (seeded random
-    sketch, QR, SVD), their singular values (cap,) and the relative residual of ``a``."""
+def _row_basis(a, cap: int, xp):
+    """Orthonormal rows (cap, n) spanning the rows of ``a`` (N, n) (a fixed pseudo-random
+    sketch, QR, SVD; ``xp``: numpy or jax.numpy), their singular values (cap,) and the
+    relative residual of ``a``."""
     n = a.shape[1]
     cap = min(cap, n)
-    sketch = jax.random.normal(jax.random.PRNGKey(0), (n, cap), dtype=a.dtype)
-    qn, _ = jnp.linalg.qr(a @ sketch)  # range of the rows' images
-    _, sv, vt = jnp.linalg.svd(qn.T @ a, full_matrices=False)
-    res = jnp.max(jnp.abs(a - (a @ vt.T) @ vt))
-    return vt, sv, res / jnp.maximum(jnp.max(jnp.abs(a)), 1e-300)
+    sketch = xp.cos(1.3 * xp.outer(xp.arange(n), xp.arange(1, cap + 1)) + 0.7)
+    u, _, _ = xp.linalg.svd(a @ sketch, full_matrices=False)  # range of the rows' images
+    _, sv, vt = xp.linalg.svd(u.T @ a, full_matrices=False)
+    res = xp.max(xp.abs(a - (a @ vt.T) @ vt))
+    return vt, sv, res / xp.maximum(xp.max(xp.abs(a)), 1e-300)
 
 
 def _split_samples(model):
@@ -189,11 +190,12 @@ def _split_samples(model):
     return jnp.concatenate([th, thj - d, thj + d])
 
 
-def _raw_split(model, omega_ref, n_forcing: int, output_rows: bool):
-    """The split at ``omega_ref`` and its bases before rank truncation (jittable): A0, p,
-    w, the probe residual, the eigendecomposition, the forcing basis (``n_forcing``
-    columns, from the samples at ``omega_ref`` and twice it) and, with ``output_rows``,
-    the outputs' row basis with its singular values (else the identity)."""
+def _linear_parts(model, omega_ref, n_forcing: int, output_rows: bool):
+    """What the split reads of the model at ``omega_ref`` (jittable, no LAPACK): ``A(theta)
+    xi`` at the samples, the varying direction ``p``, two Jacobians (``j1`` where the
+    probe's response is farthest from its mean, ``j2`` opposite along ``p``), ``w``,
+    ``c(theta)``, the forcing at ``omega_ref`` and twice it (where ``n > n_forcing``) and,
+    with ``output_rows``, each output's normalised state direction at both speeds."""
     n = model.state_size
     ts = _split_samples(model)
     f = _field(model, omega_ref)
@@ -215,35 +217,51 @@ def _raw_split(model, omega_ref, n_forcing: int, output_rows: bool):
     w = row / jnp.maximum(jnp.sqrt(jnp.sum(row * row)), 1e-300)
     p = jnp.where(jnp.any(row != 0), p, 0.0)
     c = jax.vmap(lambda t: p @ (a_dot(t, w) - j1 @ w))(ts)
-    cbar = 0.5 * (jnp.max(c) + jnp.min(c))
-    a0 = j1 + cbar * jnp.outer(p, w)
-    resid = g - (a0 @ xi)[None, :] - (c - cbar)[:, None] * p[None, :] * (w @ xi)
-    err = jnp.max(jnp.abs(resid)) / jnp.maximum(jnp.max(jnp.abs(g)), 1e-300)
-    lam, q = jnp.linalg.eig(a0)
-    qinv = jnp.linalg.solve(q, jnp.eye(n, dtype=q.dtype))
-    eig_err = jnp.max(jnp.abs((q * lam[None, :]) @ qinv - a0)) / jnp.maximum(
-        jnp.max(jnp.abs(a0)), 1e-300)
-    if n <= n_forcing:
-        basis, b_sv, b_err = jnp.eye(n), jnp.ones(n), jnp.zeros(())
-    else:  # the forcing at two speeds: its directions, whatever their speed dependence
-        b = jnp.concatenate([jax.vmap(lambda t: _field(model, s * omega_ref)(t, zero))(ts)
-                             for s in (1.0, 2.0)])
-        vt, b_sv, b_err = _row_basis(b, n_forcing)
-        basis = vt.T
+    out = dict(g=g, p=p, w=w, j1=j1, c=c, xi=xi)
+    if n > n_forcing:  # the forcing at two speeds: its directions, whatever their speed law
+        out["b"] = jnp.concatenate([jax.vmap(lambda t: _field(model, s * omega_ref)(t, zero))(
+            ts) for s in (1.0, 2.0)])
     if output_rows:
+        t_o = jnp.concatenate([ts[:_SPLIT_SAMPLES:8], ts[_SPLIT_SAMPLES:]])  # and the jumps
+
         def out_rows(w_):  # each output's state direction at each sample, normalised
             jo = jax.vmap(lambda t: jax.jacrev(lambda y: observer(model, w_, False)(t, y))(
-                zero))(ts).reshape(-1, n)
+                zero))(t_o).reshape(-1, n)
             return jo / jnp.maximum(jnp.linalg.norm(jo, axis=1), 1e-300)[:, None]
 
-        jo = jnp.concatenate([out_rows(omega_ref), out_rows(2.0 * omega_ref)])
-        rows, r_sv, r_err = _row_basis(jo, OUTPUT_RANK)
+        out["jo"] = jnp.concatenate([out_rows(omega_ref), out_rows(2.0 * omega_ref)])
+    return out
+
+
+def _decompose(parts, n_forcing: int, xp):
+    """The split from :func:`_linear_parts` (``xp``: numpy on the host, jax.numpy when
+    traced): A0 at the midpoint of ``c``'s range, the probe's residual, the
+    eigendecomposition and its residual, the forcing and output bases (identity without
+    their samples) with their singular values, the small-gain ``sup |g|``."""
+    g, p, w, j1, c, xi = (parts[k] for k in ("g", "p", "w", "j1", "c", "xi"))
+    n = j1.shape[0]
+    cbar = 0.5 * (xp.max(c) + xp.min(c))
+    a0 = j1 + cbar * xp.outer(p, w)
+    resid = g - (a0 @ xi)[None, :] - (c - cbar)[:, None] * p[None, :] * (w @ xi)
+    err = xp.max(xp.abs(resid)) / xp.maximum(xp.max(xp.abs(g)), 1e-300)
+    lam, q = xp.linalg.eig(a0)
+    lam, q = lam.astype(complex), q.astype(complex)  # numpy: real where every one is
+    qinv = xp.linalg.solve(q, xp.eye(n, dtype=q.dtype))
+    eig_err = xp.max(xp.abs((q * lam[None, :]) @ qinv - a0)) / xp.maximum(
+        xp.max(xp.abs(a0)), 1e-300)
+    if "b" in parts:
+        vt, b_sv, b_err = _row_basis(parts["b"], n_forcing, xp)
+        basis = vt.T
     else:
-        rows, r_sv, r_err = jnp.eye(n), jnp.ones(n), jnp.zeros(())
-    gain = small_gain_bound(lam, (q.T @ w) * (qinv @ p), 1.0)
+        basis, b_sv, b_err = xp.eye(n), xp.ones(n), 0.0 * err
+    if "jo" in parts:
+        rows, r_sv, r_err = _row_basis(parts["jo"], OUTPUT_RANK, xp)
+    else:
+        rows, r_sv, r_err = xp.eye(n), xp.ones(n), 0.0 * err
+    gain = small_gain_bound(lam, (q.T @ w) * (qinv @ p), 1.0, xp)
     return dict(lam=lam, q=q, qinv=qinv, p=p, w=w, a0w=a0 @ w, a0xi=a0 @ xi, basis=basis,
                 b_sv=b_sv, rows=rows, r_sv=r_sv, gain=gain,
-                error=jnp.maximum(jnp.maximum(err, eig_err), jnp.maximum(b_err, r_err)))
+                error=xp.maximum(xp.maximum(err, eig_err), xp.maximum(b_err, r_err)))
 
 
 def _assemble(raw, omega_ref, keep, weight, k: int, n_o: int, scaled: bool) -> HarmonicSplit:
@@ -260,7 +278,8 @@ def _assemble(raw, omega_ref, keep, weight, k: int, n_o: int, scaled: bool) -> H
 def split_at(model, omega) -> HarmonicSplit:
     """The split at the speed ``omega`` (rad/s), every mode kept and the outputs read
     from the whole state (jittable; calls LAPACK: map, do not vmap, on a CPU)."""
-    raw = _raw_split(model, jnp.asarray(omega, dtype=float), FORCING_RANK, False)
+    raw = _decompose(_linear_parts(model, jnp.asarray(omega, dtype=float), FORCING_RANK,
+                                   False), FORCING_RANK, jnp)
     n = model.state_size
     k = min(n, FORCING_RANK)
     return _assemble(raw, omega, jnp.arange(n), jnp.ones(n), k, n, False)
@@ -293,16 +312,19 @@ def harmonic_split(model, omega_ref: float) -> HarmonicSplit:
     ``model.speed_scaled_state`` (valid at every speed); else :func:`split_at`."""
     if not model.speed_scaled_state:
         return eqx.filter_jit(split_at)(model, jnp.asarray(float(omega_ref)))
-    raw = jax.device_get(_raw_split_jit(model, jnp.asarray(float(omega_ref)), FORCING_RANK,
-                                        True))
+    raw = jax.device_get(_raw_split_jit(model, jnp.asarray(float(omega_ref)), FORCING_RANK))
     keep, weight = _kept_modes(raw["lam"])
     n = model.state_size
-    k = n if n <= FORCING_RANK else _rank(raw["b_sv"])
+    k = min(n, _rank(raw["b_sv"]))
     return _assemble({key: jnp.asarray(v) for key, v in raw.items()}, float(omega_ref),
                      jnp.asarray(keep), jnp.asarray(weight), k, _rank(raw["r_sv"]), True)
 
 
-_raw_split_jit = eqx.filter_jit(_raw_split)
+@eqx.filter_jit
+def _raw_split_jit(model, omega_ref, n_forcing: int):
+    """The split of :func:`harmonic_split` before its rank truncation (one program: XLA's
+    single-threaded LAPACK kernels on the CPU)."""
+    return _decompose(_linear_parts(model, omega_ref, n_forcing, True), n_forcing, jnp)
 
 
 # ---------------------------------------------------------------------- the samples
@@ -410,22 +432,22 @@ def _plan_excitation(model, split: HarmonicSplit, n_h: int) -> Excitation:
     period = float(model.period_rad)
     th, thj, t_all, step, d = _angles(model, n_h)
     n_s = th.shape[0]
-    ratios = _FIT_SPEEDS + (_CHECK_SPEED,)
-    vs, errs = zip(*(_sample(model, split.omega_ref * r, split, t_all, n_s) for r in ratios))
+    ratios = jnp.asarray(_FIT_SPEEDS + (_CHECK_SPEED,))
+    vs, errs = jax.vmap(lambda r: _sample(model, split.omega_ref * r, split, t_all, n_s))(ratios)
     # in powers of Omega / Omega_r (a well-conditioned Vandermonde matrix)
     vand = np.array([[r ** p for p in SPEED_POWERS] for r in _FIT_SPEEDS])  # (3, P)
-    vp = jnp.tensordot(jnp.asarray(np.linalg.inv(vand)), jnp.stack(vs[:3]), axes=1)
+    vp = jnp.tensordot(jnp.asarray(np.linalg.inv(vand)), vs[:3], axes=1)
     pred = jnp.tensordot(jnp.asarray([_CHECK_SPEED ** p for p in SPEED_POWERS]), vp, axes=1)
     # relative to the forcing's size (its columns together) and, for c, to A0's (c is
     # round-off where the stiffness is constant: Eq. (48a))
-    big = jnp.max(jnp.abs(jnp.stack(vs)), axis=(0, 1))
+    big = jnp.max(jnp.abs(vs), axis=(0, 1))
     scale = jnp.concatenate([jnp.full(big.shape[0] - 1, jnp.max(big[:-1])), jnp.maximum(
         big[-1:], jnp.max(jnp.abs(split.a0w)) / min(_FIT_SPEEDS))])
     fit_err = jnp.max(jnp.max(jnp.abs(pred - vs[3]), axis=0) / jnp.maximum(scale, 1e-300))
     sides, coeffs = jax.vmap(lambda v: _fourier(v, th, thj, step, d, period, n_h))(vp)
     return Excitation(thj=thj, sides=sides, coeffs=coeffs, c_samples=vp[:, :, -1],
-                      omega_unit=split.omega_ref, split_error=jnp.maximum(jnp.max(jnp.stack(errs)),
-                                              jnp.maximum(fit_err, split.error)),
+                      omega_unit=split.omega_ref,
+                      split_error=jnp.maximum(jnp.max(errs), jnp.maximum(fit_err, split.error)),
                       powers=SPEED_POWERS)
 
 

@@ -1,9 +1,12 @@
 """Speed sweeps of the frequency-domain solver of :mod:`gearjax.dynamics.harmonic`:
-:func:`harmonic_sweep` raises the number of harmonics per speed until the error estimate
-meets ``rtol``, then proves stability by the small-gain bound
-(:mod:`gearjax.dynamics.small_gain`) or the Floquet radius of the monodromy
+:func:`harmonic_sweep` reads the model's split once
+(:func:`gearjax.dynamics.harmonic_split.harmonic_plan`), solves every speed in one compiled
+program with the number of harmonics that the model's top mode and the tolerance ask for
+(:func:`gearjax.dynamics.harmonic.harmonics_for`), then proves stability by the small-gain
+bound (:mod:`gearjax.dynamics.small_gain`) or the Floquet radius of the monodromy
 (:func:`gearjax.dynamics.stability.monodromy`); :class:`HarmonicSweepResult` is its
-:class:`gearjax.dynamics.results.SweepResult`."""
+:class:`gearjax.dynamics.results.SweepResult`. How the speeds of the program are batched:
+:func:`gearjax.dynamics.batching.frequency_domain_sequential`."""
 
 from __future__ import annotations
 
@@ -24,8 +27,7 @@ from .orders import N_MESH_ORDERS
 from .results import SweepResult
 from .solvers import AbstractPeriodicSolver, SweepRun
 from .small_gain import SMALL_GAIN_MARGIN
-from .stability import check_speeds, monodromy
-from .steady import spectral_radius_of
+from .stability import check_speeds, monodromy, spectral_radius_of
 
 __all__ = ["harmonic_sweep", "HarmonicSweepResult", "HarmonicBalance",
            "HARMONIC_FLOQUET_MAX_STATES"]
@@ -37,7 +39,8 @@ class HarmonicSweepResult(SweepResult):
     contact_holds``, ``n_steps`` and ``transient_periods`` are 0: nothing is integrated),
     with per speed:
 
-    n_harmonics : harmonics used (the first power of two whose estimate met ``rtol``).
+    n_harmonics : harmonics used (those of :func:`~gearjax.dynamics.harmonic.harmonics_for`,
+        or more where the estimate did not meet ``rtol``).
     error_estimate : see :class:`HarmonicResult`.
     contact_holds : the linear mesh force stays compressive over the period (else the
         orbit is not the model's: fall back to shooting / transient).
@@ -129,8 +132,11 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
             raise SimulationError(name, v, "must be a power of two >= 8")
     if harmonics is not None and int(harmonics) > hi:
         raise SimulationError("max_harmonics", hi, f"must be >= harmonics={harmonics}")
+    # te and perturbation of a 3D build: one program (gearjax.models.base.compiled_form)
+    compiled = model.compiled_form()
     scaled = model.speed_scaled_state  # one split and one sampling for every speed
-    split = harmonic_split(model, float(np.median(speeds)) if scaled else float(np.min(speeds)))
+    split = harmonic_split(compiled, float(np.median(speeds)) if scaled
+                           else float(np.min(speeds)))
     n_h = (int(harmonics) if harmonics is not None else
            harmonics_for(model, split, speeds, rtol, hi=hi))
     n = model.state_size
@@ -144,8 +150,8 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
     t0 = time.perf_counter()
     while todo.size:
         t_batch = time.perf_counter()
-        plan = harmonic_plan(model, split, n_h) if scaled else None
-        res = jax.device_get(_hb_batch(model, jnp.asarray(speeds[todo]), n_h, plan,
+        plan = harmonic_plan(compiled, split, n_h) if scaled else None
+        res = jax.device_get(_hb_batch(compiled, jnp.asarray(speeds[todo]), n_h, plan,
                                        int(samples_per_mesh_period), int(n_refine)))
         for f, v in zip(_FIELDS, res):
             out[f][todo] = np.asarray(v, dtype=float)
