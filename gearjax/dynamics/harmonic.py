@@ -448,7 +448,7 @@ def harmonic_steady_states(model, speeds_rad_s, n_harmonics: int = 256, *,
                            n_refine: int = N_REFINE, floquet: bool = False,
                            gmres_tol: float = 1e-13) -> HarmonicResult:
     """:func:`harmonic_steady_state` at each of ``speeds_rad_s`` (a 1-D array; the
-    result has a leading speed axis), the options its. Jittable. Mapped or vmapped as
+    result has a leading speed axis), with its options. Jittable. Mapped or vmapped as
     :func:`gearjax.dynamics.batching.frequency_domain_sequential` decides (mapped on a
     CPU where each speed decomposes its own ``A0``: ``plan`` None)."""
     def one(w):
