@@ -41,7 +41,7 @@ import numpy as np
 
 from gearjax import table1_relief
 from gearjax.rigs import baud_velex_rig, build_model
-from gearjax.cli.dynamics import default_max_frequency_hz
+from gearjax.models.geared3d import default_max_frequency_hz
 from gearjax.dynamics.steady import steady_sweep
 
 HERE = os.path.dirname(os.path.abspath(__file__))

@@ -77,7 +77,7 @@ def child(args) -> int:
 
     @eqx.filter_jit
     def steady(m, w):
-        r = jax.vmap(lambda s: gj.steady_state(m, s, **sim_kwargs).result)(w)
+        r = jax.vmap(lambda s: gj.steady_state(m, s, gj.Shooting(**sim_kwargs)).result)(w)
         return r.max_mesh_force_N, r.solver_ok
 
     def evaluate(kind, i):

@@ -56,6 +56,9 @@ from .dynamics.sweep import Auto as Auto
 from .dynamics.sweep import Transient as Transient
 from .dynamics.steady import Shooting as Shooting
 from .dynamics.harmonic_sweep import HarmonicBalance as HarmonicBalance
+from .dynamics.orbit import RESULTS as RESULTS
+from .dynamics.orbit import Orbit as Orbit
+from .dynamics.orbit import measure as measure
 from .dynamics.progress import AbstractProgressMeter as AbstractProgressMeter
 from .dynamics.progress import NoProgressMeter as NoProgressMeter
 from . import runtime as runtime

@@ -14,7 +14,7 @@ from .design.optimise import OptimisationResult
 
 __all__ = ["plot_campbell", "plot_quasistatic", "plot_response_curves", "plot_order_tracks", "plot_branches",
            "plot_mesh_force_signals",
-           "plot_design_map", "plot_history", "plot_harris"]
+           "plot_design_map", "plot_history", "plot_harris", "impact_regimes", "REGIMES"]
 
 
 def _mu(text: str) -> str:
@@ -74,7 +74,12 @@ def plot_response_curves(csv_path: str, path: str, title: str = "", iso_kv=None)
     :func:`gearjax.rigs.iso_figures.rig_dynamic_factor`) adds a first panel: the computed
     dynamic factor ``max F / F_S`` of each formulation beside ISO's K_v, and marks ISO's
     resonance speed n_E1 on every panel (up to 10 % beyond the highest speed; in the legend
-    only when it lies further out)."""
+    only when it lies further out).
+
+    Impact regimes (:func:`impact_regimes`): on the first panel, a speed where the teeth
+    separate (single-sided impacts, ``contact_loss``) is ringed and one where the back
+    flanks are struck too (double-sided impacts, ``back_contact``: a model with backlash)
+    is crossed; speeds without either are the no-impact regime (plain markers)."""
     import csv
 
     plt = _pyplot()
@@ -97,7 +102,10 @@ def plot_response_curves(csv_path: str, path: str, title: str = "", iso_kv=None)
             sel = [r for r in rows if r["formulation"] == form]
             x = np.array([float(r["speed_rad_s"]) for r in sel])
             y = np.array([float(r[key]) if r[key] not in ("",) else np.nan for r in sel]) * scale
-            ax.plot(x, y, marker=markers.get(form, "o"), ms=3.5, lw=1.2, label=labels.get(form, form))
+            line, = ax.plot(x, y, marker=markers.get(form, "o"), ms=3.5, lw=1.2,
+                            label=labels.get(form, form))
+            if ax is np.atleast_1d(axes)[0]:
+                _mark_regimes(ax, x, y, impact_regimes(sel), line.get_color())
         if iso_kv is not None and key == "dynamic_factor":
             ax.plot(np.asarray(iso_kv[0]), np.asarray(iso_kv[1]), "k--", lw=1.4,
                     label="ISO 6336-1 K$_v$ (method B)")
@@ -118,6 +126,35 @@ def plot_response_curves(csv_path: str, path: str, title: str = "", iso_kv=None)
         fig.suptitle(_mu(title))
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+REGIMES = ("no impact", "single-sided", "double-sided")
+
+
+def impact_regimes(rows) -> np.ndarray:
+    """The impact regime of each ``results.csv`` row (index into :data:`REGIMES`): 2 where
+    the back flanks carried load (``back_contact``, double-sided impacts), 1 where the teeth
+    separated (``contact_loss``, single-sided impacts), else 0 (no impact). Files written
+    before the ``back_contact`` column read as without back-flank contact."""
+    flag = lambda r, k: r.get(k, "") == "True"  # noqa: E731
+    return np.array([2 if flag(r, "back_contact") else 1 if flag(r, "contact_loss") else 0
+                     for r in rows], dtype=int)
+
+
+def _mark_regimes(ax, x, y, regimes, color) -> None:
+    """Ring the single-sided and cross the double-sided speeds of one curve (legend entries
+    once per axis)."""
+    have = {t.get_label() for t in ax.get_lines()}
+    if np.any(regimes > 0) and "no impact (plain markers)" not in have:
+        ax.plot([], [], ls="none", marker=".", color="0.3", label="no impact (plain markers)")
+    for k, marker in ((1, "o"), (2, "X")):
+        sel = regimes == k
+        if not np.any(sel):
+            continue
+        ax.plot(x[sel], y[sel], ls="none", marker=marker, ms=8, color=color, mfc="none", mew=1.0)
+        label = f"{REGIMES[k]} impacts" + (" (contact loss)" if k == 1 else " (back flanks)")
+        if label not in have:  # one neutral legend entry per regime
+            ax.plot([], [], ls="none", marker=marker, ms=8, color="0.3", mfc="none", label=label)
 
 
 # order-track panels: (column stem, y label, dB reference in the column's SI unit)

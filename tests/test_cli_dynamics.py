@@ -15,7 +15,8 @@ from gearjax.models.torsional import TorsionalModel
 from gearjax.rigs.registry import get_rig
 
 CSV_COLUMNS = ("speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor", "dte_ptp_m",
-               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged", "convergence",
+               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "back_contact", "converged",
+               "convergence",
                "period_multiple")
 
 
@@ -222,7 +223,7 @@ def test_default_cutoff_covers_the_mesh_harmonics(z1, max_speed):
     """The default cut-off keeps every mode up to 3 mesh harmonics of the highest speed
     with a 1.5 margin: the mesh period of a z1-tooth pinion at Omega is (2 pi / z1) / Omega
     seconds, its h-th harmonic h / T_m Hz; never below the former fixed 6 kHz."""
-    from gearjax.cli.dynamics import default_max_frequency_hz
+    from gearjax.models.geared3d import default_max_frequency_hz
 
     t_mesh_s = (2 * math.pi / z1) / max_speed
     f3 = 3 / t_mesh_s
@@ -253,9 +254,9 @@ class _Built(Exception):
 ])
 def test_cli_passes_the_cutoff_to_the_3d_model(monkeypatch, tmp_path, argv, expected):
     """The cut-off the 3D model is built with (the build is stopped right there)."""
-    import gearjax.cli.dynamics as cd
+    import gearjax.cli.case as cd
 
-    monkeypatch.chdir(tmp_path)  # the sweep's default output folder is created first
+    monkeypatch.chdir(tmp_path)
 
     seen = {}
 
@@ -288,7 +289,7 @@ def test_a_cutoff_below_the_mesh_frequency_is_warned(monkeypatch, tmp_path, caps
     """A 3D ``--max-frequency`` below the mesh frequency of the highest speed makes the
     modes the mesh excites answer quasi-statically: the command says so before it
     builds anything, naming that frequency and the default cut-off."""
-    import gearjax.cli.dynamics as cd
+    import gearjax.cli.case as cd
 
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(cd, "build_model", lambda *a, **k: (_ for _ in ()).throw(_Built()))
@@ -323,8 +324,8 @@ def test_3d_sweep_reports_its_cutoff(capsys, tmp_path):
 # ---------------------------------------------------------------- NLTE'' reaction (issue 15)
 def _stopped_at_build(monkeypatch, module, name, argv, real=None):
     """Run ``argv`` until ``module.name`` (the model or objective factory) is called; return
-    its keyword arguments (and the model ``real`` builds, if given). The sweep records its
-    case before building and reads the stop as Ctrl-C (exit 130, summary.json written)."""
+    its keyword arguments (and the model ``real`` builds, if given), the stop read as
+    Ctrl-C (exit 130)."""
     seen = {}
 
     def fake(*a, **kw):
@@ -338,17 +339,41 @@ def _stopped_at_build(monkeypatch, module, name, argv, real=None):
     return seen
 
 
+def _stopped_at_sweep(monkeypatch, argv):
+    """Run a ``gearjax sweep`` ``argv`` with its real model build until the sweep starts;
+    return the build's keyword arguments and model (``_model``). The sweep records its case
+    once the model is built and reads the stop as Ctrl-C (exit 130, summary.json
+    written)."""
+    import gearjax.cli.case as cc
+    import gearjax.dynamics.sweep as ds
+
+    seen = {}
+
+    def build(*a, **kw):
+        seen.update(kw)
+        seen["_model"] = build_model(*a, **kw)
+        return seen["_model"]
+
+    def stop(*a, **kw):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cc, "build_model", build)
+    monkeypatch.setattr(ds, "sweep", stop)
+    assert main(argv) == 130
+    return seen
+
+
 def test_every_command_defaults_to_the_drive_reaction(monkeypatch, tmp_path, capsys):
     """One convention: sweep, stability and optimise build their models with the NLTE''
     reaction at the drive unless told otherwise, and sweep records it in case.json and
     summary.json (the optimiser's optimum.json records the same key, see test_design)."""
     import inspect
 
-    import gearjax.cli.dynamics as cd
+    import gearjax.cli.case as cd
     import gearjax.design as design
 
     out = tmp_path / "sw"
-    sw = _stopped_at_build(monkeypatch, cd, "build_model", [
+    sw = _stopped_at_sweep(monkeypatch, [
         "sweep", "--model", "torsional", "--speeds", "300:400:2", "--formulations", "te",
         "--out", str(out), "--json"])
     st = _stopped_at_build(monkeypatch, cd, "build_model", [
@@ -369,7 +394,6 @@ def test_pinion_reaction_kappa_and_resume_check(monkeypatch, tmp_path, capsys):
     J2 Rb1^2 / (J1 Rb2^2) (Eq. (16)), from the default inertias (solid steel cylinders at
     the pitch radii) and the base radii computed here; 1 at the drive (the default). The
     case records the convention, so a resume with the other one is refused."""
-    import gearjax.cli.dynamics as cd
 
     pair = baud_velex_pair(False)
     (r1, r2), (b1, b2) = pair.pitch_radii_m, (pair.face_width1_m, pair.face_width2_m)
@@ -380,8 +404,7 @@ def test_pinion_reaction_kappa_and_resume_check(monkeypatch, tmp_path, capsys):
     out = tmp_path / "sw"
     base = ["sweep", "--model", "torsional", "--speeds", "300:400:2", "--formulations",
             "perturbation", "--out", str(out), "--json"]
-    seen = _stopped_at_build(monkeypatch, cd, "build_model", base + ["--nlte-reaction", "pinion"],
-                             real=build_model)
+    seen = _stopped_at_sweep(monkeypatch, base + ["--nlte-reaction", "pinion"])
     model = seen["_model"]
     assert model.nlte_reaction == "pinion"
     assert float(model.nlte_inertia_ratio) == pytest.approx(kappa, rel=1e-12)
@@ -396,8 +419,7 @@ def test_pinion_reaction_kappa_and_resume_check(monkeypatch, tmp_path, capsys):
     assert "another case" in err and "nlte" in err
     # the default folder name tells the conventions apart
     monkeypatch.chdir(tmp_path)
-    seen = _stopped_at_build(monkeypatch, cd, "build_model", base[:-3] + [
-        "--nlte-reaction", "pinion"])
+    seen = _stopped_at_sweep(monkeypatch, base[:-3] + ["--nlte-reaction", "pinion"])
     assert (tmp_path / "gearjax-out" / "baud-velex-spur-torsional-short-zeta0.1-nlte-pinion"
             / "case.json").exists()
 

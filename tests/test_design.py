@@ -317,12 +317,12 @@ def test_3d_dynamic_gradients_against_central_differences():
     from gearjax.dynamics.steady import steady_state
 
     x0, h = np.array([13.3e-6, 0.2]), np.array([3e-8, 1e-4])
-    tight = dict(rtol=1e-11, atol=1e-13, measure_rtol=1e-11, measure_atol=1e-13)
+    tight = Shooting(rtol=1e-11, atol=1e-13, measure_rtol=1e-11, measure_atol=1e-13)
     m0 = _build_3d(*x0)
 
     @eqx.filter_jit
     def f(m, x):
-        r = steady_state(_set_relief(m, x), 300.0, **tight).result
+        r = steady_state(_set_relief(m, x), 300.0, tight).result
         return jnp.stack([r.max_mesh_force_N, r.dte_ptp_m])
 
     ad = np.asarray(eqx.filter_jit(lambda m, x: jax.jacfwd(lambda y: f(m, y))(x))(m0, jnp.asarray(x0)))

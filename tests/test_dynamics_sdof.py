@@ -32,7 +32,7 @@ from gearjax import (
     quasi_static,
     table1_relief,
 )
-from gearjax.models.base import WithoutContactLaw
+from gearjax.models.base import without_contact_law
 from gearjax.models.torsional import ModelError, TorsionalModel, solid_cylinder_inertias
 from gearjax.dynamics.simulate import SimulationError, simulate
 from oscillators import HarmonicOscillator
@@ -181,7 +181,7 @@ def test_perturbation_with_nlte_matches_closed_form(spur, case):
     speeds = np.asarray([300.0, 780.0] if n_mesh > 1 else [300.0, 780.0, 1200.0])
     # the closed form is the linear equation: the contact law off (kappa ~ 30 makes the
     # linear force tensile at every tested speed, so the law would cut it)
-    res = sim2(WithoutContactLaw(model), jnp.asarray(speeds))
+    res = sim2(without_contact_law(model), jnp.asarray(speeds))
     f_s = float(model.static_force_N)
     for i, omega in enumerate(speeds):
         f_d, dte = _closed_form_perturbation(model, omega)
@@ -211,9 +211,9 @@ def test_spectral_nlte_derivative_converges_slowly(spur):
     f_d, _ = _closed_form_perturbation(exact, 300.0)
     w = jnp.asarray([300.0])
     # linear equations (the linear force turns tensile at 300 rad/s with kappa ~ 30)
-    err_spectral = abs(float(sim2(WithoutContactLaw(spectral), w).max_mesh_force_N[0])
+    err_spectral = abs(float(sim2(without_contact_law(spectral), w).max_mesh_force_N[0])
                        / f_d.max() - 1)
-    err_exact = abs(float(sim2(WithoutContactLaw(exact), w).max_mesh_force_N[0]) / f_d.max() - 1)
+    err_exact = abs(float(sim2(without_contact_law(exact), w).max_mesh_force_N[0]) / f_d.max() - 1)
     assert err_spectral < 2e-3
     assert err_exact < 1e-5 and err_exact < err_spectral / 50
 

@@ -21,7 +21,7 @@ from gearjax import Mesh, ToothModifications, baud_velex_pair, quasi_static, tab
 from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.structure.analytic import analytic_relations
 from gearjax.structure.element import PinionGearElement
-from gearjax.models.base import WithoutContactLaw
+from gearjax.models.base import without_contact_law
 from gearjax.models.geared3d import Geared3DModel
 from gearjax.structure.condensation import Condensation, quasi_static_3d
 from gearjax.models.torsional import ModelError, TorsionalModel, solid_cylinder_inertias
@@ -494,7 +494,7 @@ def test_accelerated_transient_reaches_the_frequency_domain_orbit(torsional_setu
     periods on the orbit solved harmonic by harmonic (frequency domain, independent of
     any integration), where the plain automatic transient integrates tens of periods."""
     mesh, _, _, s, fixed = torsional_setup
-    m = WithoutContactLaw(Geared3DModel.build(
+    m = without_contact_law(Geared3DModel.build(
         s, mesh, table1_relief("short"), fixed_dofs=fixed, n_table=128, damping_ratio=0.05,
         formulation="perturbation", mesh_vectors="mean"))
     for omega in (jnp.asarray(800.0),):  # near the mode: 23 plain periods

@@ -275,3 +275,27 @@ def test_no_solver_chosen_by_a_string_below_the_command_line():
                     k.arg is None for k in node.keywords):
                 bad.append(f"{mod}:{node.lineno} {ast.unparse(node.func)}(**...)")
     assert not bad, "\n".join(bad)
+
+
+def test_the_model_interface_signals_no_capability_by_none():
+    """What a solver may ask of a model is declared, never signalled by a method that
+    returns None: the modal capabilities live on ``AbstractModalModel`` (abstract there),
+    so the solvers ask ``isinstance``, not ``is None``."""
+    tree = ast.parse((PKG / "models" / "base.py").read_text())
+    found = []
+    for cls in (n for n in tree.body if isinstance(n, ast.ClassDef)
+                and n.name in ("AbstractGearModel", "AbstractModalModel")):
+        for fn in (n for n in cls.body if isinstance(n, ast.FunctionDef)):
+            for node in ast.walk(fn):
+                if (isinstance(node, ast.Return) and isinstance(node.value, ast.Constant)
+                        and node.value.value is None):
+                    found.append(f"{cls.name}.{fn.name}")
+    assert not found, found
+    # and no solver asks a model for a capability by comparing with None
+    dyn = [p for p in (PKG / "dynamics").glob("*.py")]
+    asks = [f"{p.name}:{n.lineno}" for p in dyn for n in ast.walk(ast.parse(p.read_text()))
+            if isinstance(n, ast.Compare) and isinstance(n.left, ast.Call)
+            and isinstance(n.left.func, ast.Attribute)
+            and isinstance(n.left.func.value, ast.Name) and n.left.func.value.id == "model"
+            and any(isinstance(c, ast.Constant) and c.value is None for c in n.comparators)]
+    assert not asks, asks

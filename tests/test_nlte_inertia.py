@@ -26,7 +26,7 @@ import pytest
 
 from gearjax import Mesh, baud_velex_pair, contact_gaps, quasi_static, table1_relief
 from gearjax.dynamics.simulate import simulate
-from gearjax.models.base import WithoutContactLaw
+from gearjax.models.base import without_contact_law
 from gearjax.models.torsional import TorsionalModel
 
 SAMPLES = 128  # simulate's default samples per mesh period
@@ -87,7 +87,7 @@ def test_sdof_without_nlte_dd_matches_closed_form(long_sdof):
     sim = eqx.filter_jit(eqx.filter_vmap(lambda m, w: simulate(m, w, n_measured_periods=2),
                                          in_axes=(None, 0)))
     for model, with_nlte in ((dd_off, True), (zero, False)):
-        res = sim(WithoutContactLaw(model), jnp.asarray(SPEEDS))
+        res = sim(without_contact_law(model), jnp.asarray(SPEEDS))
         f_s = float(model.static_force_N)
         for i, omega in enumerate(SPEEDS):
             f_d, dte, te_s = _closed_form(model, omega, with_nlte)
@@ -109,7 +109,7 @@ def test_sdof_low_speed_matches_closed_form(long_sdof):
     sim = eqx.filter_jit(lambda m, w: simulate(m, w, n_measured_periods=2, save_signals=True))
     omega = 5.0
     for model, with_nlte in zip(long_sdof, (True, False)):
-        res = sim(WithoutContactLaw(model), jnp.asarray(omega))
+        res = sim(without_contact_law(model), jnp.asarray(omega))
         assert bool(res.solver_ok) and bool(res.converged)
         th = np.asarray(res.signals.theta_rad)
         # 2^15 FFT points: x_stat has kinks (harmonics ~ 1/h^2), the closed form's error
@@ -179,7 +179,7 @@ def test_3d_without_inertial_terms_differs_by_nlte_dd_e():
 
 
 def test_cli_switches_map_to_model_options():
-    from gearjax.cli.dynamics import case_name
+    from gearjax.cli.case import case_name
     from gearjax.cli.scenario import nlte_options_of
 
     def ns(no, zero):

@@ -16,7 +16,8 @@ from gearjax.rigs.registry import get_rig
 from gearjax.dynamics.sweep import Auto, Transient, sweep
 
 CSV_COLUMNS = ["speed_rad_s", "formulation", "max_mesh_force_N", "dynamic_factor", "dte_ptp_m",
-               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "converged", "convergence",
+               "accel_ptp_m_s2", "min_mesh_force_N", "contact_loss", "back_contact", "converged",
+               "convergence",
                "period_multiple"]
 
 

@@ -13,6 +13,7 @@ import pytest
 
 from gearjax import Mesh, baud_velex_pair, table1_relief
 from gearjax.dynamics.harmonic_sweep import HarmonicBalance
+from gearjax.dynamics.orbit import RESULTS, Orbit, measure, status_message
 from gearjax.dynamics.solvers import AbstractPeriodicSolver, Fallback
 from gearjax.dynamics.steady import Shooting
 from gearjax.dynamics.sweep import Auto, Transient, sweep, tolerance_options
@@ -42,6 +43,7 @@ def _agree(model, solver, tol, speeds):
     res = sweep(model, speeds, solver)
     assert np.all(ref.converged) and not np.any(ref.contact_loss)  # the linear regime
     assert np.all(res.converged) and not np.any(res.contact_loss)
+    assert np.all(res.status == RESULTS.successful)
     np.testing.assert_allclose(res.dynamic_factor, ref.dynamic_factor, rtol=0, atol=tol)
     np.testing.assert_allclose(res.dte_ptp_m, ref.dte_ptp_m, rtol=10 * tol)
     # a mesh-order amplitude (the fundamental) agrees like the peak
@@ -82,6 +84,10 @@ def test_fallback_hands_on_only_what_the_first_did_not_solve(sdof):
     assert lost.tolist() == [False, True]
     assert both.solver.tolist() == ["harmonic", "transient"]
     np.testing.assert_allclose(both.max_mesh_force_N, alone.max_mesh_force_N, rtol=1e-4)
+    # the frequency domain says why it handed 700 rad/s on; the transient solved both
+    first = sweep(model, speeds, HarmonicBalance())
+    assert first.status.tolist() == [RESULTS.successful, RESULTS.contact_lost]
+    assert both.status.tolist() == alone.status.tolist() == [RESULTS.successful] * 2
     assert isinstance(Fallback(Shooting(), Transient()), AbstractPeriodicSolver)
 
 
@@ -126,3 +132,35 @@ def test_sweep_refuses_a_string_solver_and_a_boolean_progress(sdof):
                 lambda: steady_sweep(sdof["te"], [300.0], progress=True)):
         with pytest.raises(SimulationError, match="progress meter"):
             run()
+
+
+def test_the_shooting_orbit_and_its_measure(sdof):
+    """:meth:`Shooting.orbit` is the periodic orbit: one period from its state returns to
+    it, its Floquet radius is Liouville's ``exp(-zeta omega_n T)`` (sdof: the trace of
+    df/dy is ``-2 zeta omega_n / Omega``, complex multipliers), its status ``successful``;
+    :func:`measure` of that orbit gives the shooting sweep's metrics (to the round-off of
+    another compiled program), and a step
+    limit too small to integrate a period gives ``integration_failed``, not a NaN alone."""
+    import math
+
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    model, w = sdof["te"], 300.0
+    shoot = Shooting()
+    orbit = eqx.filter_jit(lambda m: shoot.orbit(m, w))(model)
+    assert isinstance(orbit, Orbit) and int(orbit.status) == RESULTS.successful
+    t_period = float(model.period_rad) / w
+    rho = math.exp(-0.1 * float(model.natural_frequency_rad_s()) * t_period)
+    assert abs(float(orbit.floquet_radius) / rho - 1) < 1e-6
+    metrics = eqx.filter_jit(lambda m, o: measure(m, o, shoot.measured()))(model, orbit)
+    swept = sweep(model, [w], shoot)
+    assert float(metrics.max_mesh_force_N) == pytest.approx(float(swept.max_mesh_force_N[0]),
+                                                            rel=1e-9)
+    from gearjax.dynamics.steady import orbit_of, periodic_state
+
+    ps = eqx.filter_jit(lambda m: periodic_state(m, w, max_steps=2))(model)
+    bad = orbit_of(model, w, ps, 1e-10)
+    assert int(bad.status) == RESULTS.integration_failed
+    assert not bool(jnp.all(jnp.isfinite(bad.state)))
+    assert "integration" in status_message(bad.status)

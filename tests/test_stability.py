@@ -18,7 +18,7 @@ import pytest
 from scipy.linalg import expm
 
 from gearjax import Mesh, ToothModifications, baud_velex_pair, table1_relief
-from gearjax.models.base import WithoutContactLaw
+from gearjax.models.base import without_contact_law
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import SimulationError, simulate
 from gearjax.dynamics.stability import floquet_multipliers, monodromy, spectral_radius
@@ -87,7 +87,7 @@ def test_growth_inside_principal_zone_and_decay_outside(square_wave):
         lambda m, w: simulate(m, w, n_transient_periods=80, n_measured_periods=4,
                               save_signals=True), in_axes=(None, 0)))
     # Eq. (20) as printed (linear, no contact law): the force may turn tensile and grow
-    res = run(WithoutContactLaw(model), jnp.asarray([w_bad, 1000.0]))
+    res = run(without_contact_law(model), jnp.asarray([w_bad, 1000.0]))
     # per-period peak-to-peak of DTE after 80 periods: the growing Floquet solution dominates
     dte = np.asarray(res.signals.dte_m[0]).reshape(4, -1)
     ptp = np.ptp(dte, axis=1)

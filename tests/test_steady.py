@@ -56,12 +56,12 @@ def test_harmonic_excitation_closed_form():
     w_n = osc.omega_n / osc.order
     speeds = np.array([0.3 * w_n, w_n, 2.5 * w_n])
     run = eqx.filter_jit(eqx.filter_vmap(
-        lambda m, w: steady_state(m, w, rtol=1e-11, atol=1e-13, measure_rtol=1e-12,
-                                  measure_atol=1e-14), in_axes=(None, 0)))
+        lambda m, w: steady_state(m, w, Shooting(rtol=1e-11, atol=1e-13, measure_rtol=1e-12,
+                                                 measure_atol=1e-14)), in_axes=(None, 0)))
     out = run(osc, jnp.asarray(speeds))
     for i, w in enumerate(speeds):
         h = _frf(osc, w)
-        y0 = np.asarray(out.periodic.y0[i])
+        y0 = np.asarray(out.orbit.state[i])
         scale = abs(h) * osc.amplitude
         assert abs(y0[0] - osc.amplitude * h.real) < 1e-8 * scale
         assert abs(y0[1] + osc.order * osc.amplitude * h.imag) < 1e-8 * scale * osc.order
@@ -72,7 +72,7 @@ def test_harmonic_excitation_closed_form():
         assert bool(out.result.converged[i])
         # free decay over one period exp(-zeta w_n T): the Floquet radius of the oscillator
         rho = math.exp(-osc.damping_ratio * osc.omega_n * 2 * math.pi / (osc.order * w))
-        assert abs(float(out.periodic.spectral_radius[i]) / rho - 1) < 1e-6
+        assert abs(float(out.orbit.floquet_radius[i]) / rho - 1) < 1e-6
 
 
 def test_spectral_radius_by_squaring_matches_eigenvalues():
@@ -114,7 +114,7 @@ def test_monodromy_matches_stability_and_unstable_is_flagged(te_model):
     rho_ref = spectral_radius(te_model, speeds)
     np.testing.assert_allclose(st.spectral_radius, rho_ref, rtol=1e-6)
     assert rho_ref[-1] > 1.0 and np.all(rho_ref[:2] < 1.0)
-    np.testing.assert_array_equal(st.continued, [False, False, True])
+    np.testing.assert_array_equal((st.solver == "transient"), [False, False, True])
     np.testing.assert_array_equal(st.contact_loss, [False, False, True])
     assert st.min_mesh_force_N[-1] == 0.0 and np.all(st.converged[:2])
     assert np.all(st.solver_ok) and np.all(np.isfinite(st.dynamic_factor))
@@ -138,8 +138,8 @@ def _agrees_with_long_transient(model, speeds, n_transient):
         assert np.all(ok | cl), (name, a, b)
     assert np.all(st.converged) and np.all(np.asarray(long.converged))
     np.testing.assert_array_equal(st.contact_loss, cl)
-    assert np.all(st.continued == cl)
-    assert np.all(st.transient_periods[~st.continued] == 0)
+    assert np.all((st.solver == "transient") == cl)
+    assert np.all(st.transient_periods[~(st.solver == "transient")] == 0)
 
 
 @pytest.mark.slow
@@ -241,7 +241,7 @@ def test_newton_into_free_flight_stops_at_once(te_model, monkeypatch):
     assert np.all(np.asarray(calm.ok))
     np.testing.assert_allclose(ps.y0[0], calm.y0[0], rtol=1e-9, atol=1e-12)
     st = steady_sweep(te_model, speeds)
-    np.testing.assert_array_equal(st.continued, [False, True, True])
+    np.testing.assert_array_equal((st.solver == "transient"), [False, True, True])
     np.testing.assert_array_equal(st.contact_loss, [False, True, True])
     assert np.all(st.converged) and np.all(st.min_mesh_force_N[1:] == 0.0)
 
@@ -253,7 +253,7 @@ def test_clear_errors(te_model):
     with pytest.raises(SimulationError):
         steady_sweep(model, [-1.0])
     with pytest.raises(SimulationError):
-        steady_state(model, 300.0, n_measured_periods=1)
+        steady_state(model, 300.0, Shooting(n_measured_periods=1))
 
 
 # ---------------------------------------------------------------------- 3D rigs (slow)
@@ -302,21 +302,20 @@ def test_3d_te_agrees_with_long_transient(helical, n_transient):
 
 
 def test_loose_requested_accuracy_keeps_the_shooting_tight():
-    """``--rtol 1e-4`` with the shooting (:func:`gearjax.dynamics.steady.shooting_options`,
+    """``--rtol 1e-4`` with the shooting (:meth:`gearjax.dynamics.steady.Shooting.for_transient`,
     shared by ``sweep`` and ``optimise``): the measured periods run at 1e-4 and the
     shooting keeps its own 1e-9, because the error of one period integration reaches the
     periodic start amplified by 1 / (1 - rho). Lightly damped oscillator at resonance
     (zeta 0.005, rho 0.969, amplification 32): the peak-to-peak within the requested 1e-4
     of the closed-form frequency response (measured 2.1e-5; the shooting integrated at
     1e-4 too: 1.1e-3)."""
-    from gearjax.dynamics.steady import shooting_options
-    from gearjax.dynamics.sweep import tolerance_options
+    from gearjax.dynamics.sweep import Transient, tolerance_options
 
     osc = Oscillator(mass=2.0, stiffness=8e8, damping_ratio=0.005, amplitude=1e-5, order=26)
     w = osc.omega_n / osc.order
-    opts = shooting_options(tolerance_options(1e-4))
-    assert opts["measure_rtol"] == 1e-4 and "rtol" not in opts
-    assert "transient_decay" not in opts  # the transient's own option
-    out = eqx.filter_jit(lambda m: steady_state(m, w, **opts))(osc)
+    shoot = Shooting.for_transient(Transient(**tolerance_options(1e-4)))
+    assert shoot.measure_rtol == 1e-4 and shoot.rtol is None
+    assert not hasattr(shoot, "transient_decay")  # the transient's own option
+    out = eqx.filter_jit(lambda m: steady_state(m, w, shoot))(osc)
     ratio = float(out.result.dte_ptp_m) / (2 * abs(_frf(osc, w)) * osc.amplitude)
     assert bool(out.result.converged) and abs(ratio - 1) < 1e-4

@@ -55,7 +55,7 @@ def cmd_campbell(args) -> int:
     from ..rigs.campbell import campbell
     from ..rigs.factory import build_model
     from ..rigs.registry import get_rig
-    from .dynamics import modal_cutoff
+    from .case import modal_cutoff
     from .outputs import prepare_output_dir
     from .scenario import scenario_modifications
 

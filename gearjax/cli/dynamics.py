@@ -21,7 +21,8 @@ Section 6.3 cases (Velex & Ajmi), one command each (``--speeds`` to taste)::
 Several hosts (or several processes on one host): start the same command on every process
 with ``--distributed`` (cluster auto-detection: SLURM, Open MPI, ...) or with
 ``--coordinator HOST:PORT --num-processes N --process-id I``; the speeds are shared over
-every device of every process and process 0 writes the outputs.
+every device of every process and process 0 writes the outputs. ``--backlash`` (sweep):
+:mod:`gearjax.cli.backlash`; stability analyses the linear equations, without back flanks.
 
 3D modal cut-off: without ``--max-frequency`` the model keeps the modes below 3 mesh
 harmonics of the highest requested speed times 1.5, at least 6 kHz
@@ -37,62 +38,37 @@ pinion`` (torsional model only) gives Eqs. (15)-(16) as written. ``case.json`` a
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
-import math
 import os
 import sys
 import time
 
 import numpy as np
 
-from ..models.geared3d import (  # the default modal cut-off rule lives with the 3D model
-    CUTOFF_FLOOR_HZ,
-    CUTOFF_MARGIN,
-    CUTOFF_MESH_HARMONICS,
-    default_max_frequency_hz,
-)
 from ..runtime import watchdog
 from ..runtime.progress import command_meter
 from ..models.base import LINEAR_FORMULATIONS
 from ..dynamics.harmonic_sweep import HARMONIC_FLOQUET_MAX_STATES
-from ..dynamics.sweep import tolerance_options
-from ..errors import SimulationError
-from ..excitation.te_file import read_te_csv
 from ..gears.quasistatic import static_mesh_force
-from ..rigs.factory import build_model
 from ..rigs.campbell import campbell
 from ..rigs.figures import predicted_critical_speeds
 from .ahead import Ahead, build_and_compile_ahead
+from .backlash import add_backlash
 from .branches import DIRECTION_CHOICES, check_direction, run_branches
+from .case import (DynamicsCase, SweepCase, dynamics_case, sweep_case,
+                   transient_tolerances)
 from .devices import device_count, init_distributed, sweep_devices
 from .iso import iso_dynamic_factor
 from .signals import last_mesh_period_signals, write_order_tracks, write_signals
 from .solvers import METHODS, STABILITY_METHODS, solver_for
 from .scenario import (add_nlte_reaction, add_nlte_switches, add_speeds, add_torque,
-                       input_digests, linspace_option, missed_critical_speed, nlte_options_of,
-                       nlte_reaction_of, rig_notes, rig_of, speeds_of)
+                       missed_critical_speed)
 
-__all__ = ["register", "parse_speeds", "case_name", "default_max_frequency_hz", "modal_cutoff"]
-
-FORMULATIONS = ("reference", "te", "perturbation")
+__all__ = ["register", "cmd_sweep", "cmd_stability", "check_processes", "work_estimate"]
 # undamped stability: |spectral radius - 1| below this is round-off of the monodromy matrix
 # (neutral), above it a parametric instability
 NEUTRAL_TOLERANCE = 1e-6
-
-
-def modal_cutoff(args, rig, speeds_rad_s) -> tuple[float | None, str]:
-    """The 3D cut-off (Hz; None: all modes) of a command and where it comes from:
-    ``--max-frequency`` (0: all modes) or, without it, :func:`default_max_frequency_hz` at
-    the highest requested speed."""
-    hz = args.max_frequency
-    if hz is None:
-        w = float(np.max(speeds_rad_s))
-        hz = default_max_frequency_hz(w, rig.pair.z1)
-        return hz, (f"default: max({CUTOFF_FLOOR_HZ:g} Hz, {CUTOFF_MESH_HARMONICS} mesh "
-                    f"harmonics x {CUTOFF_MARGIN:g} at {w:g} rad/s)")
-    if not (math.isfinite(hz) and hz >= 0):
-        raise ValueError(f"--max-frequency={hz!r}: need a cut-off >= 0 Hz (0: all modes)")
-    return (float(hz), "--max-frequency") if hz > 0 else (None, "--max-frequency 0: all modes")
 
 
 def register(sub, add_rig, add_scenario):
@@ -109,6 +85,7 @@ def register(sub, add_rig, add_scenario):
                     help="comma-separated subset of reference,te,perturbation (default all; "
                          "te,perturbation with --te-file)")
     add_speeds(sw, "sweep")
+    add_backlash(sw)
     sw.add_argument("--signals", default=None, metavar="SPEEDS",
                     help="comma-separated pinion speeds (rad/s) whose mesh force over the last "
                          "mesh period is also written and plotted (Fig. 11), e.g. 100,400,800")
@@ -208,372 +185,276 @@ def _add_dynamics(p: argparse.ArgumentParser):
                         "6000 Hz)")
 
 
-def parse_speeds(text: str | None) -> np.ndarray:
-    """The pinion speeds of ``--speeds A:B:N`` (rad/s): ``0 < A <= B``, ``N >= 1``; None
-    (no ``--speeds``: the rig's default, :func:`gearjax.cli.scenario.speeds_of`) gives the
-    paper's 20:900:45, which has the default's count of speeds."""
-    if text is None:
-        text = "20:900:45"
-    return linspace_option(text, "--speeds", example="20:900:60", unit="rad/s")
+def _stderr(command: str, kind: str, text: str) -> None:
+    print(f"gearjax {command}: {kind}: {text}", file=sys.stderr, flush=True)
 
 
-def _parse_signal_speeds(text: str | None) -> list[float]:
-    if not text:
-        return []
-    try:
-        vals = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise ValueError(f"--signals={text!r}: expected comma-separated speeds in rad/s, "
-                         "e.g. 100,400,800") from None
-    if not vals or not all(math.isfinite(v) and v > 0 for v in vals):
-        raise ValueError(f"--signals={text!r}: speeds must be finite and > 0 (rad/s)")
-    return vals
-
-
-def _check_damping(z: float):
-    if not (math.isfinite(z) and 0.0 <= z < 1.0):
-        raise ValueError(f"--damping={z!r}: the modal damping factor must lie in [0, 1)")
-
-
-def case_name(args, scenario=None) -> str:
-    """Folder name of a sweep case, e.g. ``baud-velex-spur-3d-short-zeta0.1-enc1``
-    (``scenario``: the :class:`gearjax.cli.scenario.Scenario` used, naming its relief)."""
-    rig = os.path.splitext(os.path.basename(args.rig))[0]
-    relief = scenario.key if scenario is not None else (args.relief or "short")
-    if scenario is None and (args.relief_amplitude is not None or args.relief_extent is not None):
-        relief = f"relief{args.relief_amplitude or 'T1'}x{args.relief_extent or 'T1'}"
-    parts = [rig, args.model, relief]
-    if scenario.pitch_errors if scenario is not None else args.pitch_errors:
-        parts.append("pitch")
-    parts.append(f"zeta{args.damping:g}")
-    if args.zero_nlte:
-        parts.append("zero-nlte")
-    elif args.no_nlte_terms:
-        parts.append("no-nlte-dd")
-    if args.nlte_reaction != "drive":
-        parts.append(f"nlte-{args.nlte_reaction}")
-    if args.model == "3d":
-        parts.append(f"enc{args.encoders}")
-    return "-".join(parts)
-
-
-def _forms(text: str) -> list[str]:
-    forms = [f.strip() for f in text.split(",") if f.strip()]
-    bad = [f for f in forms if f not in FORMULATIONS]
-    if bad or not forms:
-        raise ValueError(f"--formulations={text!r}: choose from reference,te,perturbation")
-    return list(dict.fromkeys(forms))
-
-
-def _check_cutoff(args, rig, cutoff_hz) -> None:
-    """Refuse a 3D ``--max-frequency`` below the lowest natural frequency (it would keep no
-    vibration mode), from the rig's modal analysis alone, before the model is built."""
-    if args.model != "3d" or not cutoff_hz or args.max_frequency is None:
-        return
-    from ..rigs.figures import three_d_figures
-
-    f1 = three_d_figures(rig, args.stiffness, args.encoders, n_frequencies=1)["natural_frequencies_hz"][0]
-    if cutoff_hz < f1:
-        raise ValueError(f"--max-frequency={args.max_frequency!r}: keeps no vibration mode (the "
-                         f"lowest natural frequency of the 3D model is {f1:.1f} Hz); give a "
-                         "cut-off above it, or 0 for all modes")
-
-
-def cutoff_warning(args, rig, cutoff_hz, speeds_rad_s) -> str | None:
-    """A warning where ``--max-frequency`` lies below the mesh frequency of the highest
-    speed, ``f_m = z1 Omega_max / (2 pi)`` (Hz): the modes that the mesh fundamental
-    excites there then answer quasi-statically (static corrections), so the response
-    curves are not those of the structure (``benchmarks/results/cutoff.md``: a cut-off
-    at 1 f_m already moved the peak dynamic factor by up to 8e-3 against all modes).
-    None for the default cut-off, all modes or the torsional model."""
-    if args.model != "3d" or not cutoff_hz or args.max_frequency is None:
-        return None
-    w = float(np.max(speeds_rad_s))
-    f_m = rig.pair.z1 * w / (2 * math.pi)
-    if cutoff_hz >= f_m:
-        return None
-    return (f"--max-frequency={args.max_frequency:g} Hz lies below the mesh frequency at "
-            f"{w:g} rad/s ({f_m:.0f} Hz): the modes it excites answer quasi-statically in this "
-            f"reduced model, so the dynamic response is not the structure's; the default for "
-            f"these speeds is {default_max_frequency_hz(w, rig.pair.z1):.0f} Hz (leave "
-            f"--max-frequency out)")
-
-
-def _check_te_file(args, forms) -> None:
-    """--te-file drives the te/perturbation formulations only (Section 6.2)."""
-    if not args.te_file:
-        return
-    if "reference" in forms:
-        raise ValueError(f"--te-file={args.te_file}: the reference formulation (Eqs. (14), (16): a "
-                         "gap per contact cell) cannot use a TE file; choose --formulations "
-                         "te,perturbation (the default with --te-file)")
-
-
-def _tolerances(args) -> dict:
-    """``--rtol`` as :func:`gearjax.dynamics.sweep.tolerance_options` reads it, its range
-    error as a command-line error."""
-    try:
-        return tolerance_options(args.rtol)
-    except SimulationError as exc:
-        raise ValueError(f"--rtol={args.rtol!r}: must lie in [1e-13, 1e-2]") from exc
-
-
-def cmd_sweep(args) -> int:
+def _prepare_outputs(case: SweepCase, lead: bool) -> dict:
+    """Check the output folder and write ``case.json`` before anything is computed
+    (process 0 only); the ``{formulation: speeds}`` already in ``results.csv`` when
+    resuming, else empty."""
     from ..dynamics.results import CSV_COLUMNS, ORDER_COLUMNS, check_header
-    from ..dynamics.sweep import sweep
     from .outputs import prepare_output_dir
-    from .results import (RESULT_FILES, check_resume, done_speeds, max_force_by_speed,
-                          method_counts, print_summary, read_rows, summarise_rows, write_case)
-    from .scenario import scenario_modifications
+    from .results import RESULT_FILES, check_resume, done_speeds, read_rows, write_case
 
-    if args.resume and (args.distributed or args.coordinator is not None
-                        or args.num_processes is not None):
-        raise ValueError("--resume: not with several processes (resume on one process, or "
-                         "start a new --out folder)")
-    check_direction(args)
-    lead = init_distributed(args)
-    if args.speeds is not None:
-        parse_speeds(args.speeds)  # a bad range is reported before the rig is read
-    forms = _forms(args.formulations or ("te,perturbation" if args.te_file
-                                         else "reference,te,perturbation"))
-    _check_te_file(args, forms)
-    sig_speeds = _parse_signal_speeds(args.signals)
-    _check_damping(args.damping)
-    if args.model == "torsional" and args.encoders != 1:
-        raise ValueError("--encoders: the torsional model has no encoder positions (3d only)")
-    reaction = nlte_reaction_of(args)
-    if args.resume and args.overwrite:
-        raise ValueError("--resume --overwrite: choose one (continue the run, or replace it)")
-    if args.chunk is not None and args.chunk < 1:
-        raise ValueError(f"--chunk={args.chunk}: must be >= 1")
-    tolerances = _tolerances(args)
-    if tolerances and args.direction != "independent":
-        raise ValueError(f"--rtol={args.rtol!r}: for independent sweeps (the continuation of "
-                         "--direction keeps its shooting tolerances)")
-    rig = rig_of(args)
-    spec = speeds_of(args, rig, "sweep", law=args.stiffness, model=args.model,
-                     damping=args.damping)
-    speeds = spec.rad_s
-    scen = scenario_modifications(rig, args)
-    mods = scen.mods
-    te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
-    case = case_name(args, scen)
-    out = args.out or os.path.join("gearjax-out", case)
-    # a plain re-run (no --out) replaces the earlier run of its own default folder
-    replace = (args.out is None and not args.resume and not args.overwrite
-               and any(os.path.exists(os.path.join(out, n)) for n in RESULT_FILES))
-    csv_path = os.path.join(out, "results.csv")
-    orders_path = os.path.join(out, "orders.csv")  # mesh orders 1-5 (gearjax.dynamics.orders)
-    cutoff_hz, cutoff_source = (modal_cutoff(args, rig, np.concatenate([speeds, sig_speeds]))
-                                if args.model == "3d" else (None, None))
-    _check_cutoff(args, rig, cutoff_hz)
-    warning = cutoff_warning(args, rig, cutoff_hz, speeds)
-    if warning and lead:
-        print(f"gearjax sweep: warning: {warning}", file=sys.stderr, flush=True)
-    record = {
-        "case": case, "rig": rig.name, "model": args.model, "stiffness_law": args.stiffness,
-        **scen.summary(), "damping": args.damping,
-        "nlte_terms": not args.zero_nlte, "nlte_reaction": reaction,
-        **({"nlte_inertia": False} if args.no_nlte_terms else {}),
-        "encoders": args.encoders, "max_frequency_hz": cutoff_hz, "formulations": forms,
-        **({"te_file": os.path.abspath(args.te_file)} if args.te_file else {}),
-        # the rig and TE files' contents, not only their names: an edited file is another case
-        **input_digests(args), "pinion_torque_Nm": rig.pinion_torque_Nm,
-        # the specification, not the speeds (ten million of them are 231 MB of JSON)
-        **{k: v for k, v in spec.record().items() if k != "speeds_source"},
-    }
-    if args.rtol is not None:
-        record["rtol"] = float(args.rtol)
-    if args.direction != "independent":
-        record["direction"] = args.direction
+    if not lead:
+        return {}
+    prepare_output_dir("--out", case.out, results=RESULT_FILES, resume=case.args.resume,
+                       overwrite=case.args.overwrite or case.replace)
+    if case.replace:
+        _stderr("sweep", "note", f"replacing the earlier run in {case.out} (this case's default "
+                "folder; --resume continues it instead, --out DIR keeps both)")
     done: dict = {}
-    if lead:  # every output problem is reported now, before any computing
-        prepare_output_dir("--out", out, results=RESULT_FILES, resume=args.resume,
-                           overwrite=args.overwrite or replace)
-        if replace:
-            print(f"gearjax sweep: replacing the earlier run in {out} (this case's default "
-                  "folder; --resume continues it instead, --out DIR keeps both)",
-                  file=sys.stderr, flush=True)
-        if args.resume:
-            check_resume(out, record)
-            for path, columns in ((csv_path, CSV_COLUMNS), (orders_path, ORDER_COLUMNS)):
-                check_header(path, columns, "--resume")
-            done = done_speeds(read_rows(csv_path, repair=True))
-            read_rows(orders_path, repair=True)
-        write_case(out, record)
-    devices = sweep_devices(args.method)
-    nlte = nlte_options_of(args)
-    notes = rig_notes(rig, args.model)
-    estimate = work_estimate(args.model, speeds.size, len(forms))
-    if estimate:
-        notes.append(estimate)
-    if lead:
-        for note in notes:
-            print(f"gearjax sweep: note: {note}", file=sys.stderr, flush=True)
-    summary = {
-        "case": case, "rig": rig.name, "model": args.model,
-        "stiffness_law": args.stiffness, "relief": args.relief or scen.key, **scen.summary(),
-        "damping": args.damping,
-        "nlte_terms": not args.zero_nlte, "nlte_inertia": nlte["nlte_inertia"],
-        "nlte_reaction": reaction, "encoders": args.encoders, "te_file": args.te_file,
-        "max_frequency_hz": cutoff_hz, "max_frequency_source": cutoff_source,
-        "rtol": args.rtol, "devices": device_count(devices),
-        "pinion_torque_Nm": rig.pinion_torque_Nm,
-        "static_mesh_force_N": static_mesh_force(rig.pair, rig.pinion_torque_Nm),
-        **spec.record(),
-        **({"excitation": _excitation(args, te, scen)} if te is not None else {}),
+    if case.args.resume:
+        check_resume(case.out, case.record())
+        for path, columns in ((case.csv_path, CSV_COLUMNS), (case.orders_path, ORDER_COLUMNS)):
+            check_header(path, columns, "--resume")
+        done = done_speeds(read_rows(case.csv_path, repair=True))
+        read_rows(case.orders_path, repair=True)
+    write_case(case.out, case.record())
+    return done
+
+
+def _summary_head(case: SweepCase, devices, notes: list[str]) -> dict:
+    """``summary.json`` before any result: the case record and what the run chose."""
+    a = case.args
+    return {
+        **case.record(), "relief": a.relief or case.scenario.key,
+        "nlte_inertia": case.nlte["nlte_inertia"], "te_file": a.te_file,
+        "max_frequency_source": case.cutoff_source, "rtol": a.rtol,
+        "devices": device_count(devices), "backlash_m": case.rig.backlash_m,
+        "static_mesh_force_N": static_mesh_force(case.rig.pair, case.rig.pinion_torque_Nm),
+        **case.spec.record(),
+        **({"excitation": _excitation(a, case.te, case.scenario)} if case.te is not None else {}),
         "formulations": {},
-        **({"warnings": [warning]} if warning else {}),
+        **({"warnings": [case.warning]} if case.warning else {}),
         **({"notes": notes} if notes else {}),
-        **({"replaced_earlier_run": True} if replace else {}),
+        **({"replaced_earlier_run": True} if case.replace else {}),
+        **iso_dynamic_factor(a, case.rig, case.scenario.mods, case.speeds),
     }
-    if done:
-        summary["resumed"] = {f: len(v) for f, v in done.items()}
-    iso = iso_dynamic_factor(args, rig, mods, speeds)
-    summary.update(iso)
-    times, signals, methods, branches = {}, {}, {}, {}
-    if lead:  # a stall (gearjax.runtime.watchdog) ends the process: say where the rows are
-        watchdog.add_stall_hook(lambda: f"the speeds finished so far are in {csv_path}; continue "
-                                        "with the same command and --resume")
-    t_all = time.perf_counter()
-    interrupted = False
+
+
+def _model_summary(model, speeds, lead: bool, three_d: bool) -> dict:
+    """What the first model built tells ``summary.json``: its predicted critical speeds
+    (and a warning where the sweep misses the main one), its k_m as ``gearjax info`` names
+    it (:mod:`gearjax.rigs.loaded`), its own critical speeds (``gearjax campbell``'s marked
+    crossings, orders 1-5: ``gearjax paper`` judges "near a critical speed" by them) and,
+    3D, its mode count and w_x0."""
+    out = {"predicted": predicted_critical_speeds(model)}
+    missed = missed_critical_speed(out["predicted"], speeds)
+    if missed:
+        out["warnings"] = [missed]
+        if lead:
+            _stderr("sweep", "warning", missed)
+    out["loaded_mean_mesh_stiffness_N_per_m"] = float(model.k_m)
+    out["critical_speeds"] = campbell(model, float(np.max(speeds))).critical_speeds()
+    if three_d:
+        out.update(n_modes=int(model.n_modes), w_x0_m=float(model.w_x0))
+    return out
+
+
+@dataclasses.dataclass
+class _Runs:
+    """What the formulations' sweeps gave: per formulation (build s, sweep s), the speeds
+    per solver, the continuation summaries and the ``--signals`` records."""
+
+    times: dict = dataclasses.field(default_factory=dict)
+    methods: dict = dataclasses.field(default_factory=dict)
+    branches: dict = dataclasses.field(default_factory=dict)
+    signals: dict = dataclasses.field(default_factory=dict)
+    interrupted: bool = False
+
+
+def _sweep_formulations(case: SweepCase, first, done: dict, devices, lead: bool,
+                        summary: dict) -> _Runs:
+    """Sweep every formulation of ``case`` in turn (``first``: the model of the first one,
+    already built), appending rows to ``results.csv``/``orders.csv``; a 3D te/perturbation
+    pair shares one build, and the next program compiles ahead (:mod:`gearjax.cli.ahead`).
+    Ctrl-C ends the loop with what is written."""
+    from ..dynamics.sweep import sweep
+    from .results import method_counts
+
+    a, speeds, runs = case.args, case.speeds, _Runs()
+
+    def todo_of(form):  # vectorised: ten million speeds in well under a second
+        got = np.fromiter(done.get(form, ()), dtype=float)
+        return speeds[~np.isin(speeds, got)] if got.size else speeds
+
+    def sweep_options(model):
+        size = None if a.chunk is None else min(a.chunk, todo_of(model.formulation).size)
+        return dict(solver=solver_for(a.method, model, a.rtol, case.tolerances),
+                    chunk_size=size, devices=devices)
+
+    linear = None  # a 3D te/perturbation model: the other one shares its build
+    early, ahead = {case.forms[0]: first}, Ahead()  # models built ahead, compiling programs
     try:
-        def build(form):
-            return build_model(rig, mods, model=args.model, formulation=form, law=args.stiffness,
-                               damping_ratio=args.damping, encoder_position=args.encoders, **nlte,
-                               max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te,
-                               moving_events=False)  # forward only
-
-        def todo_of(form):  # vectorised: ten million speeds in well under a second
-            got = np.fromiter(done.get(form, ()), dtype=float)
-            return speeds[~np.isin(speeds, got)] if got.size else speeds
-
-        def sweep_options(model):
-            size = None if args.chunk is None else min(args.chunk, todo_of(model.formulation).size)
-            return dict(solver=solver_for(args.method, model, args.rtol, tolerances),
-                        chunk_size=size, devices=devices)
-
-        linear = None  # a 3D te/perturbation model: the other one shares its build
-        early, ahead = {}, Ahead()  # programs compiling on threads, a model built ahead
-        for form in forms:
+        for form in case.forms:
             t0 = time.perf_counter()
             shared = linear is not None and form in LINEAR_FORMULATIONS
             if shared:
                 model = linear.with_formulation(form)
             elif form in early:
                 model, t_pre = early.pop(form)
-                t0 -= t_pre  # its build's time, before the reference sweep
+                t0 -= t_pre  # its build's time, before this formulation's turn
             else:
-                model = build(form)
+                model = case.build(form)
             t_build = time.perf_counter() - t0
+            traced = 0.0
             if ahead.own is None and ahead.nxt is None:
-                ahead = build_and_compile_ahead(args, forms, form, model, build, todo_of,
-                                                sweep_options, early)
+                ahead = build_and_compile_ahead(a, list(case.forms), form, model, case.build,
+                                                todo_of, sweep_options, early)
                 traced = ahead.own_trace_s  # this formulation's tracing, done ahead
-            else:
-                traced = 0.0
             built = (f"the {linear.formulation} build" if shared else
-                     f"{args.model} model built in {t_build:.1f} s")
-            if args.model == "3d" and form in LINEAR_FORMULATIONS and not shared:
+                     f"{a.model} model built in {t_build:.1f} s")
+            if a.model == "3d" and form in LINEAR_FORMULATIONS and not shared:
                 linear = model
             if "predicted" not in summary:
-                summary["predicted"] = predicted_critical_speeds(model)
-                missed = missed_critical_speed(summary["predicted"], speeds)
-                if missed:
-                    summary.setdefault("warnings", []).append(missed)
-                    if lead:
-                        print(f"gearjax sweep: warning: {missed}", file=sys.stderr, flush=True)
-                # the k_m of the model (gearjax.rigs.loaded), as `gearjax info` names it
-                summary["loaded_mean_mesh_stiffness_N_per_m"] = float(model.k_m)
-                # its own critical speeds (gearjax campbell's marked crossings, orders 1-5):
-                # gearjax paper judges "near a critical speed" by them
-                summary["critical_speeds"] = campbell(model, float(np.max(speeds))).critical_speeds()
-                if args.model == "3d":
-                    summary["n_modes"] = int(model.n_modes)
-                    summary["w_x0_m"] = float(model.w_x0)
+                extra = _model_summary(model, speeds, lead, a.model == "3d")
+                summary.setdefault("warnings", []).extend(extra.pop("warnings", []))
+                summary.update(extra)
             todo = todo_of(form)
-            if lead and not args.json:
+            if lead and not a.json:
                 left = f", {todo.size} left to compute" if todo.size < speeds.size else ""
-                print(f"  {form}: {speeds.size} speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rad/s{left} "
-                      f"({built})", file=sys.stderr, flush=True)
+                print(f"  {form}: {speeds.size} speeds {speeds[0]:.0f}-{speeds[-1]:.0f} rad/s"
+                      f"{left} ({built})", file=sys.stderr, flush=True)
             t0 = time.perf_counter()
-            if todo.size and args.direction != "independent":
-                branches[form] = run_branches(model, todo, args.direction, csv_path,
-                                              progress=command_meter(not args.json))
+            if todo.size and a.direction != "independent":
+                runs.branches[form] = run_branches(model, todo, a.direction, case.csv_path,
+                                                   progress=command_meter(not a.json))
             elif todo.size:
-                # default: sweep's (CPU: 16-64 speeds per device; accelerators: memory)
                 ahead.join(mine=form == "reference", linear=form in LINEAR_FORMULATIONS)
-                res = sweep(model, todo, progress=command_meter(not args.json), out_csv=csv_path,
-                            orders_csv=orders_path, **sweep_options(model))
-                methods[form] = method_counts(res)
-            times[form] = (t_build, time.perf_counter() - t0 + traced)
-            if sig_speeds and lead:
-                signals[form] = last_mesh_period_signals(model, sig_speeds)
+                res = sweep(model, todo, progress=command_meter(not a.json),
+                            out_csv=case.csv_path, orders_csv=case.orders_path,
+                            **sweep_options(model))
+                runs.methods[form] = method_counts(res)
+            runs.times[form] = (t_build, time.perf_counter() - t0 + traced)
+            if case.signal_speeds and lead:
+                runs.signals[form] = last_mesh_period_signals(model, list(case.signal_speeds))
     except KeyboardInterrupt:
-        interrupted = True
-    if not lead:
-        return 130 if interrupted else 0  # process 0 writes the outputs
-    rows = read_rows(csv_path)
-    for form in forms:
+        runs.interrupted = True
+    if not summary.get("warnings"):
+        summary.pop("warnings", None)
+    return runs
+
+
+def _agreement(rows: list[dict], forms) -> dict:
+    """Per te/perturbation formulation, the largest and median relative difference of
+    the max mesh force from the reference's at the speeds both computed."""
+    from .results import max_force_by_speed
+
+    ref = max_force_by_speed(rows, "reference")
+    agree = {}
+    for f in forms:
+        if f == "reference":
+            continue
+        mine = max_force_by_speed(rows, f)
+        rel = [abs(mine[w] - ref[w]) / ref[w] for w in mine if w in ref]
+        if rel:
+            agree[f] = {"max_rel_diff_max_mesh_force": float(np.nanmax(rel)),
+                        "median_rel_diff_max_mesh_force": float(np.nanmedian(rel))}
+    return agree
+
+
+def _finish(case: SweepCase, summary: dict, runs: _Runs, t_all: float) -> int:
+    """Summarise whatever rows ``results.csv`` holds, draw the figures, write
+    ``summary.json`` and print the closing table (or the JSON, or the interruption)."""
+    from ..plotting import plot_branches, plot_response_curves
+    from .results import print_summary, read_rows, summarise_rows
+
+    a, speeds = case.args, case.speeds
+    rows = read_rows(case.csv_path)
+    for form in case.forms:
         if not any(r["formulation"] == form for r in rows):
             continue
         s = summarise_rows(rows, form, speeds)
-        t_build, elapsed = times.get(form, (float("nan"), float("nan")))
+        t_build, elapsed = runs.times.get(form, (float("nan"), float("nan")))
         s.update(build_time_s=t_build, wall_time_s=elapsed)
-        if form in methods:
-            s["method"] = methods[form]
-        if form in branches:
-            s["branches"] = branches[form]
+        if form in runs.methods:
+            s["method"] = runs.methods[form]
+        if form in runs.branches:
+            s["branches"] = runs.branches[form]
         summary["formulations"][form] = s
     if "reference" in summary["formulations"]:
-        ref = max_force_by_speed(rows, "reference")
-        agree = {}
-        for f in summary["formulations"]:
-            if f == "reference":
-                continue
-            mine = max_force_by_speed(rows, f)
-            rel = [abs(mine[w] - ref[w]) / ref[w] for w in mine if w in ref]
-            if rel:
-                agree[f] = {"max_rel_diff_max_mesh_force": float(np.nanmax(rel)),
-                            "median_rel_diff_max_mesh_force": float(np.nanmedian(rel))}
-        summary["agreement_with_reference"] = agree
-    summary["results_csv"] = csv_path
-    title = (f"{rig.name}, {args.model}, "
-             f"{summary['excitation'] if te is not None else scen.label}"
-             f"{', pitch errors' if scen.pitch_errors else ''}, damping {args.damping}"
-             + (", NLTE = 0" if args.zero_nlte else ", NLTE'' = 0" if args.no_nlte_terms else "")
-             + f"{' (interrupted)' if interrupted else ''}")
+        summary["agreement_with_reference"] = _agreement(rows, summary["formulations"])
+    summary["results_csv"] = case.csv_path
+    scen = case.scenario
+    title = (f"{case.rig.name}, {a.model}, "
+             f"{summary['excitation'] if case.te is not None else scen.label}"
+             f"{', pitch errors' if scen.pitch_errors else ''}, damping {a.damping}"
+             + (", NLTE = 0" if a.zero_nlte else ", NLTE'' = 0" if a.no_nlte_terms else "")
+             + f"{' (interrupted)' if runs.interrupted else ''}")
     if rows:
-        from ..plotting import plot_branches, plot_response_curves
-
-        fig_path = os.path.join(out, "response_curves.png")
-        if args.direction == "independent":
+        fig_path = os.path.join(case.out, "response_curves.png")
+        if a.direction == "independent":
             dense = np.linspace(float(speeds[0]), float(speeds[-1]), 400)  # ISO's ranges' kinks
-            plot_response_curves(csv_path, fig_path, title=title,
-                                 iso_kv=(dense, iso_dynamic_factor(args, rig, mods, dense)[
-                                     "iso6336_kv"], iso["iso6336_resonance_speed_rad_s"]))
+            kv = iso_dynamic_factor(a, case.rig, scen.mods, dense)["iso6336_kv"]
+            plot_response_curves(case.csv_path, fig_path, title=title,
+                                 iso_kv=(dense, kv, summary["iso6336_resonance_speed_rad_s"]))
         else:
-            plot_branches(csv_path, fig_path, title=title)
+            plot_branches(case.csv_path, fig_path, title=title)
         summary["response_curves_png"] = fig_path
-        summary.update(write_order_tracks(orders_path, out, title))
-    if signals and not interrupted:
-        summary.update(write_signals(signals, out, title))
+        summary.update(write_order_tracks(case.orders_path, case.out, title))
+    if runs.signals and not runs.interrupted:
+        summary.update(write_signals(runs.signals, case.out, title))
     summary["total_time_s"] = time.perf_counter() - t_all
-    if interrupted:
+    if runs.interrupted:
         summary["interrupted"] = True
-    with open(os.path.join(out, "summary.json"), "w") as fh:
+    with open(os.path.join(case.out, "summary.json"), "w") as fh:
         json.dump(summary, fh, indent=2)
-    if interrupted:
+    if runs.interrupted:
         n = len(rows)
-        print(f"gearjax: interrupted (Ctrl-C); kept {n} result row{'s' * (n != 1)} in {out} "
+        print(f"gearjax: interrupted (Ctrl-C); kept {n} result row{'s' * (n != 1)} in {case.out} "
               f"(summary.json{', response_curves.png' if rows else ''}); continue with the same "
               "command and --resume", file=sys.stderr)
         return 130
-    if args.json:
+    if a.json:
         print(json.dumps(summary, indent=2))
-        return 0
-    print_summary(rig, summary, out)
+    else:
+        print_summary(case.rig, summary, case.out)
     return 0
+
+
+def check_processes(args) -> None:
+    """The option checks that must come before joining a distributed run: ``--resume``
+    and ``--direction`` are for one process."""
+    if args.resume and (args.distributed or args.coordinator is not None
+                        or args.num_processes is not None):
+        raise ValueError("--resume: not with several processes (resume on one process, or "
+                         "start a new --out folder)")
+    check_direction(args)
+
+
+def cmd_sweep(args) -> int:
+    """``gearjax sweep``: a validated case, the first model built (a bad cut-off is an
+    input error, reported before any output), the output folder prepared, every
+    formulation swept, the summary written."""
+    check_processes(args)
+    lead = init_distributed(args)
+    case = sweep_case(args)
+    if case.warning and lead:
+        _stderr("sweep", "warning", case.warning)
+    t0 = time.perf_counter()
+    first = (case.build(case.forms[0]), time.perf_counter() - t0)
+    done = _prepare_outputs(case, lead)
+    devices = sweep_devices(args.method)
+    notes = list(case.notes)
+    estimate = work_estimate(args.model, case.speeds.size, len(case.forms))
+    if estimate:
+        notes.append(estimate)
+    if lead:
+        for note in notes:
+            _stderr("sweep", "note", note)
+    summary = _summary_head(case, devices, notes)
+    if done:
+        summary["resumed"] = {f: len(v) for f, v in done.items()}
+    if lead:  # a stall (gearjax.runtime.watchdog) ends the process: say where the rows are
+        watchdog.add_stall_hook(lambda: f"the speeds finished so far are in {case.csv_path}; "
+                                        "continue with the same command and --resume")
+    t_all = time.perf_counter()
+    runs = _sweep_formulations(case, first, done, devices, lead, summary)
+    if not lead:
+        return 130 if runs.interrupted else 0  # process 0 writes the outputs
+    return _finish(case, summary, runs, t_all)
 
 
 # Cost of one speed of one formulation after compiling, on 2 CPU cores
@@ -610,36 +491,17 @@ def cmd_stability(args) -> int:
     from ..dynamics.small_gain import SMALL_GAIN_MARGIN
     from ..dynamics.stability import spectral_radius
 
-    from .scenario import scenario_modifications
-
-    if args.speeds is not None:
-        parse_speeds(args.speeds)  # a bad range is reported before the rig is read
-    _check_damping(args.damping)
-    _check_te_file(args, [args.formulation])
     # the monodromy's integrator takes --rtol (atol R/100): the accuracy of rho
-    tols = {k: v for k, v in _tolerances(args).items() if k in ("rtol", "atol")}
-    reaction = nlte_reaction_of(args)
-    rig = rig_of(args)
-    spec = speeds_of(args, rig, "stability", law=args.stiffness, model=args.model,
-                     damping=args.damping)
-    speeds = spec.rad_s
-    scen = scenario_modifications(rig, args)
-    mods = scen.mods
-    te = read_te_csv(args.te_file, rig.pair.mesh_period_rad) if args.te_file else None
-    cutoff_hz, cutoff_source = modal_cutoff(args, rig, speeds) if args.model == "3d" else (None, None)
-    _check_cutoff(args, rig, cutoff_hz)
-    warning = cutoff_warning(args, rig, cutoff_hz, speeds)
+    tols = {k: v for k, v in transient_tolerances(args).items() if k in ("rtol", "atol")}
+    case = DynamicsCase(**dynamics_case(args, "stability", [args.formulation]))
+    rig, spec, speeds, scen = case.rig, case.spec, case.speeds, case.scenario
+    reaction, cutoff_hz, cutoff_source = case.reaction, case.cutoff_hz, case.cutoff_source
+    warning, notes = case.warning, list(case.notes)  # after every input check: one line
     if warning:
-        print(f"gearjax stability: warning: {warning}", file=sys.stderr, flush=True)
-    notes = rig_notes(rig, args.model)  # after every input check: an error stays one line
+        _stderr("stability", "warning", warning)
     for note in notes:
-        print(f"gearjax stability: note: {note}", file=sys.stderr, flush=True)
-    model = build_model(rig, mods, model=args.model, formulation=args.formulation,
-                        law=args.stiffness, damping_ratio=args.damping,
-                        encoder_position=args.encoders,
-                        **nlte_options_of(args),
-                        max_frequency_hz=cutoff_hz, nlte_reaction=reaction, te_table=te,
-                        moving_events=False)
+        _stderr("stability", "note", note)
+    model = case.build(args.formulation, back_flanks=False)  # linear: no back flanks
     method = args.method
     if method == "auto":  # the monodromy costs n columns: cheap for the sdof model only
         method = "steady" if model.state_size <= HARMONIC_FLOQUET_MAX_STATES else "harmonic"

@@ -124,7 +124,9 @@ _COMMAND_EXAMPLES = {
     "sweep": """examples:
   gearjax sweep                           the paper's spur case (Fig. 9): 3D rig, 45 speeds
   gearjax sweep --model torsional --damping 0.03 --speeds 300:900:25 --out sdof
-                                          the sdof model; then sdof/response_curves.png""",
+                                          the sdof model; then sdof/response_curves.png
+  gearjax sweep --model torsional --damping 0.03 --backlash 10e-6 --speeds 600:900:31
+                                          10 um between the back flanks: double-sided impacts""",
     "stability": """examples:
   gearjax stability --model torsional --speeds 300:900:13
                                           Floquet spectral radius per speed (te)
@@ -413,7 +415,7 @@ def compile_bound(args) -> bool:
         return False
     if not args.damping >= COMPILE_BOUND_3D_DAMPING:
         return False
-    from .dynamics import parse_speeds
+    from .case import parse_speeds
 
     try:
         n = parse_speeds(args.speeds).size

@@ -120,6 +120,7 @@ def summarise_rows(rows: list[dict], formulation: str, speeds: np.ndarray) -> di
     conv = np.array([r["converged"] == "True" for r in rs], dtype=bool)
     resid = np.array([_float(r.get("convergence", "nan")) for r in rs])
     loss = np.array([r["contact_loss"] == "True" for r in rs], dtype=bool)
+    back = np.array([r.get("back_contact") == "True" for r in rs], dtype=bool)
     period = np.array([_float(r.get("period_multiple", "")) for r in rs])
     finite = np.isfinite(df)
     ok = conv & finite
@@ -136,6 +137,7 @@ def summarise_rows(rows: list[dict], formulation: str, speeds: np.ndarray) -> di
         "missing_speeds": [float(v) for v in missing[:MAX_LISTED]],
         "missing_speeds_count": int(missing.size),
         "contact_loss_speeds": [float(v) for v in w[loss]],
+        "back_contact_speeds": [float(v) for v in w[back]],  # double-sided impacts (backlash)
         "unconverged_speeds": [float(v) for v in w[~conv]],
         # of those, the sub-harmonic orbits: speed -> period in excitation periods
         "subharmonic_speeds": {repr(float(v)): int(m) for v, m in zip(w, period)
@@ -206,6 +208,9 @@ def print_summary(rig, summary: dict, out: str) -> None:
               f"{len(r['contact_loss_speeds']):13d} {len(r['unconverged_speeds']):12d} {vs:>13s} "
               f"{r['build_time_s'] + r['wall_time_s']:9.1f}")
     for form, r in summary["formulations"].items():
+        if r.get("back_contact_speeds"):
+            print(f"  note: {form} strikes the back flanks (double-sided impacts, backlash "
+                  f"{summary.get('backlash_m')} m) at {_listed(r['back_contact_speeds'])} rad/s")
         sub = r.get("subharmonic_speeds") or {}
         rest = [w for w in r["unconverged_speeds"] if repr(float(w)) not in sub]
         if rest:

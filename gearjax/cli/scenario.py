@@ -255,9 +255,11 @@ def add_torque(p) -> None:
 
 
 def rig_of(args):
-    """The rig of parsed ``args`` (``rig``, optional ``torque``): a built-in rig or a rig
-    file, with ``--torque`` replacing its nominal torque. Raises
-    :class:`gearjax.errors.GearjaxError` for a torque that is not finite and > 0."""
+    """The rig of parsed ``args`` (``rig``, optional ``torque`` and ``backlash``): a
+    built-in rig or a rig file, with ``--torque`` replacing its nominal torque and
+    ``--backlash`` its backlash (:mod:`gearjax.cli.backlash`). Raises
+    :class:`gearjax.errors.GearjaxError` for a torque that is not finite and > 0 or a bad
+    backlash."""
     from ..errors import GearjaxError
     from ..rigs.registry import get_rig
 
@@ -268,7 +270,9 @@ def rig_of(args):
     rig = get_rig(args.rig)
     if torque is not None:
         rig = dataclasses.replace(rig, pinion_torque_Nm=float(torque))
-    return rig
+    from .backlash import with_backlash
+
+    return with_backlash(rig, args)  # --backlash replaces the rig's
 
 
 def file_digest(path: str) -> str:

@@ -53,6 +53,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
+from .orbit import metric_status
 from .results import METRIC_FIELDS, SweepResult, empty_metrics
 from .integrate import integrate, jump_controller
 from .simulate import (default_solver, jump_density, simulate,
@@ -88,7 +89,6 @@ class BranchResult(SweepResult):
     unstable_y0 : (n_speeds, n) its start (NaN where none).
     """
 
-    spectral_radius: np.ndarray
     stable: np.ndarray
     restarted: np.ndarray
     newton_iterations: np.ndarray
@@ -216,7 +216,9 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     extra["newton_iterations"] = np.nan_to_num(extra["newton_iterations"]).astype(np.int64)
     return BranchResult(**out, formulation=model.formulation, direction=direction,
                         stable=stable, restarted=restarted, y0=y0s, unstable_y0=uy0s,
-                        solver=np.full(n, "continuation"), **extra)
+                        solver=np.full(n, "continuation"),
+                        status=metric_status(out["solver_ok"], out["converged"],
+                                             extra["spectral_radius"]), **extra)
 
 
 def forces_differ(f_a, f_b, threshold: float = JUMP_THRESHOLD):

@@ -23,6 +23,7 @@ from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .harmonic import check_linear_model, harmonic_steady_states, harmonics_for
 from .harmonic_split import harmonic_plan, harmonic_split
 from .measure import N_REFINE
+from .orbit import RESULTS
 from .orders import N_MESH_ORDERS
 from .results import SweepResult
 from .solvers import AbstractPeriodicSolver, SweepRun
@@ -36,7 +37,9 @@ __all__ = ["harmonic_sweep", "HarmonicSweepResult", "HarmonicBalance",
 class HarmonicSweepResult(SweepResult):
     """:class:`gearjax.dynamics.results.SweepResult` of :func:`harmonic_sweep` (same
     meaning per field; ``convergence`` is ``error_estimate``, ``contact_loss`` is ``not
-    contact_holds``, ``n_steps`` and ``transient_periods`` are 0: nothing is integrated),
+    contact_holds``, ``back_contact`` is False (where contact holds no back flank is
+    reached; the other speeds are not this solver's), ``n_steps`` and
+    ``transient_periods`` are 0: nothing is integrated),
     with per speed:
 
     n_harmonics : harmonics used (those of :func:`~gearjax.dynamics.harmonic.harmonics_for`,
@@ -47,7 +50,7 @@ class HarmonicSweepResult(SweepResult):
     small_gain : the small-gain bound (:mod:`gearjax.dynamics.small_gain`); below 0.95 the
         orbit is proven stable without a monodromy.
     spectral_radius : Floquet radius (NaN where not computed: proven by the bound, or
-        ``floquet=False``).
+        ``floquet=False``); a field of every sweep result.
     stable, stability_known : proven stable (bound) or ``spectral_radius < 1``; whether
         either was established (False only with ``floquet=False``).
     y0 : (n_speeds, n) periodic state at theta = 0 (a start for ``simulate(y0=...)``).
@@ -56,7 +59,6 @@ class HarmonicSweepResult(SweepResult):
     n_harmonics: np.ndarray
     error_estimate: np.ndarray
     contact_holds: np.ndarray
-    spectral_radius: np.ndarray
     stable: np.ndarray
     stability_known: np.ndarray
     small_gain: np.ndarray
@@ -194,14 +196,26 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
         speed_rad_s=speeds, max_mesh_force_N=out["max_mesh_force_N"],
         min_mesh_force_N=out["min_mesh_force_N"], dynamic_factor=out["dynamic_factor"],
         dte_ptp_m=out["dte_ptp_m"], accel_ptp_m_s2=out["accel_ptp_m_s2"],
-        contact_loss=ok & ~holds, convergence=out["error_estimate"],
+        contact_loss=ok & ~holds, back_contact=np.zeros(speeds.size, bool),
+        convergence=out["error_estimate"],
         converged=conv, period_multiple=np.where(conv, 1, 0), solver_ok=ok,
         n_steps=zero.astype(np.int64), transient_periods=zero, formulation=model.formulation,
         n_harmonics=n_used, error_estimate=out["error_estimate"], contact_holds=holds,
         spectral_radius=rho, stable=stable, stability_known=known,
+        status=_status(ok, holds, known & ~stable, out["error_estimate"] <= rtol),
         small_gain=out["small_gain"], y0=out["y0"], mesh_force_orders_N=out["mesh_orders"][:, 0],
         dte_orders_m=out["mesh_orders"][:, 1], accel_orders_m_s2=out["mesh_orders"][:, 2],
         solver=np.full(speeds.size, "harmonic"))
+
+
+def _status(ok, holds, unstable, converged) -> np.ndarray:
+    """Per speed, the :class:`~gearjax.dynamics.orbit.RESULTS` code of a frequency-domain
+    orbit: failed solve, else contact lost, else unstable, else not converged in the
+    harmonics, else successful."""
+    out = np.where(converged, RESULTS.successful, RESULTS.not_periodic)
+    out = np.where(unstable, RESULTS.unstable, out)
+    out = np.where(holds, out, RESULTS.contact_lost)
+    return np.where(ok, out, RESULTS.integration_failed).astype(np.int8)
 
 
 HARMONIC_FLOQUET_MAX_STATES = 32  # above: the transient is cheaper than a monodromy

@@ -12,9 +12,8 @@ two measured periods (forces over F_S, DTE and acceleration over their peak-to-p
 larger, what is left of the transient: modal models (``model.transient_amplitudes``)
 extrapolate the state's change over the last period mode by mode, ``|mu_j| / |1 - mu_j|``
 times each mode's change (``mu_j`` its free-decay multiplier per period), and sum the modes'
-shares of each output; a model without it has its extrema's change divided by ``|1 - mu|``
-of the slowest mode its outputs see (``model.slowest_output_mode``), which also amplifies
-integration noise (the modal extrapolation does not). Both read the linear model's free
+shares of each output (:class:`gearjax.models.base.AbstractModalModel`); a model without a
+modal state has its extrema's change alone. The extrapolation reads the linear model's free
 decay; with contact loss in the measured periods (``min F_D <= 0``) a sliding measurement
 also takes the change's own ratio ``q`` between successive periods, ``change q / (1 - q)``
 (the linear reading alone can pass an orbit whose force is ten times
@@ -37,7 +36,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ..models.base import free_decay_per_period
+from ..models.base import AbstractModalModel
 
 __all__ = ["convergence_measure", "initial_memo", "per_period_extrema",
            "with_periods_slid_past", "Q_CONTACT_LOSS_MAX", "MAX_PERIOD_MULTIPLE"]
@@ -99,27 +98,17 @@ def convergence_measure(model, omega, vals, ys, memo: dict, *, n_periods: int,
     scales = jnp.stack([jnp.maximum(jnp.abs(s), 1e-300) for s in scales])
     change = conv = jnp.max(jnp.abs(ext[-1] - ext[-2]) / scales)
     # what is left of the transient: modal models extrapolate the state's change over
-    # the last period mode by mode (model.transient_amplitudes); without one, the
-    # extrema's change over the slowest mode the outputs see (a component decaying
-    # like mu^k per period changes by |1 - mu| of what is left of it; faster
-    # components and integration noise are over-counted by the same factor)
-    amps = None
-    if extrapolate:  # the state's change over the last period, at one phase
+    # the last period mode by mode (model.transient_amplitudes); others measure the
+    # extrema's change alone
+    if extrapolate and isinstance(model, AbstractModalModel):
+        # the state's change over the last period, at one phase; the floored scales: an
+        # output that is identically zero (no pinion-centre motion in a torsional
+        # structure) has a zero remainder, not 0/0
         last = (n_periods - 1) * per_period
         amps = model.transient_amplitudes(ys[last] - ys[last - per_period], omega)
-    slow = model.slowest_output_mode() if extrapolate and amps is None else None
-    if amps is not None:
-        # the floored scales: an output that is identically zero (no pinion-centre
-        # motion in a torsional structure) has a zero remainder, not 0/0
         left = [amps[0] / scales[0], amps[1] / scales[2]] + (
             [amps[2] / scales[4]] if has_acc else [])
         conv = jnp.maximum(conv, jnp.max(jnp.stack(left)))
-    elif slow is not None:
-        w_s, z_s = slow
-        _, gap = free_decay_per_period(jnp.where(jnp.isfinite(w_s), w_s, 0.0), z_s,
-                                       float(model.period_rad) / omega)
-        factor = jnp.where(jnp.isfinite(w_s), 1.0 / jnp.clip(gap, 1e-12, 1.0), 1.0)
-        conv = conv * factor
     if slide:
         # contact loss: the free decay of the linear model does not bound what is
         # left; the change's own ratio q over successive periods does, as

@@ -16,7 +16,8 @@ import numpy as np
 from ..errors import GearjaxError
 from .orders import N_MESH_ORDERS
 
-__all__ = ["SweepResult", "merge_results", "CSV_COLUMNS", "METRIC_FIELDS", "ORDER_FIELDS", "ORDER_COLUMNS",
+__all__ = ["SweepResult", "merge_results", "CSV_COLUMNS", "METRIC_FIELDS", "FLAG_FIELDS",
+           "ORDER_FIELDS", "SOLVE_FIELDS", "ORDER_COLUMNS",
            "csv_rows", "order_rows", "empty_metrics", "append_rows", "check_header"]
 
 CSV_COLUMNS = (
@@ -28,6 +29,7 @@ CSV_COLUMNS = (
     "accel_ptp_m_s2",
     "min_mesh_force_N",
     "contact_loss",
+    "back_contact",  # the back flanks met (backlash): min_mesh_force_N < 0
     "converged",
     "convergence",  # the periodicity measure behind `converged` (the achieved residual)
     "period_multiple",  # the response's period in excitation periods (0: not periodic)
@@ -40,8 +42,8 @@ class SweepResult(eqx.Module):
     Attributes
     ----------
     speed_rad_s, max_mesh_force_N, min_mesh_force_N, dynamic_factor, dte_ptp_m,
-    accel_ptp_m_s2, contact_loss, convergence, converged, solver_ok, n_steps,
-    transient_periods, period_multiple : NumPy arrays of shape (n_speeds,), see
+    accel_ptp_m_s2, contact_loss, back_contact, convergence, converged, solver_ok,
+    n_steps, transient_periods, period_multiple : NumPy arrays of shape (n_speeds,), see
         :class:`gearjax.dynamics.simulate.SimulationResult`.
     mesh_force_orders_N, dte_orders_m, accel_orders_m_s2 : (n_speeds, 5) single-sided
         peak amplitudes of mesh orders 1..5 (column k-1: order k, k times the mesh
@@ -51,6 +53,15 @@ class SweepResult(eqx.Module):
     solver : (n_speeds,) name of the solver whose orbit gave each speed's metrics
         (``"transient"``, ``"steady"`` (shooting), ``"harmonic"`` (frequency domain),
         ``"continuation"``: :mod:`gearjax.dynamics.solvers`).
+    spectral_radius : (n_speeds,) Floquet radius of the orbit (NaN where the solver did not
+        compute it: the transient).
+    status : (n_speeds,) :class:`gearjax.dynamics.orbit.RESULTS` code of each speed (why
+        its solve ended: ``successful``, ``not_periodic``, ``integration_failed``,
+        ``newton_failed``, ``unstable``, ``contact_lost``).
+    stats : solver-specific per-speed diagnostics, ``{name: (n_speeds, ...) array}`` (as
+        diffrax's ``Solution.stats``), each documented by the solver that writes it (e.g.
+        the frequency domain's harmonic count and small-gain bound); empty for the
+        transient.
     """
 
     speed_rad_s: np.ndarray
@@ -60,6 +71,7 @@ class SweepResult(eqx.Module):
     dte_ptp_m: np.ndarray
     accel_ptp_m_s2: np.ndarray
     contact_loss: np.ndarray
+    back_contact: np.ndarray
     convergence: np.ndarray
     converged: np.ndarray
     solver_ok: np.ndarray
@@ -71,6 +83,9 @@ class SweepResult(eqx.Module):
     accel_orders_m_s2: np.ndarray
     formulation: str = eqx.field(static=True)
     solver: np.ndarray = eqx.field(kw_only=True)
+    spectral_radius: np.ndarray = eqx.field(kw_only=True)
+    status: np.ndarray = eqx.field(kw_only=True)
+    stats: dict = eqx.field(kw_only=True, default_factory=dict)
 
     def rows(self):
         """CSV rows (dicts keyed by :data:`CSV_COLUMNS`)."""
@@ -83,31 +98,43 @@ class SweepResult(eqx.Module):
     def take(self, idx) -> "SweepResult":
         """The speeds ``idx`` (indices or a mask) of this result, as a plain
         :class:`SweepResult` (a subclass's extra fields are dropped)."""
-        kw = {f: np.asarray(getattr(self, f))[idx] for f in METRIC_FIELDS}
+        kw = {f: np.asarray(getattr(self, f))[idx] for f in METRIC_FIELDS + SOLVE_FIELDS}
         return SweepResult(**kw, formulation=self.formulation,
-                           solver=np.asarray(self.solver)[idx])
+                           stats={k: np.asarray(v)[idx] for k, v in self.stats.items()})
 
 
 def merge_results(a: SweepResult, b: SweepResult, from_b) -> SweepResult:
     """One :class:`SweepResult` over ``a``'s speeds, taking the speeds where the mask
-    ``from_b`` is True, in order, from ``b`` (which holds exactly those speeds)."""
+    ``from_b`` is True, in order, from ``b`` (which holds exactly those speeds); a
+    ``stats`` entry only one of them reports is NaN at the other's speeds."""
     from_b = np.asarray(from_b, dtype=bool)
     kw = {}
-    for f in METRIC_FIELDS + ("solver",):
+    for f in METRIC_FIELDS + SOLVE_FIELDS:
         va, vb = np.asarray(getattr(a, f)), np.asarray(getattr(b, f))
         out = va.astype(np.result_type(va, vb), copy=True)
         out[from_b] = vb
         kw[f] = out
-    return SweepResult(**{k: v for k, v in kw.items() if k != "solver"},
-                       formulation=a.formulation, solver=kw["solver"])
+    stats = {}
+    for k in sorted(set(a.stats) | set(b.stats)):  # NaN where a solver did not report it
+        va = np.asarray(a.stats[k], dtype=float) if k in a.stats else None
+        vb = np.asarray(b.stats[k], dtype=float) if k in b.stats else None
+        shape = (from_b.size,) + (va if va is not None else vb).shape[1:]
+        out = va.copy() if va is not None else np.full(shape, np.nan)
+        out[from_b] = vb if vb is not None else np.nan
+        stats[k] = out
+    return SweepResult(**kw, formulation=a.formulation, stats=stats)
 
 
 ORDER_FIELDS = ("mesh_force_orders_N", "dte_orders_m", "accel_orders_m_s2")
+# per speed, how it was solved: the solver's name, the Floquet radius, the RESULTS code
+SOLVE_FIELDS = ("solver", "spectral_radius", "status")
 METRIC_FIELDS = (
     "speed_rad_s", "max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
-    "accel_ptp_m_s2", "contact_loss", "convergence", "converged", "solver_ok", "n_steps",
-    "transient_periods", "period_multiple",
+    "accel_ptp_m_s2", "contact_loss", "back_contact", "convergence", "converged", "solver_ok",
+    "n_steps", "transient_periods", "period_multiple",
 ) + ORDER_FIELDS
+# the boolean fields (stored as floats, NaN where a speed was not computed, while a sweep runs)
+FLAG_FIELDS = ("contact_loss", "back_contact", "converged", "solver_ok")
 
 # orders.csv: order<k>_<signal>_<unit>, single-sided peak amplitudes (SI), DTE first
 _CSV_ORDER = (("dte", "m"), ("force", "N"), ("accel", "m_s2"))
@@ -149,6 +176,7 @@ def csv_rows(res, sl=slice(None)):
             "accel_ptp_m_s2": fmt_value(g("accel_ptp_m_s2")),
             "min_mesh_force_N": fmt_value(g("min_mesh_force_N")),
             "contact_loss": str(bool(g("contact_loss"))),
+            "back_contact": str(bool(g("back_contact"))),
             "converged": str(bool(g("converged"))),
             "convergence": fmt_value(g("convergence")),
             "period_multiple": _fmt_int(g("period_multiple")),

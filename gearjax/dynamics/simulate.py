@@ -4,9 +4,8 @@
 Eqs. (16)/(20)/(47a), 3D Eqs. (14)/(42)/(48a)) at one speed through a transient to its
 periodic steady state and measures that state, asking the model only what the base class
 declares. It integrates in the angle ``theta`` (rad) from ``model.transient_start``
-(:func:`gearjax.dynamics.integrate.integrate`);
-the transient, each measured period and each refinement window are legs of one call site
-(:mod:`gearjax.dynamics.legs`).
+(:func:`gearjax.dynamics.integrate.integrate`); the transient, each measured period and
+each refinement window are legs of one call site (:mod:`gearjax.dynamics.legs`).
 
 Transient: ``n_transient_periods`` excitation periods, or (``None``) per speed
 ``n = ceil(ln(1/transient_decay) / (decay_rate * period))`` clipped to
@@ -24,16 +23,17 @@ linear model). Measurements: ``benchmarks/results/code_notes.md``, gearjax.dynam
 
 Jumps: the right-hand side jumps or kinks at speed-independent angles
 (``model.jump_thetas``); :class:`~gearjax.dynamics.integrate.PeriodicJumpController` ends a step just before each and
-restarts just after it. The reference contact law's state-dependent kinks are left to the
-error control. Solvers and tolerances: :func:`default_solver`.
+restarts just after it. The contact laws' state-dependent kinks (contact loss, back-flank
+impacts) are left to the error control. Solvers and tolerances: :func:`default_solver`.
 
 Metrics per speed, exact to the integration tolerance (read on the output grid of
 :mod:`gearjax.dynamics.metrics` by the dense interpolant and refined between grid points
 and after the largest jumps): max and min mesh force F_D (N, Eqs. (22)/(24)), dynamic factor
 ``max F_D / F_S``, DTE and acceleration peak-to-peak, ``contact_loss`` (``min F_D <= 0``),
-``convergence`` and ``period_multiple`` (:mod:`gearjax.dynamics.periodicity`), and
-``converged`` ("periodic with the excitation period to within ``convergence_tol``"). A
-failed integration gives ``solver_ok = False``, ``converged = False`` and NaN metrics.
+``back_contact`` (``min F_D < 0``: backlash), ``convergence``, ``period_multiple``
+(:mod:`gearjax.dynamics.periodicity`) and ``converged`` ("periodic with the excitation
+period to within ``convergence_tol``"). A failed integration gives ``solver_ok = False``,
+``converged = False`` and NaN metrics.
 
 Derivatives: every operation on the metric path is differentiable; the default
 ``adjoint=diffrax.ForwardMode()`` differentiates through the solve, and the models' angle
@@ -50,7 +50,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from ..errors import SimulationError, check_float64
-from ..models.base import AbstractGearModel
+from ..models.base import AbstractGearModel, AbstractModalModel
 from .integrate import PeriodicJumpController, jump_controller
 from .legs import solve_legs
 from .measure import (N_REFINE, extrema, measure_grid, mesh_orders, n_windows, observer,
@@ -140,6 +140,8 @@ class SimulationResult(eqx.Module):
     dte_ptp_m : peak-to-peak dynamic transmission error (m).
     accel_ptp_m_s2 : peak-to-peak acceleration (m/s^2); NaN for models without one.
     contact_loss : min F_D <= 0 over the measured periods.
+    back_contact : min F_D < 0 over the measured periods: the back flanks carried load (a
+        model with backlash; never for one without, whose mesh force is never tensile).
     convergence : largest relative change of per-period extrema between the last two
         measured periods.
     converged : convergence <= tolerance and solver_ok.
@@ -166,6 +168,7 @@ class SimulationResult(eqx.Module):
     dte_ptp_m: jax.Array
     accel_ptp_m_s2: jax.Array
     contact_loss: jax.Array
+    back_contact: jax.Array
     convergence: jax.Array
     converged: jax.Array
     solver_ok: jax.Array
@@ -335,7 +338,7 @@ def simulate(
     y0 = jnp.asarray(y0)
     ctrl = jump_controller(model, rtol, atol)
     accelerated = (accelerate and n_transient_periods is None
-                   and model.periodic_estimate(y0, y0, omega) is not None)
+                   and isinstance(model, AbstractModalModel))
     n_max = transient_period_bounds(model, min_transient_mesh_periods,
                                     max_transient_mesh_periods)[1] if accelerated else 0
     accelerated = accelerated and n_max > 0
@@ -421,6 +424,7 @@ def simulate(
         dte_ptp_m=bad(dte_ptp),
         accel_ptp_m_s2=bad(acc_ptp) if has_acc else nan,
         contact_loss=ok & (f_min <= 0.0),
+        back_contact=ok & (f_min < 0.0),
         convergence=jnp.where(ok, conv, jnp.inf),
         converged=converged,
         period_multiple=jnp.where(converged, 1, jnp.where(ok, multiple, 0)),

@@ -53,8 +53,9 @@ import numpy as np
 from ..linalg import solve as dense_solve
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .batching import over_speeds, sequential_for
-from .results import METRIC_FIELDS, SweepResult, empty_metrics
+from .results import FLAG_FIELDS, METRIC_FIELDS, SweepResult, empty_metrics
 from .integrate import integrate, jump_controller
+from .orbit import RESULTS, Orbit, measure, metric_status
 from .simulate import SimulationError, SimulationResult, simulate
 from .solvers import AbstractOrbitSolver, SweepRun
 from .sweep import Transient
@@ -66,8 +67,7 @@ __all__ = [
     "steady_state",
     "SteadyStateResult",
     "steady_sweep",
-    "SteadySweepResult",
-    "shooting_options",
+    "orbit_of",
     "spectral_radius_of",
     "Shooting",
 ]
@@ -76,7 +76,7 @@ __all__ = [
 # start is amplified by 1/(1 - rho), so the single period is integrated tighter than a
 # transient needs).
 _SHOOT_DEFAULT = ("dopri8", 1e-9, 1e-11)
-# a looser requested accuracy keeps these (shooting_options)
+# a looser requested accuracy keeps these (Shooting.for_transient)
 _SHOOT_RTOL, _SHOOT_ATOL = _SHOOT_DEFAULT[1:]
 # default chunk of steady_sweep: speeds x n^2 monodromy entries per chunk (3D rig: 2 speeds)
 _CHUNK_ELEMENTS = 80_000
@@ -108,11 +108,11 @@ class PeriodicState(eqx.Module):
 
 
 class SteadyStateResult(eqx.Module):
-    """:class:`gearjax.dynamics.simulate.SimulationResult` of the periodic orbit plus its
-    :class:`PeriodicState` (``periodic``)."""
+    """:class:`gearjax.dynamics.simulate.SimulationResult` of the periodic orbit plus the
+    :class:`~gearjax.dynamics.orbit.Orbit` it was measured on (``orbit``)."""
 
     result: SimulationResult
-    periodic: PeriodicState
+    orbit: Orbit
 
 
 def _one_period(model, omega, y_start, solver, rtol, atol, max_steps):
@@ -139,36 +139,6 @@ def _solver_options(solver, rtol, atol):
     name, d_rtol, d_atol = _SHOOT_DEFAULT
     solver = diffrax.Dopri8() if solver is None else solver
     return solver, (d_rtol if rtol is None else rtol), (d_atol if atol is None else atol)
-
-
-# simulate() options of its transient only: a shooting sweep passes them to its
-# continuation (steady_sweep's continuation, a Transient), not to the shooting
-_TRANSIENT_ONLY = ("n_transient_periods", "transient_decay", "min_transient_mesh_periods",
-                   "max_transient_mesh_periods", "start")
-
-
-def shooting_options(simulate_kwargs: dict) -> dict:
-    """:func:`steady_sweep` / :func:`steady_state` options for the transient solver options
-    ``simulate_kwargs`` of a sweep or an objective (e.g.
-    :func:`gearjax.dynamics.sweep.tolerance_options`): the one reading of ``--rtol`` with
-    the shooting, shared by ``sweep``, ``optimise``, ``harris-map``. ``solver``, ``rtol``,
-    ``atol`` become the measured periods' options (``measure_*``); the shooting's period
-    integration takes ``rtol``/``atol`` only where they are tighter than its own 1e-9 /
-    1e-11: its error reaches the periodic start amplified by 1 / (1 - rho) (an oscillator
-    at resonance, zeta 0.005, rho 0.969: 1.1e-3 error in the peak-to-peak with the
-    shooting at rtol 1e-4, 2.1e-5 with it at 1e-9 and the measured periods at 1e-4;
-    ``tests/test_steady.py``). The transient's own options (``n_transient_periods``,
-    ``transient_decay``, ``min/max_transient_mesh_periods``, ``start``) are left out; the
-    others pass unchanged."""
-    out = {k: v for k, v in simulate_kwargs.items() if k not in _TRANSIENT_ONLY}
-    for k in ("solver", "rtol", "atol"):
-        if k in out:
-            out["measure_" + k] = out.pop(k)
-    if out.get("measure_rtol") is not None and out["measure_rtol"] < _SHOOT_RTOL:
-        out["rtol"] = out["measure_rtol"]
-    if out.get("measure_atol") is not None and out["measure_atol"] < _SHOOT_ATOL:
-        out["atol"] = out["measure_atol"]
-    return out
 
 
 def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
@@ -233,67 +203,64 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
     )
 
 
-def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
-                 rtol: float | None = None, atol: float | None = None, max_newton: int = 8,
-                 newton_tol: float = 1e-10, measure_solver=None,
-                 measure_rtol: float | None = None, measure_atol: float | None = None,
-                 convergence_tol: float = 1e-3, **simulate_kwargs) -> SteadyStateResult:
+def orbit_of(model, omega, ps: PeriodicState, newton_tol: float) -> Orbit:
+    """The :class:`~gearjax.dynamics.orbit.Orbit` of a shooting's :class:`PeriodicState`:
+    ``integration_failed`` where a period integration failed, else ``newton_failed`` where
+    the last Newton step exceeds ``newton_tol (1 + |y*|)``, else ``unstable`` where the
+    Floquet radius is >= 1, else ``successful``."""
+    newton_ok = ps.residual <= newton_tol * (1.0 + jnp.sqrt(jnp.sum(ps.y0**2)))
+    status = jnp.where(~ps.ok, RESULTS.integration_failed,
+                       jnp.where(~newton_ok, RESULTS.newton_failed,
+                                 jnp.where(ps.spectral_radius >= 1.0, RESULTS.unstable,
+                                           RESULTS.successful))).astype(jnp.int8)
+    return Orbit(state=ps.y0, omega=jnp.asarray(omega, dtype=float),
+                 period_multiple=jnp.ones((), jnp.int32), residual=ps.residual,
+                 floquet_radius=ps.spectral_radius, status=status, n_steps=ps.n_steps)
+
+
+def steady_state(model, omega, shooting: "Shooting | None" = None, *,
+                 y_start=None) -> SteadyStateResult:
     """Steady-state metrics at one speed from the periodic orbit (no transient, no
     continuation: see :func:`steady_sweep` for that). Jit/vmap-compatible.
 
-    The metrics are those of :func:`gearjax.dynamics.simulate.simulate` over ``n_measured_periods``
-    periods started on ``y*`` (``measure_*``: its solver options, default
-    ``simulate``'s). ``converged`` = simulate's (the orbit is periodic to
-    ``convergence_tol``) and ``spectral_radius < 1`` and, for the reference formulation,
-    the Newton residual below ``newton_tol``.
+    The orbit is ``shooting``'s (:meth:`Shooting.orbit`, default :class:`Shooting`,
+    from ``y_start``, default the quasi-static state); the metrics are
+    :func:`~gearjax.dynamics.orbit.measure`'s over ``shooting.n_measured_periods`` periods
+    started on it. ``converged`` = the measured periods are periodic to
+    ``convergence_tol`` and the orbit's status is ``successful`` (found, Newton converged,
+    Floquet radius < 1); where a period integration failed the metrics are NaN.
     """
-    if n_measured_periods < 2:
-        raise SimulationError("n_measured_periods", n_measured_periods,
-                              "need >= 2 periods to measure periodicity")
-    ps = periodic_state(model, omega, solver=solver, rtol=rtol, atol=atol,
-                        max_newton=max_newton, newton_tol=newton_tol)
-    y0 = jnp.where(ps.ok, ps.y0, model.initial_state(jnp.asarray(omega, dtype=float)))
-    res = simulate(model, omega, n_transient_periods=0, y0=y0,
-                   n_measured_periods=n_measured_periods, solver=measure_solver,
-                   rtol=measure_rtol, atol=measure_atol, convergence_tol=convergence_tol,
-                   **simulate_kwargs)
-    newton_ok = ps.residual <= newton_tol * (1.0 + jnp.sqrt(jnp.sum(ps.y0**2)))
-    good = ps.ok & res.solver_ok
+    shooting = Shooting() if shooting is None else shooting
+    orbit = shooting.orbit(model, omega, y_start=y_start)
+    res = measure(model, orbit, shooting.measured())
+    good = (orbit.status != RESULTS.integration_failed) & res.solver_ok
     nan = jnp.asarray(jnp.nan)
     bad = lambda v: jnp.where(good, v, nan)  # noqa: E731
-    converged = res.converged & good & (ps.spectral_radius < 1.0) & newton_ok
+    converged = res.converged & good & (orbit.status == RESULTS.successful)
     res = eqx.tree_at(
         lambda r: (r.max_mesh_force_N, r.min_mesh_force_N, r.dynamic_factor, r.dte_ptp_m,
                    r.accel_ptp_m_s2, r.converged, r.period_multiple, r.solver_ok,
-                   r.contact_loss, r.n_steps, r.mesh_force_orders_N, r.dte_orders_m,
-                   r.accel_orders_m_s2),
+                   r.contact_loss, r.back_contact, r.n_steps, r.mesh_force_orders_N,
+                   r.dte_orders_m, r.accel_orders_m_s2),
         res,
         (bad(res.max_mesh_force_N), bad(res.min_mesh_force_N), bad(res.dynamic_factor),
          bad(res.dte_ptp_m), bad(res.accel_ptp_m_s2), converged,
          jnp.where(converged, 1, 0).astype(res.period_multiple.dtype), good,
-         res.contact_loss & good, res.n_steps + ps.n_steps, bad(res.mesh_force_orders_N),
+         res.contact_loss & good, res.back_contact & good, res.n_steps + orbit.n_steps,
+         bad(res.mesh_force_orders_N),
          bad(res.dte_orders_m), bad(res.accel_orders_m_s2)),
     )
-    return SteadyStateResult(result=res, periodic=ps)
+    return SteadyStateResult(result=res, orbit=orbit)
 
 
 # ---------------------------------------------------------------------- sweeps
-class SteadySweepResult(SweepResult):
-    """:class:`gearjax.dynamics.results.SweepResult` of :func:`steady_sweep`, with per speed the
-    Floquet ``spectral_radius`` of the orbit and ``continued`` (the metrics come from a
-    diffrax transient started on the periodic orbit, see :func:`steady_sweep`)."""
-
-    spectral_radius: np.ndarray
-    continued: np.ndarray
-
-
 @eqx.filter_jit
 def _steady_batch(model, speeds, shooting):
     def one(w):
-        out = steady_state(model, w, **shooting.options())
+        out = steady_state(model, w, shooting)
         r = out.result
-        return tuple(getattr(r, f) for f in METRIC_FIELDS) + (out.periodic.spectral_radius,
-                                                               out.periodic.y0)
+        return tuple(getattr(r, f) for f in METRIC_FIELDS) + (out.orbit.floquet_radius,
+                                                               out.orbit.status)
     return over_speeds(one, speeds, sequential=sequential_for(model))
 
 
@@ -308,7 +275,7 @@ def _continue_batch(model, speeds, y0s, transient):
 def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
                  chunk_size: int | None = None,
                  progress: AbstractProgressMeter = NoProgressMeter(),
-                 continuation: Transient | None = Transient()) -> SteadySweepResult:
+                 continuation: Transient | None = Transient()) -> SweepResult:
     """Steady state over pinion speeds by shooting (one compilation per chunk shape; the
     speeds of a chunk mapped on a CPU, vmapped elsewhere: :mod:`gearjax.dynamics.batching`),
     returning the :class:`~gearjax.dynamics.results.SweepResult` fields of
@@ -352,7 +319,7 @@ def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
     padded = np.concatenate([order, np.full(n_chunks * chunk - speeds.size, order[-1])])
     out = empty_metrics(speeds.size)
     rho = np.full(speeds.size, np.nan)
-    y0s = None
+    orbit_status = np.zeros(speeds.size, dtype=np.int8)
     task = f"steady-state sweep {model.formulation}"
     check_meter(progress).start(task, speeds.size, f"{n_chunks} chunk(s) of {chunk} speed(s)")
     t_start = time.perf_counter()
@@ -363,10 +330,7 @@ def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
         for f, v in zip(METRIC_FIELDS, res[:len(METRIC_FIELDS)]):
             out[f][sel] = np.asarray(v, dtype=float)
         rho[sel] = np.asarray(res[-2], dtype=float)
-        y = np.asarray(res[-1])
-        if y0s is None:
-            y0s = np.full((speeds.size, y.shape[1]), np.nan)
-        y0s[sel] = y
+        orbit_status[sel] = np.asarray(res[-1])
         progress.update(task, min(speeds.size, (c + 1) * chunk), speeds.size,
                         f"chunk {c + 1}/{n_chunks}: {len(set(sel.tolist()))} speeds in "
                         f"{time.perf_counter() - t0:.2f} s", elapsed_s=time.perf_counter() - t_start)
@@ -392,12 +356,14 @@ def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
                             f"continued {idx.size} speed(s) with contact loss or without a "
                             f"stable orbit by simulate in {time.perf_counter() - t0:.2f} s",
                             elapsed_s=time.perf_counter() - t_start)
-    for f in ("contact_loss", "converged", "solver_ok"):
+    for f in FLAG_FIELDS:
         out[f] = out[f] > 0
     out["n_steps"] = out["n_steps"].astype(np.int64)
-    return SteadySweepResult(**out, formulation=formulation, spectral_radius=rho,
-                             continued=continued,
-                             solver=np.where(continued, "transient", "steady"))
+    measured = metric_status(out["solver_ok"], out["converged"])
+    status = np.where(continued | (orbit_status == RESULTS.successful), measured, orbit_status)
+    return SweepResult(**out, formulation=formulation, spectral_radius=rho,
+                       status=status.astype(np.int8),
+                       solver=np.where(continued, "transient", "steady"))
 
 
 def orbit_solved(contact_loss, spectral_radius, converged) -> np.ndarray:
@@ -433,16 +399,45 @@ class Shooting(AbstractOrbitSolver):
     samples_per_mesh_period: int = 128
     max_steps: int = 2_000_000
 
+    def __check_init__(self):
+        if self.n_measured_periods < 2:
+            raise SimulationError("n_measured_periods", self.n_measured_periods,
+                                  "need >= 2 periods to measure periodicity")
+
     @classmethod
     def for_transient(cls, transient) -> "Shooting":
-        """The shooting at the accuracy of ``transient``'s options
-        (:func:`shooting_options`)."""
-        opts = shooting_options(transient.simulate_options())
-        return cls(**{k: v for k, v in opts.items() if k in _SHOOTING_FIELDS})
+        """The shooting at the accuracy of a :class:`~gearjax.dynamics.sweep.Transient`:
+        the one reading of ``--rtol`` with the shooting (``sweep``, ``optimise``,
+        ``harris-map``). The transient's ``rtol``/``atol`` become the measured periods'
+        (``measure_*``); the shooting's period integration takes them only where they are
+        tighter than its own 1e-9 / 1e-11: its error reaches the periodic start amplified by
+        1 / (1 - rho) (an oscillator at resonance, zeta 0.005, rho 0.969: 1.1e-3 error in
+        the peak-to-peak with the shooting at rtol 1e-4, 2.1e-5 with it at 1e-9 and the
+        measured periods at 1e-4; ``tests/test_steady.py``). The measuring options
+        (periods, samples, convergence tolerance, step limit) pass unchanged; the
+        transient's own (its length, decay, start) do not apply."""
+        t = transient
+        tighter = lambda v, own: v if v is not None and v < own else None  # noqa: E731
+        return cls(rtol=tighter(t.rtol, _SHOOT_RTOL), atol=tighter(t.atol, _SHOOT_ATOL),
+                   measure_rtol=t.rtol, measure_atol=t.atol,
+                   convergence_tol=t.convergence_tol, n_measured_periods=t.n_measured_periods,
+                   samples_per_mesh_period=t.samples_per_mesh_period, max_steps=t.max_steps)
 
-    def options(self) -> dict:
-        """:func:`steady_state`'s keyword arguments."""
-        return {f: getattr(self, f) for f in _SHOOTING_FIELDS}
+    def orbit(self, model, omega, y_start=None) -> Orbit:
+        """The periodic orbit at ``omega`` (rad/s) by Newton shooting from ``y_start``
+        (default the quasi-static state): :func:`periodic_state` with these options, its
+        status as :func:`orbit_of` reads it. Jit/vmap-compatible."""
+        ps = periodic_state(model, omega, rtol=self.rtol, atol=self.atol,
+                            max_newton=self.max_newton, newton_tol=self.newton_tol,
+                            y_start=y_start)
+        return orbit_of(model, omega, ps, self.newton_tol)
+
+    def measured(self) -> Transient:
+        """The measuring options of this shooting as a
+        :class:`~gearjax.dynamics.sweep.Transient` (for :func:`~gearjax.dynamics.orbit.measure`)."""
+        return Transient(n_measured_periods=self.n_measured_periods, rtol=self.measure_rtol,
+                         atol=self.measure_atol, samples_per_mesh_period=self.samples_per_mesh_period,
+                         convergence_tol=self.convergence_tol, max_steps=self.max_steps)
 
     def orbit_metrics(self, model, omega, adjoint=None) -> SimulationResult:
         """The metrics at one speed ``omega`` (rad/s) from the periodic orbit
@@ -451,7 +446,7 @@ class Shooting(AbstractOrbitSolver):
         if isinstance(adjoint, diffrax.RecursiveCheckpointAdjoint):
             raise SimulationError("adjoint", type(adjoint).__name__,
                                   "the shooting differentiates in forward mode only")
-        return steady_state(model, omega, **self.options()).result
+        return steady_state(model, omega, self).result
 
     def solved(self, result: SweepResult) -> np.ndarray:
         return orbit_solved(result.contact_loss, result.spectral_radius, result.converged)
@@ -465,11 +460,6 @@ class Shooting(AbstractOrbitSolver):
         if run.sink is not None:
             run.sink(res)
         return res
-
-
-_SHOOTING_FIELDS = ("rtol", "atol", "measure_rtol", "measure_atol", "max_newton", "newton_tol",
-                    "convergence_tol", "n_measured_periods", "samples_per_mesh_period",
-                    "max_steps")
 
 
 @eqx.filter_jit

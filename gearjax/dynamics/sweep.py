@@ -46,8 +46,9 @@ from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from ..models.base import LINEAR_FORMULATIONS
 from .harmonic_sweep import HarmonicBalance
 from .solvers import AbstractOrbitSolver, AbstractPeriodicSolver, Fallback, SweepRun
-from .results import (CSV_COLUMNS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult, append_rows,
-                      empty_metrics)
+from .results import (CSV_COLUMNS, FLAG_FIELDS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult,
+                      append_rows, empty_metrics)
+from .orbit import metric_status
 from .simulate import SimulationError, SimulationResult, simulate
 
 __all__ = ["sweep", "Transient", "Auto", "SweepResult", "CSV_COLUMNS", "tolerance_options",
@@ -542,7 +543,9 @@ def tolerance_options(rtol: float | None) -> dict:
 def _gather(results, formulation, idx):
     idx = np.asarray(idx, dtype=int)
     kw = {f: results[f][idx] for f in METRIC_FIELDS}
-    for f in ("contact_loss", "converged", "solver_ok"):
+    for f in FLAG_FIELDS:
         kw[f] = kw[f].astype(bool)
     kw["n_steps"] = kw["n_steps"].astype(np.int64)
-    return SweepResult(**kw, formulation=formulation, solver=np.full(idx.size, "transient"))
+    return SweepResult(**kw, formulation=formulation, solver=np.full(idx.size, "transient"),
+                       spectral_radius=np.full(idx.size, np.nan),
+                       status=metric_status(kw["solver_ok"], kw["converged"]))

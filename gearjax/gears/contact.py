@@ -17,7 +17,11 @@ almost everywhere.
   structure vectors on a condensed elastic system (the 3D quasi-static solution, Eq. (25)):
   an active-set iteration, exact at convergence;
 * :func:`te_contact` -- the contact algorithm of the TE-based formulations (Eqs. (20),
-  (42), (47a), (48a)): the mesh acts only while it is in compression.
+  (42), (47a), (48a)): the mesh acts only while it is in compression;
+* :func:`three_state_force` -- the same with a clearance between the back flanks
+  (backlash): drive-flank contact, free flight, back-flank contact; used per mesh by
+  :func:`te_backlash_contact` (te and perturbation formulations) and with the cell sums of
+  both flanks by the sdof reference formulation.
 """
 
 from __future__ import annotations
@@ -27,7 +31,8 @@ import jax.numpy as jnp
 
 from ..linalg import solve as dense_solve
 
-__all__ = ["solve_unilateral", "unilateral_solve_pairwise", "active_set_solve", "te_contact"]
+__all__ = ["solve_unilateral", "unilateral_solve_pairwise", "active_set_solve", "te_contact",
+           "three_state_force", "te_backlash_contact"]
 
 
 def solve_unilateral(k, gap, force):
@@ -170,3 +175,71 @@ def te_contact(f_equation, f_loaded):
     in_contact = f_equation > 0.0
     return (jnp.minimum(f_equation, 0.0),
             jnp.where(in_contact, jnp.maximum(f_loaded, 0.0), 0.0))
+
+
+def three_state_force(delta, clearance, drive, back=None):
+    """The mesh force of a gear pair with backlash: drive flanks, free flight, back flanks.
+
+    With ``delta`` the dynamic displacement along the line of action (m; the normal approach
+    of the drive flanks beyond their first contact, > 0 loads the drive flanks) and
+    ``b = clearance`` (m, >= 0) the clearance between the back flanks when the drive flanks
+    just touch, measured along the line of action (normal to the flanks)::
+
+        F = k(delta)             delta > 0         drive-flank contact
+        F = 0                    -b <= delta <= 0  free flight (both flanks open)
+        F = -k_b(-(delta + b))   delta < -b        back-flank contact
+
+    ``k(u)``, ``k_b(u)`` are the force-approach laws of the drive and back flanks (N for an
+    approach u >= 0, zero at u = 0 and non-decreasing), ``drive`` and ``back`` (default:
+    the drive law, the same stiffness law on both flanks). For a linear mesh of stiffness
+    k (N/m) this is ``F = k delta``, ``0``, ``k (delta + b)``; the force is continuous in
+    ``delta`` and negative (a back-flank load, acting on the drive line of action's
+    opposite sense) in back-flank contact. Written as ``k(max(delta, 0)) - k_b(max(-delta
+    - b, 0))``: branch-free, traceable, differentiable almost everywhere.
+
+    Parameters
+    ----------
+    delta : approach of the drive flanks beyond first contact (m), any shape.
+    clearance : b (m), broadcastable against ``delta``.
+    drive, back : callables ``u -> force`` (N) of a non-negative approach ``u`` (m).
+
+    Returns
+    -------
+    The signed mesh force F (N), > 0 on the drive flanks, < 0 on the back flanks.
+    """
+    back = drive if back is None else back
+    return drive(jnp.maximum(delta, 0.0)) - back(jnp.maximum(-delta - clearance, 0.0))
+
+
+def te_backlash_contact(f_equation, f_loaded, k_equation, k_loaded, clearance):
+    """The contact algorithm of :func:`te_contact` with a clearance between the back flanks
+    (:func:`three_state_force` for a linear mesh).
+
+    The linear mesh force of the equation ``f_equation = F_S + k cos(b_b) x_D`` (N) is
+    ``k delta`` with ``delta = f_equation / k`` the approach beyond the drive flanks'
+    no-load contact (m, along the line of action, ``k = k_equation`` (N/m): the loaded
+    stiffness in (20)/(42), ``k_m`` in (47a)/(48a)). With the clearance ``b`` the equation's
+    force becomes ``k delta`` (drive flanks), 0 (free flight, ``-b <= delta <= 0``) and
+    ``k (delta + b)`` (back flanks, ``delta < -b``): the back flanks take the drive
+    flanks' stiffness law, and the clearance follows the drive flanks' no-load position
+    (the tooth thickness is constant: the mesh-level law of Kahraman & Singh, 1991).
+
+    Parameters
+    ----------
+    f_equation, k_equation : the equation's linear mesh force (N) and its stiffness (N/m, > 0).
+    f_loaded, k_loaded : the reported linear mesh force ``F_S + (sum k_i)^S cos(b_b) x_D``
+        and the loaded stiffness (as in :func:`te_contact`).
+    clearance : b (m), >= 0.
+
+    Returns
+    -------
+    (cut, f_d) : the force to remove from the linear equation (``f_equation -
+    three_state_force(...)``) and the reported mesh force: ``max(0, f_loaded)`` on the drive
+    flanks, 0 in free flight, ``min(0, f_loaded + k_loaded b)`` on the back flanks (N).
+    """
+    delta = f_equation / k_equation
+    f = three_state_force(delta, clearance, lambda u: k_equation * u)
+    drive, back = delta > 0.0, delta < -clearance
+    f_d = jnp.where(drive, jnp.maximum(f_loaded, 0.0),
+                    jnp.where(back, jnp.minimum(f_loaded + k_loaded * clearance, 0.0), 0.0))
+    return f_equation - f, f_d

@@ -24,9 +24,10 @@ import jax.numpy as jnp
 
 from ..errors import ModelError
 
-__all__ = ["AbstractGearModel", "ModelOutputs", "FORMULATIONS", "LINEAR_FORMULATIONS",
-           "WithoutContactLaw",
-           "modal_transient_start", "modal_slowest_output_mode", "modal_periodic_estimate"]
+__all__ = ["AbstractGearModel", "AbstractModalModel", "ModelOutputs", "FORMULATIONS",
+           "LINEAR_FORMULATIONS", "AbstractWithoutContactLaw", "WithoutContactLaw",
+           "ModalWithoutContactLaw", "without_contact_law", "modal_transient_start",
+           "modal_periodic_estimate"]
 
 # the three dynamic formulations of the paper: reference Eq. (14)/(16), transmission-error
 # based Eq. (42)/(20), main-order perturbation Eq. (48a)/(47a)
@@ -160,29 +161,6 @@ class AbstractGearModel(eqx.Module):
         mean (:func:`modal_transient_start`)."""
         return self.initial_state(omega)
 
-    def slowest_output_mode(self):
-        """``(omega_s (rad/s), zeta)`` of the slowest mode the outputs see, used to
-        extrapolate the convergence measure of a transient; None (default) when the model
-        has no modal state (see :func:`modal_slowest_output_mode`)."""
-        return None
-
-    def transient_amplitudes(self, dy, omega):
-        """Bounds of the free response still in a transient, from ``dy = y(theta + P) -
-        y(theta)`` (state change over one excitation period ``P`` at one phase; zero on the
-        periodic orbit): ``(mesh force (N), DTE (m), acceleration (m/s^2) or None)``, used
-        by :func:`gearjax.dynamics.simulate.simulate` for ``convergence``; None (default)
-        when the model has no modal state (see :func:`modal_transient_amplitudes`)."""
-        return None
-
-    def periodic_estimate(self, y_start, y_end, omega, slow_only: bool = False):
-        """Estimate of the periodic state at the end of one excitation period of a
-        transient, from its start ``y_start`` and end ``y_end`` (a quasi-Newton step on
-        the periodicity residual, used by :func:`gearjax.dynamics.simulate.simulate` to cut
-        the transient short); ``slow_only``: correct only the modes well below the
-        excitation frequency, which respond to its period mean; None (default) when the
-        model has no modal state (see :func:`modal_periodic_estimate`)."""
-        return None
-
     @property
     def periodic_start(self) -> bool:
         """True when :meth:`initial_state` is already the periodic steady state (then no
@@ -214,7 +192,32 @@ class AbstractGearModel(eqx.Module):
                          "this model has no frequency-domain periodic state")
 
 
-class WithoutContactLaw(AbstractGearModel):
+class AbstractModalModel(AbstractGearModel):
+    """A model whose state is modal coordinates (r modal displacements, then r scaled modal
+    velocities) of a linear structure: the 3D model. Declares what the transient solver
+    uses to cut a transient short and to judge what is left of it, which only a modal
+    state gives (:func:`gearjax.dynamics.simulate.simulate`,
+    :mod:`gearjax.dynamics.periodicity`)."""
+
+    @abc.abstractmethod
+    def transient_amplitudes(self, dy, omega):
+        """Bounds of the free response still in a transient, from ``dy = y(theta + P) -
+        y(theta)`` (state change over one excitation period ``P`` at one phase; zero on the
+        periodic orbit): ``(mesh force (N), DTE (m), acceleration (m/s^2))``, used by
+        :func:`gearjax.dynamics.simulate.simulate` for ``convergence``
+        (:func:`modal_transient_amplitudes`)."""
+
+    @abc.abstractmethod
+    def periodic_estimate(self, y_start, y_end, omega, slow_only: bool = False):
+        """Estimate of the periodic state at the end of one excitation period of a
+        transient, from its start ``y_start`` and end ``y_end`` (a quasi-Newton step on
+        the periodicity residual, used by :func:`gearjax.dynamics.simulate.simulate` to cut
+        the transient short); ``slow_only``: correct only the modes well below the
+        excitation frequency, which respond to its period mean
+        (:func:`modal_periodic_estimate`)."""
+
+
+class AbstractWithoutContactLaw(AbstractGearModel):
     """The te or perturbation model ``model`` with its equations exactly as printed,
     Eqs. (20)/(42) and (47a)/(48a): linear in the state, without the contact law of
     :func:`gearjax.gears.contact.te_contact`, so the mesh force may turn tensile.
@@ -226,6 +229,8 @@ class WithoutContactLaw(AbstractGearModel):
     instability grow (the contact law bounds both); a physical response needs the contact
     law. The five solver attributes are copied from ``model`` at construction (equinox
     abstract variables must be fields), so wrap the model after changing it.
+    :func:`without_contact_law` wraps any model (:class:`WithoutContactLaw`, or
+    :class:`ModalWithoutContactLaw` keeping a modal model's capabilities).
     """
 
     model: AbstractGearModel
@@ -266,7 +271,7 @@ class WithoutContactLaw(AbstractGearModel):
 
 
     def with_modifications(self, mods):
-        return WithoutContactLaw(self.model.with_modifications(mods))
+        return without_contact_law(self.model.with_modifications(mods))
 
     def angle(self, s):
         return self.model.angle(s)
@@ -294,8 +299,17 @@ class WithoutContactLaw(AbstractGearModel):
     def transient_start(self, omega):
         return self.model.transient_start(omega)
 
-    def slowest_output_mode(self):
-        return self.model.slowest_output_mode()
+    def harmonic_state(self, omega, theta0=0.0):
+        return self.model.harmonic_state(omega, theta0)
+
+
+class WithoutContactLaw(AbstractWithoutContactLaw):
+    """:class:`AbstractWithoutContactLaw` of a model without a modal state (the sdof model)."""
+
+
+class ModalWithoutContactLaw(AbstractWithoutContactLaw, AbstractModalModel):
+    """:class:`AbstractWithoutContactLaw` of a :class:`AbstractModalModel` (the 3D model),
+    keeping its transient extrapolation."""
 
     def transient_amplitudes(self, dy, omega):
         return self.model.transient_amplitudes(dy, omega)
@@ -303,8 +317,14 @@ class WithoutContactLaw(AbstractGearModel):
     def periodic_estimate(self, y_start, y_end, omega, slow_only: bool = False):
         return self.model.periodic_estimate(y_start, y_end, omega, slow_only)
 
-    def harmonic_state(self, omega, theta0=0.0):
-        return self.model.harmonic_state(omega, theta0)
+
+def without_contact_law(model: AbstractGearModel) -> AbstractWithoutContactLaw:
+    """``model`` (te or perturbation) without the contact law: :class:`ModalWithoutContactLaw`
+    for a modal model, else :class:`WithoutContactLaw`. Raises
+    :class:`~gearjax.errors.ModelError` for the reference formulation."""
+    if isinstance(model, AbstractModalModel):
+        return ModalWithoutContactLaw(model)
+    return WithoutContactLaw(model)
 
 
 def modal_transient_start(model: AbstractGearModel, omega, omega_r, n_average: int = 64):
@@ -330,26 +350,6 @@ def modal_transient_start(model: AbstractGearModel, omega, omega_r, n_average: i
     g = w4 / (w4 + nu1**4)
     g = jnp.concatenate([g, g])
     return mean + g * (y_qs - mean)
-
-
-def modal_slowest_output_mode(omega_r, v_r, w_r, damping_ratio, share_tol: float = 1e-4):
-    """(omega_s, zeta) of the slowest mode whose share of the static mesh compliance
-    ``v_i^2 / w_i^2`` or of the static DTE response to the mesh force ``|w_i v_i| / w_i^2``
-    is at least ``share_tol`` (``omega_r`` modal frequencies (rad/s), ``v_r`` / ``w_r`` the
-    modal mesh / DTE vectors); None for inconsistent shapes."""
-    om = jnp.asarray(omega_r)
-    v = jnp.asarray(v_r)
-    w = jnp.asarray(w_r)
-    if om.ndim != 1 or v.shape != om.shape or w.shape != om.shape:
-        return None
-    pos = om > 0
-    inv2 = jnp.where(pos, 1.0 / jnp.where(pos, om, 1.0) ** 2, 0.0)
-    sv = v**2 * inv2
-    sw = jnp.abs(w * v) * inv2
-    share = jnp.maximum(sv / jnp.maximum(sv.sum(), 1e-300), sw / jnp.maximum(sw.sum(), 1e-300))
-    sel = pos & (share >= share_tol)
-    w_s = jnp.min(jnp.where(sel, om, jnp.inf))
-    return w_s, jnp.asarray(damping_ratio)
 
 
 def free_decay(omega_n, zeta, period_s):

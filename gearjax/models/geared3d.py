@@ -45,6 +45,22 @@ modal coordinates, ``M_r = I``, ``e = T^T E``) the equations are integrated as
 ``u' = (...)/Omega^2 + NLTE' e'``, ``q' = u - NLTE' e``: only NLTE' enters and its kinks
 are integrator jumps (:attr:`jump_thetas`).
 
+Backlash (reference formulation, ``backlash_m``): the back flanks mesh on the second base
+plane (:mod:`gearjax.gears.backlash`): at ``theta`` the cells of the drive pattern at the
+mirror angle ``phi0 - theta``, with the structure vectors ``V'(M_i) = H V(M_i)`` of the
+half-turn about the line of centres
+(:meth:`gearjax.structure.element.PinionGearElement.back_vectors`), add
+``sum_i k_i max(0, V'(M_i)^T X - b - r_min - r'_min - de'_i) V'(M_i)`` to Eq. (14); the
+mesh force is the drive cells' total minus the back cells' (negative on the back flanks).
+te/perturbation: the mesh-level law of each flank along its averaged vector, the drive
+flanks' ``F_S + k v_xD`` along ``V`` as in Section 6.2 and the back flanks' ``k max(0,
+delta_b)`` along ``V' = H V`` with ``delta_b = V'^T (X - X_nl) - b``, ``X_nl = X_S - (F_S /
+k) C_v / C_vv`` the drive flanks' no-load position on the static compliance line (the
+stiffness ``k`` of the equation: k(theta) in (42), ``k_m`` in (48a); reported with the
+loaded one); in torsion ``delta_b = -delta - b``, the sdof law of
+:func:`gearjax.gears.contact.te_backlash_contact`. The quasi-static solution, ``k_m`` and
+the modal basis are the drive flanks' (the static load never reaches the back flanks).
+
 Modal coordinates: ``X = T q`` with ``T`` from :func:`gearjax.structure.reduced_model` on
 ``(M, K_bar)``: all modes (exact) or those below a cut-off plus static-correction
 pseudo-modes for ``F_0``, ``E`` and unit loads on the 12 element dofs (every static mesh
@@ -77,13 +93,14 @@ from ..excitation.mesh3d import QuasiStaticMesh3D, tabulate
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
+from ..gears.backlash import back_flank_angle_rad, back_flank_gaps
 from ..gears.contact import te_contact
 from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..structure.condensation import Condensation, QuasiStatic3D
 from ..structure.element import PinionGearElement
 from ..structure.geared import Eccentricity
-from .base import (FORMULATIONS, LINEAR_FORMULATIONS, AbstractGearModel, ModelOutputs,
-                   modal_periodic_estimate, modal_slowest_output_mode,
+from .base import (FORMULATIONS, LINEAR_FORMULATIONS, AbstractModalModel, ModelOutputs,
+                   modal_periodic_estimate,
                    modal_transient_amplitudes, modal_transient_start)
 from .geared3d_build import EXCITATIONS, MESH_VECTORS, build_geared3d
 from .geared3d_inertial import inertial_vectors, nlte_derivatives
@@ -96,7 +113,7 @@ __all__ = ["Geared3DModel", "MESH_VECTORS", "default_max_frequency_hz", "CUTOFF_
 
 
 
-class Geared3DModel(AbstractGearModel):
+class Geared3DModel(AbstractModalModel):
     """3D geared system, Eqs. (14), (42), (48a). Build with :meth:`build`; complete when
     built (table, angle map and structure flag of the build design included).
 
@@ -122,6 +139,8 @@ class Geared3DModel(AbstractGearModel):
     te_weight : te/perturbation: 1.0 for Eq. (42), 0.0 for Eq. (48a) (the stiffness of the
         linear mesh term, k(theta) or k_m, chosen by data: :meth:`compiled_form`); None for
         the reference formulation.
+    backlash_m : clearance between the back flanks (m), or None: no back flanks (module
+        docstring, "Backlash").
 
     Static attributes: formulation, mesh_vectors, nlte_terms, nlte_inertia, n_modes, n_static,
     diagonal_stiffness and damping_split (:func:`modal_structure`: ``kbar_r`` is applied as
@@ -183,6 +202,7 @@ class Geared3DModel(AbstractGearModel):
     diagonal_stiffness: bool = eqx.field(static=True, default=False)
     damping_split: int = eqx.field(static=True, default=0)
     te_weight: jax.Array | None = None
+    backlash_m: jax.Array | None = None
 
     def __check_init__(self):
         if self.formulation not in FORMULATIONS:
@@ -363,15 +383,20 @@ class Geared3DModel(AbstractGearModel):
         z = q - self.q0
         f_s = self.static_force_N
         if self.formulation == "reference":  # no angle map: s = theta
-            cells, de, _ = contact_gaps(self.mesh, self.mods, s)
-            vecs = self.quasi_static_mesh().vectors(cells)
+            cells, de, nlte = contact_gaps(self.mesh, self.mods, s)
+            qsm = self.quasi_static_mesh()
+            vecs = qsm.vectors(cells)
             x_loc = self.t_local @ q
             loads = cells.stiffness_N_per_m * jnp.maximum(vecs @ x_loc - de, 0.0)
             f_loc = vecs.T @ loads
+            f_d = jnp.sum(loads)
+            if self.backlash_m is not None:  # back flanks: the module docstring, "Backlash"
+                b_loc, b_load = self._back_flanks(s, x_loc, nlte, qsm)
+                f_loc, f_d = f_loc + b_loc, f_d - b_load
             # K q - F0 = K_bar z - k_m V (V^T q) + k_m v_x0 V ... with K_bar q0 = F0
             force = (stiffness_product(self, z) - self.k_m * self.v_r * (self.v_r @ q)
                      + self.t_local.T @ f_loc)
-            return force, jnp.sum(loads)
+            return force, f_d
         d, k = self._excitation(s)
         v_q = self.v_r @ q
         v_xs = self.v_x0 + self.cos_bb * d
@@ -389,7 +414,29 @@ class Geared3DModel(AbstractGearModel):
         if not contact:
             return force, f_d
         cut, f_d = te_contact(f_eq, f_d)
+        if self.backlash_m is not None:  # the back flanks: module docstring, "Backlash"
+            vb_r = self.t_local.T @ self.element.back_vectors(self.v_local)
+            q_s = self.q0 + d / self.c_wv * self.c_v_r  # X_S, Eq. (29)
+            shift = (vb_r @ self.c_v_r) / self.c_vv  # V'^T C_v / C_vv (-1 in torsion)
+            delta_b = vb_r @ (q - q_s) + f_s / k_eq * shift - self.backlash_m
+            load = jnp.maximum(delta_b, 0.0)
+            read = jnp.maximum(vb_r @ (q - q_s) + f_s / k * shift - self.backlash_m, 0.0)
+            f_d = f_d - jnp.where(delta_b > 0.0, k * read, 0.0)  # read as Eq. (41)
+            return force - cut * self.v_r + k_eq * load * vb_r, f_d
         return force - cut * self.v_r, f_d
+
+    def _back_flanks(self, theta, x_loc, nlte, qsm):
+        """(12,) element forces and total load (N) of the back-flank cells at ``theta``
+        for the element displacements ``x_loc``: the cells of the mirror angle with their
+        vectors ``V'(M_i) = H V(M_i)``, loaded ``k_i max(0, V'^T x - (b + r_min + r'_min)
+        - gap'_i)`` (:mod:`gearjax.gears.backlash`; ``r_min = NLTE cos b_b`` of the drive
+        flanks at ``theta``)."""
+        cells, gaps, b_min = back_flank_gaps(self.mesh, self.mods, theta,
+                                             back_flank_angle_rad(self.mesh.pair))
+        vecs = self.element.back_vectors(qsm.vectors(cells)) * self.free12[None, :]
+        clearance = self.backlash_m + nlte * self.cos_bb + b_min
+        loads = cells.stiffness_N_per_m * jnp.maximum(vecs @ x_loc - clearance - gaps, 0.0)
+        return vecs.T @ loads, jnp.sum(loads)
 
     def _accel(self, s, y, omega, contact: bool = True):
         """(q, q', u') for the state y at the simulation angle ``s`` (derivatives with
@@ -512,11 +559,6 @@ class Geared3DModel(AbstractGearModel):
         ones on the quasi-static state (:func:`gearjax.models.base.modal_transient_start`
         with the modal frequencies :attr:`omega_r`)."""
         return modal_transient_start(self, omega, self.omega_r)
-
-    def slowest_output_mode(self):
-        """(omega_s (rad/s), zeta) of the slowest mode the mesh force or the DTE sees
-        (:func:`gearjax.models.base.modal_slowest_output_mode` on ``omega_r, v_r, w_r``)."""
-        return modal_slowest_output_mode(self.omega_r, self.v_r, self.w_r, self.damping_ratio)
 
     def transient_amplitudes(self, dy, omega):
         """Free response left in a transient (:func:`gearjax.models.base.modal_transient_amplitudes`

@@ -14,8 +14,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ModelError
+from ..excitation.events import distinct_angles, engagement_angles
 from ..excitation.mesh3d import QuasiStaticMesh3D
 from ..excitation.te_file import TETable
+from ..gears.backlash import back_flank_angle_rad, check_backlash, check_backlash_mods
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 from ..gears.quasistatic import static_mesh_force
@@ -64,6 +66,7 @@ def build_geared3d(
     te_table: TETable | None = None,
     nlte_inertia: bool = True,
     moving_events: bool = True,
+    backlash_m: float | None = None,
 ):
     """Build a complete 3D model, a :class:`~gearjax.models.geared3d.Geared3DModel`
     (outside ``jit``: checks, modal basis, k_m, jump and event angles, excitation table).
@@ -118,6 +121,10 @@ def build_geared3d(
     moving_events : te/perturbation table: False keeps the switching angles at the build
         angles (no angle map: the same model at the build design, built faster for
         forward sweeps; :meth:`with_modifications` then moves no switching angle).
+    backlash_m : clearance between the back flanks (m, in ``[0, m_n]``; None: none): the
+        reference formulation's back-flank cells on the second base plane with their
+        structure vectors ``V'(M_i)``, te/perturbation's mesh-level back-flank law along
+        ``V' = H V`` (:mod:`gearjax.models.geared3d`, "Backlash").
 
     Raises
     ------
@@ -133,6 +140,9 @@ def build_geared3d(
     if mods is None:
         mods = ToothModifications.none()
     mods.check_against(mesh.pair)
+    backlash = check_backlash("backlash_m", backlash_m, mesh.pair)
+    if backlash is not None and formulation == "reference":
+        check_backlash_mods(backlash, mods, mesh.pair)
     torque = float(pinion_torque_Nm)
     if not (math.isfinite(torque) and torque > 0):
         raise ModelError("pinion_torque_Nm", pinion_torque_Nm, "must be finite and > 0")
@@ -214,6 +224,9 @@ def build_geared3d(
     if te_table is not None:
         jumps, layout, period = te_file_fields(te_table, layout, jumps, red.w_r @ red.q0,
                                                nlte_terms)
+    if backlash is not None and formulation == "reference":  # back cells entering / leaving
+        back = np.mod(back_flank_angle_rad(pair) - engagement_angles(mesh, period), period)
+        jumps = distinct_angles(np.concatenate([np.asarray(jumps, dtype=float), back]), period)
 
     return cls(
         mesh=mesh, mods=mods, element=el,
@@ -231,5 +244,6 @@ def build_geared3d(
         te_source=None if te_table is None else te_table.source,
         nlte_inertia=bool(nlte_inertia), **modal_structure(red.kbar_r, red.c_r, red.n_modes),
         te_weight=None if formulation == "reference" else jnp.asarray(float(formulation == "te")),
+        backlash_m=None if backlash is None else jnp.asarray(backlash),
         **layout,
     )

@@ -104,6 +104,17 @@ the 3.4 kHz mesh modes): the pinion does not feel it at mesh frequencies, ``kapp
 ``kappa = J2 / (Rb2^2 m_eq) = 1 + J2 Rb1^2 / (J1 Rb2^2)`` (about 30 for the Baud-Velex
 bodies: the whole gear rigidly coupled to the mesh; ``--nlte-reaction pinion``).
 
+Backlash (``backlash_m``)
+------------------------
+A clearance ``b`` between the back flanks (:mod:`gearjax.gears.backlash`) makes every mesh
+law three-state (:func:`gearjax.gears.contact.three_state_force`): drive flanks, free
+flight, back flanks (a force of the other sign, F_D < 0). Reference: Eq. (22) plus the back
+cells of the mirror angle, first back contact at ``x cos b_b = -(b + r_min + r'_min)``
+(:func:`gearjax.gears.backlash.cell_backlash_force`; their engagement angles join
+``jump_thetas``). te/perturbation: the mesh-level law of
+:func:`gearjax.gears.contact.te_backlash_contact`, back contact ``b`` behind the drive
+flanks' no-load contact, through the same stiffness. None (default): the paper's model.
+
 Derivatives with respect to the design (moving switching angles)
 ----------------------------------------------------------------
 The model is forward-mode differentiable in its array data (speed, inertias, torque,
@@ -129,14 +140,16 @@ import numpy as np
 from ..gears.geometry import STEEL_DENSITY_KG_M3, GearPair, solid_cylinder_inertias  # re-exported
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
-from ..gears.contact import solve_unilateral, te_contact, unilateral_solve_pairwise
+from ..gears.backlash import cell_backlash_force, check_backlash, check_backlash_mods
+from ..gears.contact import (solve_unilateral, te_backlash_contact, te_contact,
+                             unilateral_solve_pairwise)
 from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..excitation.events import EV_FIXED, NEWTON_STEPS, code_jnp, moved_event_angles
 from ..excitation.sdof import sdof_signature, sdof_switch
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..excitation.te_file import te_model_fields
 from .base import FORMULATIONS, AbstractGearModel, ModelOutputs
-from .torsional_layout import sdof_table_layout
+from .torsional_layout import sdof_table_layout, with_back_flank_jumps
 from ..errors import ModelError
 
 __all__ = ["TorsionalModel", "ModelOutputs", "ModelError", "FORMULATIONS",
@@ -177,6 +190,7 @@ class _TorsionalInputs(eqx.Module):
     nlte_inertia: bool = eqx.field(static=True, default=True)
     table_codes: jax.Array | None = None
     te_input: PeriodicHermiteTable | None = None  # from a TE file (with_te): the table itself
+    backlash_m: jax.Array | None = None  # clearance of the back flanks (m); None: none
 
     @property
     def pair(self) -> GearPair:
@@ -375,6 +389,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
     kappa : ``J2 / (Rb2^2 m_eq)`` (pinion reaction) or 1 (drive) with the substitution,
         else 0.
     nlte_dd_coeffs : complex Fourier coefficients of NLTE'' (spectral method), else None.
+    backlash_m : clearance between the back flanks (m), or None (module docstring).
     """
 
     angle_map: AngleMap | None = eqx.field(kw_only=True)
@@ -439,6 +454,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         merge_spur_lines: bool = True,
         nlte_reaction: str = "drive",
         nlte_inertia: bool = True,
+        backlash_m: float | None = None,
     ) -> "TorsionalModel":
         """Build a torsional model (outside ``jit``: inputs are checked, jump angles found).
 
@@ -466,12 +482,16 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             line is merged into one cell (``cells_per_line=1``, same total stiffness):
             identical results up to round-off, 10-30x cheaper reference right-hand sides.
             The stored ``mesh`` is then the merged one.
+        backlash_m : clearance between the back flanks (m, normal backlash along the line
+            of action, in ``[0, m_n]``); None (default): no back flanks, the model of the
+            paper (module docstring, "Backlash").
 
         Raises
         ------
         ModelError
-            for an unknown option, a non-positive torque or inertia, zeta outside [0, 1)
-            or inconsistent sizes.
+            for an unknown option, a non-positive torque or inertia, zeta outside [0, 1),
+            inconsistent sizes, or a backlash that is not finite, negative or above a
+            module (or, reference formulation, with pitch errors or eccentricity).
         """
         for name, value, allowed in (("formulation", formulation, FORMULATIONS),
                                      ("nlte_method", nlte_method, NLTE_METHODS),
@@ -482,6 +502,9 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         if mods is None:
             mods = ToothModifications.none()
         mods.check_against(mesh.pair)
+        backlash = check_backlash("backlash_m", backlash_m, mesh.pair)
+        if backlash is not None and formulation == "reference":
+            check_backlash_mods(backlash, mods, mesh.pair)
         torque = float(pinion_torque_Nm)
         if not (math.isfinite(torque) and torque > 0):
             raise ModelError("pinion_torque_Nm", pinion_torque_Nm,
@@ -506,6 +529,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             mesh = dataclasses.replace(mesh, cells_per_line=1)
         force = static_mesh_force(mesh.pair, torque)
         layout = sdof_table_layout(mesh, mods, force, n_table)
+        if backlash is not None and formulation == "reference":
+            layout = with_back_flank_jumps(layout, mesh)
         period, nlte_max = layout.pop("period"), layout.pop("nlte_max")
         if nlte_terms is None:
             nlte_terms = nlte_max > 0.0
@@ -516,6 +541,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             nlte_reaction=nlte_reaction, nlte_inertia=bool(nlte_inertia),
             nlte_harmonics=int(nlte_harmonics),
             excitation=excitation, period_rad=period, n_table=n_table, **layout,
+            backlash_m=None if backlash is None else jnp.asarray(backlash),
         )
 
     def angle(self, s):
@@ -582,9 +608,15 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
 
     def _mesh_terms(self, theta, x, exc, contact=True):
         """((F_elastic - F_t) / F_t, F_D (N)) at theta for the transverse approach x; te
-        and perturbation linear, as printed, with ``contact=False``."""
+        and perturbation linear, as printed, with ``contact=False``. With backlash the
+        three-state law of :func:`gearjax.gears.contact.three_state_force` (module
+        docstring, "Backlash"): F_D < 0 on the back flanks."""
         f_s = self.static_force_N
         if self.formulation == "reference":
+            if self.backlash_m is not None:
+                f_d = cell_backlash_force(self.mesh, self.mods, theta, x * self.cos_bb,
+                                          self.backlash_m)
+                return f_d / f_s - 1.0, f_d
             cells, delta_e, _ = contact_gaps(self.mesh, self.mods, theta)
             loads = cells.stiffness_N_per_m * jnp.maximum(x * self.cos_bb - delta_e, 0.0)
             f_d = jnp.sum(loads)  # Eq. (22)
@@ -593,7 +625,11 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         x_d = x - x_static
         stiff = k_s if self.formulation == "te" else self.k_m
         # Eq. (24) with the loaded stiffness for both; contact law: gears.contact.te_contact
-        cut, f_d = te_contact(f_s + stiff * self.cos_bb * x_d, f_s + k_s * self.cos_bb * x_d)
+        f_eq, f_ld = f_s + stiff * self.cos_bb * x_d, f_s + k_s * self.cos_bb * x_d
+        if self.backlash_m is not None:
+            cut, f_d = te_backlash_contact(f_eq, f_ld, stiff, k_s, self.backlash_m)
+        else:
+            cut, f_d = te_contact(f_eq, f_ld)
         if not contact:
             cut, f_d = 0.0, f_s + k_s * self.cos_bb * x_d
         return (stiff * self.cos_bb * x_d - cut) / f_s, f_d

@@ -19,10 +19,11 @@ from ..excitation.events import (EV_FIXED, check_event_roots, classify_events, c
                                  engagement_angles, find_brackets, quiet_origin)
 from ..excitation.sdof import sdof_signature_fn, sdof_switch
 from ..excitation.tables import PeriodicHermiteTable
+from ..gears.backlash import back_flank_angle_rad
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 
-__all__ = ["sdof_table_layout"]
+__all__ = ["sdof_table_layout", "with_back_flank_jumps"]
 
 
 def sdof_table_layout(mesh: Mesh, mods: ToothModifications, force: float, n_table: int) -> dict:
@@ -95,3 +96,29 @@ def sdof_table_layout(mesh: Mesh, mods: ToothModifications, force: float, n_tabl
         jump_kinds=tuple(int(k) for k in kinds),
         jump_cells=tuple((int(a), int(b)) for a, b in cells_ab), table_codes=codes,
     )
+
+
+def with_back_flank_jumps(layout: dict, mesh: Mesh) -> dict:
+    """``layout`` (of :func:`sdof_table_layout`) with the angles where back-flank cells
+    enter or leave the path of contact (the engagement angles mirrored through
+    :func:`gearjax.gears.backlash.back_flank_angle_rad`) added to the integrator's jumps as
+    fixed events: the reference formulation with backlash, whose back-flank force jumps
+    there while the back flanks are in contact. Angles within ``1e-12`` periods of a jump
+    already there are not repeated; the jumps stay sorted with their kinds and cells."""
+    period = float(layout["period"])
+    phi0 = back_flank_angle_rad(mesh.pair)
+    back = np.mod(phi0 - engagement_angles(mesh, period), period)
+    old = np.asarray(layout["jump_thetas"], dtype=float)
+    tol = 1e-12 * period
+    new = []
+    for t in np.unique(back):
+        d = np.abs(np.mod(np.concatenate([old, new]) - t + period / 2, period) - period / 2)
+        if not np.any(d <= tol):
+            new.append(float(t))
+    thetas = np.concatenate([old, new])
+    kinds = list(layout["jump_kinds"]) + [EV_FIXED] * len(new)
+    cells = list(layout["jump_cells"]) + [(0, 0)] * len(new)
+    order = np.argsort(thetas, kind="stable")
+    return dict(layout, jump_thetas=tuple(float(thetas[i]) for i in order),
+                jump_kinds=tuple(kinds[i] for i in order),
+                jump_cells=tuple(cells[i] for i in order))

@@ -63,8 +63,9 @@ def build_model(
         compiles faster); the torsional model keeps its map (it costs little).
     kwargs : go to the model's ``build`` (``formulation``, ``damping_ratio``,
         ``nlte_terms``, ``max_frequency_hz``, ...). Defaults taken from the rig:
-        ``pinion_torque_Nm`` (C_m0, N m) and, 3D, ``torque_node`` (the motor node) and
-        ``encoder_nodes``.
+        ``pinion_torque_Nm`` (C_m0, N m), ``backlash_m`` (the clearance between the back
+        flanks, m; None: none, :mod:`gearjax.gears.backlash`) and, 3D, ``torque_node``
+        (the motor node) and ``encoder_nodes``.
     """
     if model not in MODELS:
         raise ModelError("model", model, f"must be one of {MODELS}")
@@ -72,6 +73,7 @@ def build_model(
         mesh = Mesh.build(rig.pair, law, cells_per_line=cells_per_line,
                           pinion_torque_Nm=rig.pinion_torque_Nm)
     kwargs.setdefault("pinion_torque_Nm", rig.pinion_torque_Nm)
+    kwargs.setdefault("backlash_m", rig.backlash_m)
     if model == "torsional":
         if max_frequency_hz is not None:
             raise ModelError("max_frequency_hz", max_frequency_hz,

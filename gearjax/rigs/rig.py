@@ -41,6 +41,9 @@ class Rig:
     accuracy : ISO 6336-1 method-B accuracy data (:class:`gearjax.gears.iso6336.AccuracyData`:
         f_pb, f_falpha, C_a, K_A, rated speed) of a rig file's ``[iso6336]`` table, or None
         (the defaults named in :mod:`gearjax.gears.iso6336`).
+    backlash_m : clearance between the back flanks (m, normal backlash along the line of
+        action, :mod:`gearjax.gears.backlash`) of a rig file's ``[gear_pair] backlash_m``,
+        or None: no back flanks (the built-in rigs, the paper's model).
     """
 
     name: str
@@ -54,6 +57,7 @@ class Rig:
     modifications_default: ToothModifications | None = None
     relief_presets: Callable | None = None
     accuracy: AccuracyData | None = None
+    backlash_m: float | None = None
 
     def structure(self):
         """The rig's shafts, discs, bearings and couplings, with the centre line set by

@@ -34,6 +34,9 @@ Schema (SI units; the unit is in each key name)
     profile_shift2 = -0.16     #   profile_shift1/2, addendum_coeff1/2,
     addendum_coeff1 = 1.0      #   dedendum_coeff1/2, face_width1_m/face_width2_m
     ...
+    backlash_m = 1e-4          # optional: clearance between the back flanks (normal
+                               #   backlash along the line of action, m, in [0, m_n]);
+                               #   default none: the back flanks never meet
 
     [operating]
     pinion_torque_Nm = 254.8   # required, > 0
@@ -150,7 +153,7 @@ from ..errors import RigError
 from .baud_velex import table1_relief
 from .rig import Rig
 from .rigfile_checks import (AXIS_KEYS, MIN_ELEMENT_LENGTH_M, REQUIRED, Nodes, Reader,
-                             per_element, read_axis, table_list)
+                             per_element, read_axis, read_backlash, table_list)
 from ..structure.assembly import Structure, StructureBuilder
 from ..structure.modal import modal_basis, scaled_null_dimension
 from ..structure.beams import DOF_NAMES, STEEL, ElementInputError, Material, disc_properties
@@ -164,7 +167,7 @@ _PAIR_NUMBERS = ("profile_shift1", "profile_shift2", "addendum_coeff1", "addendu
 
 
 def _gear_pair(root: Reader) -> GearPair:
-    allowed = (("normal_module_m", "z1", "z2") + _PAIR_NUMBERS
+    allowed = (("normal_module_m", "z1", "z2", "backlash_m") + _PAIR_NUMBERS
                + tuple(f"{a}_{u}" for a in _PAIR_ANGLES for u in ("rad", "deg")))
     if not root.has("gear_pair"):
         root.missing("gear_pair", "the [gear_pair] table")
@@ -440,6 +443,7 @@ def parse_rig(data: dict, source: str = "<string>", default_name: str = "rig-fil
         modifications_default=mods,
         relief_presets=table1_relief,  # --relief short/long: the Table 1 reliefs
         accuracy=_accuracy(root),
+        backlash_m=read_backlash(root, pair),
     )
 
 

@@ -14,7 +14,7 @@ from ..errors import RigError
 
 __all__ = ["Reader", "Nodes", "REQUIRED", "MIN_ELEMENT_LENGTH_M", "RANGES", "AXIS_KEYS",
            "check_value", "check_range", "table_list", "read_axis", "per_element",
-           "show_value", "is_real"]
+           "show_value", "is_real", "read_backlash"]
 
 REQUIRED = object()
 MIN_ELEMENT_LENGTH_M = 1e-4  # shortest shaft element accepted (0.1 mm)
@@ -186,3 +186,21 @@ def per_element(r: Reader, key: str, n_el: int, kind: str, what: str, default: A
             check_value(r, f"{r.sub(key)}[{i}]", x, kind, what)
         return vals
     return [r.get(key, kind, what, default)] * n_el
+
+
+def read_backlash(root: Reader, pair) -> float | None:
+    """``[gear_pair] backlash_m`` (m, the clearance between the back flanks, optional) of
+    the rig file, checked against the pair (:func:`gearjax.gears.backlash.backlash_problem`:
+    a finite number in ``[0, m_n]``); None when absent (no back flanks)."""
+    from ..gears.backlash import backlash_problem
+
+    table = root.data.get("gear_pair")
+    if not isinstance(table, dict) or "backlash_m" not in table:
+        return None
+    path, v = "gear_pair.backlash_m", table["backlash_m"]
+    if not is_real(v):
+        root.fail(path, v, f"must be a number (the backlash, m), got {type(v).__name__}")
+    why = backlash_problem(v, pair)
+    if why is not None:
+        root.fail(path, v, why)
+    return float(v)

@@ -18,6 +18,13 @@ Eq. (8a), ``V~(M)^T = (n, O1M x n, -n, -O2M x n)``, are therefore
     gear:   minus the same with O2M.
 
 The torsional components are ``Rb1 cos(beta_b)`` and ``Rb2 cos(beta_b)``: Eq. (8b).
+
+Back flanks (backlash, :mod:`gearjax.gears.backlash`): they mesh on the second base plane,
+the image of the first under the half-turn ``H`` about the line of centres in the face
+mid-plane (``c = O1O2 / a_w``: ``R = 2 c c^T - I`` on the (s, t, z) components, which
+fixes the pinion and gear centre nodes). A back-flank cell that is the image of a drive
+cell ``M`` has ``V'(M') = H V(M)`` (Eq. (8a) at ``H M`` with the normal ``H n``: a proper
+rotation keeps cross products), so ``V'^T X = V^T (H X)``; in torsion ``V'^T X = -V^T X``.
 """
 
 from __future__ import annotations
@@ -102,6 +109,27 @@ class PinionGearElement(eqx.Module):
         # (s, t, z) -> node order: translations (z, s, t); rotations (s, t, z)
         trans = jnp.stack([nb[..., 2], nb[..., 0], nb[..., 1]], axis=-1)
         return jnp.concatenate([trans, r1, -trans, -r2], axis=-1)
+
+    def half_turn(self) -> np.ndarray:
+        """The (3, 3) half-turn ``R = 2 c c^T - I`` about the line of centres, in (s, t, z)."""
+        p = self.mesh.pair
+        rb1, rb2 = p.base_radii_m
+        o2 = np.array([p.line_of_action_length_m, -(rb1 + rb2), 0.0])  # as _frame
+        c = o2 / np.linalg.norm(o2)
+        return 2.0 * np.outer(c, c) - np.eye(3)
+
+    def back_vectors(self, v12):
+        """``V' = H V`` (..., 12): the back-flank structure vectors of the cells whose
+        drive-flank vectors are ``v12`` (module docstring; node dof order)."""
+        r = jnp.asarray(self.half_turn())
+        v12 = jnp.asarray(v12)
+
+        def node(v6):  # translations (z, s, t), rotations (s, t, z)
+            tr = jnp.stack([v6[..., 1], v6[..., 2], v6[..., 0]], axis=-1) @ r.T  # (s, t, z)
+            rot = v6[..., 3:6] @ r.T
+            return jnp.concatenate([tr[..., 2:3], tr[..., 0:2], rot], axis=-1)
+
+        return jnp.concatenate([node(v12[..., :6]), node(v12[..., 6:])], axis=-1)
 
     def cell_vectors(self, cells):
         """V~(M_i) for every cell (n_cells, 12)."""
