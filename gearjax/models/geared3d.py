@@ -491,11 +491,7 @@ class Geared3DModel(AbstractModalModel):
         integrating (why opt-in: ``benchmarks/results/model_notes.md``)."""
         return self.harmonic_start and self._constant_coefficients
 
-    @property
-    def speed_scaled_state(self) -> bool:
-        """True: the state ``((q - q_0) / a, u / (r a))``, ``r_j = omega_j / Omega``, makes
-        the homogeneous part of Eqs. (14)/(42)/(48a) ``Omega^-1`` times one operator."""
-        return True
+    speed_scaled_state = True  # ((q-q0)/a, u/(r a)), r = omega_r/Omega: Omega^-1 A(theta)
 
     @property
     def _constant_coefficients(self) -> bool:

@@ -569,11 +569,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         """omega_n = sqrt(k_m cos^2 b_b / m_eq) (rad/s) with the mean loaded stiffness."""
         return self.omega_n
 
-    @property
-    def speed_scaled_state(self) -> bool:
-        """True: the state ``(z / x_ref, z' / (r x_ref))``, ``r = omega_n / Omega``, makes
-        the homogeneous part of Eqs. (16)/(20)/(47a) ``Omega^-1`` times one operator."""
-        return True
+    speed_scaled_state = True  # (z/x_ref, z'/(r x_ref)), r = omega_n/Omega: Omega^-1 A(theta)
 
     def mean_stiffness_N_per_m(self):
         """k_m: mean of the loaded quasi-static stiffness (sum k_i)^S over one period (N/m)."""
