@@ -24,7 +24,8 @@ times tighter than the defaults. Error: the largest difference over the speeds o
 and min mesh force in units of F_S, and of the DTE and acceleration peak-to-peak relative
 to their largest value (the README main job's criterion). Compile = first call minus
 second (warm) call; run = the warm call, which includes the frequency domain's once-per-model
-split and sampling. ``transient periods``: mean over speeds of the periods integrated
+split and sampling (for ``harmonic`` also the frequency domain alone, warm, in the same
+process: its share of the run). ``transient periods``: mean over speeds of the periods integrated
 before the measurement.
 
 Usage::
@@ -139,8 +140,16 @@ def one(model_name: str, formulation: str, method: str, speeds, out_path: str) -
             res["converged"] = np.asarray(r.converged, dtype=float)
             res["solver"] = [str(s) for s in np.asarray(r.solver)]
         times.append(time.perf_counter() - t0)
+    alone = None
+    if method == "harmonic":  # the frequency domain alone (its Fallback's first), warm
+        from gearjax.dynamics.harmonic_sweep import HarmonicBalance
+        from gearjax.dynamics.solvers import SweepRun
+
+        t0 = time.perf_counter()
+        HarmonicBalance().sweep(model, speeds, SweepRun())
+        alone = time.perf_counter() - t0
     rec = {"model": model_name, "formulation": formulation, "method": method,
-           "build_s": t_build, "first_s": times[0], "run_s": times[1],
+           "build_s": t_build, "first_s": times[0], "run_s": times[1], "alone_s": alone,
            "static_force_N": float(model.static_force_N), "state_size": int(model.state_size)}
     rec.update({k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in res.items()})
     with open(out_path, "w") as fh:
@@ -198,6 +207,8 @@ def main() -> int:
                 solvers = rec.get("solver")
                 mix = ("" if solvers is None else ", ".join(
                     f"{s} {solvers.count(s)}" for s in sorted(set(solvers))))
+                if rec.get("alone_s") is not None:
+                    mix += f" (frequency domain alone {rec['alone_s']:.2f} s)"
                 rows.append(dict(model=model, formulation=form, method=method,
                                  compile_s=rec["first_s"] - rec["run_s"], run_s=rec["run_s"],
                                  periods=float(np.mean(rec["transient_periods"])),

@@ -300,6 +300,7 @@ def sdof_linear():
                                  damping_ratio=0.1))
 
 
+@pytest.mark.slow  # four programs compile (~40 s on 2 cores); every sweep above uses the plan
 def test_one_split_serves_every_speed(sdof_linear):
     """A speed-scaled model is split, decomposed and sampled once
     (:func:`~gearjax.dynamics.harmonic_split.harmonic_plan`, at another speed) and solved at

@@ -31,14 +31,15 @@ with ``gt`` the coefficients of the smooth remainder of the forcing ``p c sigma 
 The truncation error is ``O(H^-3)`` (``benchmarks/bench_harmonic.py --convergence``);
 ``error_estimate`` is the largest change, between ``H`` and ``H/2`` harmonics, of the
 state at theta = 0 and of the state directions the outputs read on the output grid,
-relative to their largest component. :func:`harmonics_for` chooses ``H`` from the top
-mode of the model and the tolerance.
+relative to their largest component, or the round-off bound of the jump part where larger
+(:meth:`PeriodicSeries.rounding`). :func:`harmonics_for` chooses ``H`` from the top mode
+of the model and the tolerance.
 
 Metrics: the orbit is a function of theta (:class:`PeriodicSeries`), measured by
 :func:`gearjax.dynamics.measure.measure_orbit`, the measure of every solver (the output
 grid, both sides of every jump, the windows around the extremes and after the jumps, the
 mesh orders), reading the orbit where an integrating solver re-integrates: no transient
-and no ODE solve. The outputs read the state through a few directions only (the plan's
+and no ODE solve. The outputs read the state through a few directions only (the split's
 ``rows``), so the orbit is evaluated there and the measure reads the state ``R^T R y``,
 whose outputs are those of ``y``. ``contact_holds`` (minimum linear mesh force over the
 period > 0) says whether the linear regime holds; where it does not, the caller must
@@ -150,9 +151,7 @@ class PeriodicSeries(eqx.Module):
         n_hi = -(-n_c // blk)
         c = jnp.concatenate([self.coef, jnp.zeros((n_hi * blk - n_c, r), self.coef.dtype)])
         c = c.reshape(n_hi, blk, r)
-        arg = (2.0 * math.pi / self.period) * th
-        lo = jnp.exp(1j * arg[:, None] * jnp.arange(blk)[None, :])  # (N, blk)
-        hi = jnp.exp(1j * arg[:, None] * (blk * jnp.arange(n_hi))[None, :])  # (N, n_hi)
+        lo, hi = _exp_tables((2.0 * math.pi / self.period) * th, blk, n_hi)
         t = (lo @ c.transpose(1, 0, 2).reshape(blk, n_hi * r)).reshape(-1, n_hi, r)
         return jnp.real(jnp.einsum("na,nar->nr", hi, t))
 
@@ -178,6 +177,24 @@ class PeriodicSeries(eqx.Module):
 
 
 _BLOCK = 32  # harmonics per block of the two exponential tables of PeriodicSeries
+
+
+def _exp_tables(arg, blk: int, n_hi: int):
+    """``e^(i arg k)`` for ``k = 0..blk-1`` and ``k = blk j``, ``j = 0..n_hi-1``: (N, blk)
+    and (N, n_hi), whose products give every ``k < blk n_hi``."""
+    return (jnp.exp(1j * arg[:, None] * jnp.arange(blk)[None, :]),
+            jnp.exp(1j * arg[:, None] * (blk * jnp.arange(n_hi))[None, :]))
+
+
+def _exp_harmonics(arg, n_h: int):
+    """``e^(i arg h)`` (N, 2 n_h + 1) for ``h = -n_h..n_h`` from :func:`_exp_tables`."""
+    if arg.shape[0] == 0:
+        return jnp.zeros((0, 2 * n_h + 1), complex)
+    blk = min(_BLOCK, n_h + 1)
+    n_hi = -(-(n_h + 1) // blk)
+    lo, hi = _exp_tables(arg, blk, n_hi)
+    pos = (hi[:, :, None] * lo[:, None, :]).reshape(arg.shape[0], -1)[:, : n_h + 1]
+    return jnp.concatenate([jnp.conj(pos[:, :0:-1]), pos], axis=1)
 
 
 def _jump_part(lam, thj, dg0, dg1, period):
@@ -261,7 +278,7 @@ def _solve(split: HarmonicSplit, thj, sides, coeffs, omega, n_h: int, keep, peri
     qh = jnp.where(inside, conv(sig), 0.0)
     # jumps of the forcing p c sigma + b at theta_j, and of its slope, in the rows F
     lo, hi, dlo, dhi = sides
-    e = jnp.exp(1j * nu * jnp.outer(thj, h))  # (J, 2H+1)
+    e = _exp_harmonics(nu * thj, n_h)  # (J, 2H+1): e^{i h nu theta_j}
     sj = jnp.real(e @ sig)
     dsj = jnp.real(e @ (1j * h * nu * sig))  # mean of both one-sided slopes
     d0 = jnp.concatenate([((hi - lo)[:, k] * sj)[:, None], (hi - lo)[:, :k]], axis=1)
