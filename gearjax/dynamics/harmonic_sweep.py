@@ -22,6 +22,7 @@ from ..errors import SimulationError
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .harmonic import check_linear_model, harmonic_steady_states, harmonics_for
 from .harmonic_split import harmonic_plan, harmonic_split
+from .batching import shard_speeds
 from .measure import N_REFINE
 from .orbit import RESULTS
 from .orders import N_MESH_ORDERS
@@ -79,6 +80,34 @@ def _hb_batch(model, speeds, n_h, plan, samples_per_mesh_period, n_refine):
 
 
 @eqx.filter_jit
+def _hb_sharded(model, speeds, n_h, plan, samples_per_mesh_period, n_refine, devices):
+    dyn, static = eqx.partition((model, plan), eqx.is_array)
+
+    def body(dyn_, w):
+        m, p = eqx.combine(dyn_, static)
+        r = harmonic_steady_states(m, w, n_h, plan=p,
+                                   samples_per_mesh_period=samples_per_mesh_period,
+                                   n_refine=n_refine)
+        return tuple(getattr(r, f) for f in _FIELDS)
+
+    return shard_speeds(body, devices)(dyn, speeds)
+
+
+def _solve_batch(model, speeds, n_h, plan, samples_per_mesh_period, n_refine, devices):
+    """The batch of ``speeds`` on one device, or shared over ``devices`` (padded with the
+    last speed to a multiple of their number)."""
+    if devices is None or len(devices) < 2:
+        return _hb_batch(model, jnp.asarray(speeds), n_h, plan, samples_per_mesh_period,
+                         n_refine)
+    n_dev = len(devices)
+    pad = -speeds.size % n_dev
+    w = np.concatenate([speeds, np.full(pad, speeds[-1])])
+    out = _hb_sharded(model, jnp.asarray(w), n_h, plan, samples_per_mesh_period, n_refine,
+                      tuple(devices))
+    return tuple(np.asarray(v)[: speeds.size] for v in jax.device_get(out))
+
+
+@eqx.filter_jit
 def _rho_batch(model, speeds):
     return jax.vmap(lambda w: spectral_radius_of(monodromy(model, w)))(speeds)
 
@@ -88,7 +117,7 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
                    floquet: bool = True, samples_per_mesh_period: int = 128,
                    n_refine: int = N_REFINE,
                    progress: AbstractProgressMeter = NoProgressMeter(),
-                   rank_one_tol: float | None = None) -> HarmonicSweepResult:
+                   rank_one_tol: float | None = None, devices=None) -> HarmonicSweepResult:
     """Steady state of a linear formulation (te, perturbation; sdof or 3D) over pinion
     speeds (rad/s) in the frequency domain (module docstring): one plan of the model
     (:func:`~gearjax.dynamics.harmonic_split.harmonic_plan`, at the median speed), one
@@ -111,7 +140,9 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
     grid and windows (:mod:`gearjax.dynamics.measure`).
     ``rank_one_tol`` (default ``max(1e-8, rtol / 10)``): the largest relative residual of
     the rank-one split accepted (it perturbs the orbit by about as much; round-off of the
-    3D long-relief te model's optimised compile reached 1.2e-8).
+    3D long-relief te model's optimised compile reached 1.2e-8). ``devices``: the devices
+    of this process to share the speeds over (a list, ``"all"`` or None: the default one;
+    :func:`gearjax.dynamics.batching.shard_speeds`).
 
     Raises
     ------
@@ -124,6 +155,7 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)
     model.require_structure()
+    devices = jax.devices() if devices == "all" else devices
     if not (0.0 < rtol < 1.0):
         raise SimulationError("rtol", rtol, "must lie in (0, 1)")
     if rank_one_tol is None:  # the split's residual moves the orbit by about as much
@@ -153,8 +185,9 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
     while todo.size:
         t_batch = time.perf_counter()
         plan = harmonic_plan(compiled, split, n_h) if scaled else None
-        res = jax.device_get(_hb_batch(compiled, jnp.asarray(speeds[todo]), n_h, plan,
-                                       int(samples_per_mesh_period), int(n_refine)))
+        res = jax.device_get(_solve_batch(compiled, speeds[todo], n_h, plan,
+                                          int(samples_per_mesh_period), int(n_refine),
+                                          devices))
         for f, v in zip(_FIELDS, res):
             out[f][todo] = np.asarray(v, dtype=float)
         n_used[todo] = n_h
@@ -247,17 +280,16 @@ class HarmonicBalance(AbstractPeriodicSolver):
             & np.asarray(result.stable) & np.asarray(result.stability_known)
 
     def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> HarmonicSweepResult:
-        if run.devices is not None or jax.process_count() > 1:
-            raise SimulationError("devices", run.devices, "the frequency domain runs on one "
-                                  "device of one process; use Transient() to shard over "
-                                  "devices or hosts")
+        if jax.process_count() > 1:
+            raise SimulationError("devices", run.devices, "the frequency domain runs in one "
+                                  "process; use Transient() to share speeds over hosts")
         floquet = (model.state_size <= HARMONIC_FLOQUET_MAX_STATES if self.floquet is None
                    else bool(self.floquet))
         res = harmonic_sweep(model, speeds, rtol=self.rtol, harmonics=self.harmonics,
                              max_harmonics=self.max_harmonics, floquet=floquet,
                              samples_per_mesh_period=self.samples_per_mesh_period,
                              n_refine=self.n_refine, progress=run.progress,
-                             rank_one_tol=self.rank_one_tol)
+                             rank_one_tol=self.rank_one_tol, devices=run.devices)
         if run.sink is not None:
             run.sink(res)
         return res

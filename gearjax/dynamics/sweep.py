@@ -125,7 +125,7 @@ class Transient(AbstractOrbitSolver):
     quasi-static start (:meth:`~gearjax.models.base.AbstractGearModel.transient_start`)
     through a transient to the periodic steady state, then measured over
     ``n_measured_periods`` periods. Any model and formulation, contact loss included; the
-    only solver that shards speeds over devices and writes rows chunk by chunk.
+    only solver that shares speeds over several processes and writes rows chunk by chunk.
 
     The fields are :func:`~gearjax.dynamics.simulate.simulate`'s options of the same names
     (``rtol``/``atol``: None for :func:`~gearjax.dynamics.simulate.default_solver`'s;
