@@ -82,7 +82,7 @@ def convergence(speeds=(100.0, 226.0, 600.0), harmonics=(16, 32, 64, 128, 256, 5
     print("| H | " + " | ".join(f"{w:.0f} rad/s" for w in speeds) + " |")
     print("|---|" + "---|" * len(speeds))
     for h in harmonics:
-        r = harmonic_sweep(model, np.asarray(speeds), min_harmonics=h, max_harmonics=h,
+        r = harmonic_sweep(model, np.asarray(speeds), harmonics=h, max_harmonics=h,
                            floquet=False)
         cells = [f"{abs(r.max_mesh_force_N[i] - e[0]) / f_s:.1e}, "
                  f"{abs(r.min_mesh_force_N[i] - e[1]) / f_s:.1e}; {r.error_estimate[i]:.1e}"

@@ -552,7 +552,7 @@ def harmonics_scaling(model):
     say("|---|---|---|---|---|")
     for h in (32, 64, 128, 256, 512, 1024, 2048):
         def f():
-            return harmonic_sweep(model, speeds, rtol=0.5, min_harmonics=h, max_harmonics=h,
+            return harmonic_sweep(model, speeds, rtol=0.5, harmonics=h, max_harmonics=h,
                                   floquet=False)
         res, run, comp = timed(f)
         keep = np.asarray(res.contact_holds)

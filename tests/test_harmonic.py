@@ -89,7 +89,7 @@ def test_sdof_perturbation_with_nlte_against_closed_form():
     model = TorsionalModel.build(spur, table1_relief("long"), formulation="perturbation")
     assert model.nlte_terms
     speeds = np.array([300.0, 780.0])
-    res = harmonic_sweep(model, speeds, rtol=1e-9, min_harmonics=512, max_harmonics=512,
+    res = harmonic_sweep(model, speeds, rtol=1e-9, harmonics=512, max_harmonics=512,
                          floquet=False)
     f_s = float(model.static_force_N)
     for i, omega in enumerate(speeds):
@@ -130,7 +130,7 @@ def test_sdof_te_against_exact_orbit(square_wave):
     model = models[ZETA]
     f_s = static_mesh_force(pair, TORQUE)
     speeds = np.array([100.0, 226.0, 353.0, 800.0, 1200.0])
-    res = harmonic_sweep(model, speeds, rtol=1e-7, min_harmonics=1024, max_harmonics=1024,
+    res = harmonic_sweep(model, speeds, rtol=1e-7, harmonics=1024, max_harmonics=1024,
                          floquet=False)
     inert = tuple(np.asarray(model.inertias_kg_m2))
     for i, w in enumerate(speeds):
@@ -169,7 +169,7 @@ def test_parametric_instability_is_flagged(square_wave):
     model = models[0.02]
     w_p = 2.0 * float(model.natural_frequency_rad_s()) / pair.z1
     speeds = np.array([w_p, 0.7 * w_p])
-    res = harmonic_sweep(model, speeds, rtol=1e-6, min_harmonics=1024, max_harmonics=1024)
+    res = harmonic_sweep(model, speeds, rtol=1e-6, harmonics=1024, max_harmonics=1024)
     inert = tuple(np.asarray(model.inertias_kg_m2))
     rho = [_exact_spectral_radius(pair, k1, k2, inert, 0.02, w) for w in speeds]
     assert rho[0] > 1.05 and rho[1] < 1.0
@@ -188,7 +188,7 @@ def test_clear_errors(square_wave):
     with pytest.raises(SimulationError, match="speeds_rad_s"):
         harmonic_sweep(model, [0.0])
     with pytest.raises(SimulationError, match="power of two"):
-        harmonic_sweep(model, [300.0], min_harmonics=100)
+        harmonic_sweep(model, [300.0], harmonics=100)
     with pytest.raises(SimulationError, match="rtol"):
         harmonic_sweep(model, [300.0], rtol=0.0)
 
@@ -237,7 +237,7 @@ def test_small_gain_bound_proves_only_what_floquet_confirms(square_wave):
     inert = tuple(np.asarray(models[ZETA].inertias_kg_m2))
     speeds = np.array([150.0, 600.0])
     for z in (ZETA,):  # 0.02: test_parametric_instability_is_flagged
-        res = harmonic_sweep(models[z], speeds, rtol=1e-6, min_harmonics=512,
+        res = harmonic_sweep(models[z], speeds, rtol=1e-6, harmonics=512,
                              max_harmonics=512)
         assert np.all(res.small_gain > 1.0)  # the bound cannot decide here
         exact = [_exact_spectral_radius(pair, k1, k2, inert, z, w) for w in speeds]
@@ -245,7 +245,7 @@ def test_small_gain_bound_proves_only_what_floquet_confirms(square_wave):
         assert np.all(res.stability_known)
     heavy = TorsionalModel.build(mesh, ToothModifications.none(), formulation="te",
                                  damping_ratio=0.4, pinion_torque_Nm=TORQUE)
-    res = harmonic_sweep(heavy, speeds, rtol=1e-6, min_harmonics=512, max_harmonics=512)
+    res = harmonic_sweep(heavy, speeds, rtol=1e-6, harmonics=512, max_harmonics=512)
     assert np.all(res.small_gain < 0.95) and np.all(res.stable)
     assert np.all(np.isnan(res.spectral_radius))  # proven: no monodromy integrated
     assert all(_exact_spectral_radius(pair, k1, k2, inert, 0.4, w) < 1.0 for w in speeds)
@@ -286,3 +286,80 @@ def test_auto_falls_back_to_the_transient_when_the_split_does_not_fit(square_wav
     np.testing.assert_array_equal(res.max_mesh_force_N, direct.max_mesh_force_N)
     with pytest.raises(SimulationError, match="rank_one_error"):
         sweep(model, speeds, Fallback(HarmonicBalance(), Transient()))
+
+
+# ---------------------------------------------------------------------- one split, one measure
+@pytest.fixture(scope="module")
+def sdof_linear():
+    """sdof te (short relief, Eq. (20)) and perturbation with NLTE'' (long relief, Eq.
+    (47a): its forcing has terms in Omega^-1, Omega^0 and Omega^1), damping 0.1."""
+    spur = Mesh.build(baud_velex_pair(False))
+    return (TorsionalModel.build(spur, table1_relief("short"), formulation="te",
+                                 damping_ratio=0.1),
+            TorsionalModel.build(spur, table1_relief("long"), formulation="perturbation",
+                                 damping_ratio=0.1))
+
+
+@pytest.mark.slow  # four programs compile (~40 s on 2 cores); every sweep above uses the plan
+def test_one_split_serves_every_speed(sdof_linear):
+    """A speed-scaled model is split, decomposed and sampled once
+    (:func:`~gearjax.dynamics.harmonic_split.harmonic_plan`, at another speed) and solved at
+    every speed from there; split and sampled again at each speed instead (no plan: an
+    eigendecomposition and a sampling per speed) it gives the same metrics to round-off."""
+    from gearjax.dynamics.harmonic_split import harmonic_plan, harmonic_split
+
+    speeds = np.array([300.0, 780.0])
+    for model in sdof_linear:
+        assert model.speed_scaled_state
+        plan = harmonic_plan(model, harmonic_split(model, 517.0), 256)
+        one = hb(model, jnp.asarray(speeds), 256, plan=plan)
+        each = hb(model, jnp.asarray(speeds), 256)
+        f_s = float(model.static_force_N)
+        for f in ("max_mesh_force_N", "min_mesh_force_N"):
+            np.testing.assert_allclose(getattr(one, f), getattr(each, f), rtol=0, atol=1e-10 * f_s)
+        np.testing.assert_allclose(one.dte_ptp_m, each.dte_ptp_m, rtol=1e-9)
+        np.testing.assert_allclose(one.y0, each.y0, rtol=0, atol=1e-9 * np.max(np.abs(each.y0)))
+        assert np.all(np.asarray(one.rank_one_error) < 1e-10)
+
+
+def test_the_orbit_is_measured_as_an_integrated_one(sdof_linear):
+    """The one measure (:mod:`gearjax.dynamics.measure`): the frequency domain reads its
+    orbit on the grid and in the windows where ``simulate`` integrates; started on the
+    frequency-domain state at theta = 0 with no transient, ``simulate`` (diffrax at rtol
+    1e-12, its own windows re-integrated) measures the same extrema and mesh orders to
+    the integration's accuracy, where contact holds (300 rad/s) and below the ringing the
+    grid resolves (60 rad/s: windows after the jumps)."""
+    from gearjax.dynamics.simulate import simulate
+
+    model = sdof_linear[0]
+    speeds = np.array([60.0, 300.0])
+    res = harmonic_sweep(model, speeds, rtol=1e-9, harmonics=1024, max_harmonics=1024,
+                         floquet=False)
+    f_s = float(model.static_force_N)
+    for i, w in enumerate(speeds):
+        assert res.contact_holds[i]
+        sim = simulate(model, w, n_transient_periods=0, y0=res.y0[i], rtol=1e-12, atol=1e-14)
+        for f in ("max_mesh_force_N", "min_mesh_force_N"):
+            assert abs(float(getattr(sim, f)) - getattr(res, f)[i]) < 2e-8 * f_s, (w, f)
+        assert abs(float(sim.dte_ptp_m) / res.dte_ptp_m[i] - 1) < 1e-7
+        np.testing.assert_allclose(np.asarray(sim.mesh_force_orders_N),
+                                   res.mesh_force_orders_N[i], rtol=0, atol=2e-8 * f_s)
+
+
+def test_one_program_per_model(sdof_linear, monkeypatch):
+    """Another set of as many speeds is solved by the same compiled program (one split,
+    one sampling and one trace of the batch per model and number of harmonics)."""
+    import gearjax.dynamics.harmonic_sweep as hs
+
+    traces = []
+    real = hs.harmonic_steady_states
+
+    def counted(*args, **kwargs):  # runs only while the batch is traced
+        traces.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(hs, "harmonic_steady_states", counted)
+    model = sdof_linear[0]
+    for speeds in ([310.0, 520.0], [330.0, 540.0]):
+        harmonic_sweep(model, speeds, harmonics=256, max_harmonics=256, floquet=False)
+    assert len(traces) <= 1

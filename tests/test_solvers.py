@@ -92,18 +92,32 @@ def test_fallback_hands_on_only_what_the_first_did_not_solve(sdof):
 
 
 def test_auto_is_a_rule_of_the_model():
-    """Auto picks the transient (measured cheapest) and starts a model whose initial state
-    is already its periodic orbit there, without a transient."""
-    class Plain:
-        periodic_start = False
+    """Auto reads what the model declares (benchmarks/results/auto.md): te and
+    perturbation, linear while contact holds, of a speed-scaled 3D-sized model go to the
+    frequency domain with the transient for the speeds it does not solve; the reference
+    formulation and the sdof model take the transient (measured cheapest), started on the
+    periodic orbit where the model's initial state already is one, without a transient."""
+    from gearjax.dynamics.sweep import FREQUENCY_DOMAIN_MIN_STATES
 
-    class Periodic:
-        periodic_start = True
+    class Fake:  # the capabilities Auto reads
+        def __init__(self, formulation="reference", periodic_start=False, scaled=True,
+                     state_size=292):
+            self.formulation, self.periodic_start = formulation, periodic_start
+            self.speed_scaled_state, self.state_size = scaled, state_size
 
-    assert Auto(rtol=1e-9).choose(Plain()) == Transient(**tolerance_options(1e-9))
-    assert Auto().choose(Plain()) == Transient()
-    chosen = Auto().choose(Periodic())
+    assert Auto(rtol=1e-9).choose(Fake()) == Transient(**tolerance_options(1e-9))
+    assert Auto().choose(Fake()) == Transient()
+    chosen = Auto().choose(Fake(periodic_start=True))
     assert chosen.n_transient_periods == 0 and chosen.start == "initial"
+    for form in ("te", "perturbation"):
+        assert Auto(rtol=1e-9).choose(Fake(form)) == Fallback(
+            HarmonicBalance(rtol=1e-9), Transient(**tolerance_options(1e-9)))
+        periodic = Auto().choose(Fake(form, periodic_start=True))
+        assert periodic.then.n_transient_periods == 0 and periodic.then.start == "initial"
+        assert Auto().choose(Fake(form, scaled=False)) == Transient()
+        assert Auto().choose(Fake(form, state_size=2)) == Transient()  # the sdof model
+        assert isinstance(Auto().choose(Fake(form, state_size=FREQUENCY_DOMAIN_MIN_STATES)),
+                          Fallback)
 
 
 def test_sweep_refuses_a_string_solver_and_a_boolean_progress(sdof):

@@ -23,8 +23,10 @@ from ..dynamics.sweep import lower_sweep
 def worth_compiling_ahead(args, forms, form: str, model) -> str | None:
     """The formulation whose program to compile while ``form`` (just built as ``model``)
     sweeps: the first te/perturbation formulation after the reference one, for a 3D
-    independent transient sweep of one process; None otherwise, or with
-    ``GEARJAX_COMPILE_AHEAD=0``."""
+    independent transient or ``auto`` sweep of one process (where ``Auto`` solves that
+    formulation in the frequency domain, only its model is built ahead: the program a
+    frequency-domain sweep compiles depends on the model's split, :func:`compile_ahead`
+    returns None); None otherwise, or with ``GEARJAX_COMPILE_AHEAD=0``."""
     import jax
 
     from ..models.base import LINEAR_FORMULATIONS
@@ -33,8 +35,8 @@ def worth_compiling_ahead(args, forms, form: str, model) -> str | None:
             or form != "reference" or args.model != "3d" or args.direction != "independent"
             or jax.process_count() > 1):
         return None
-    if args.method not in ("transient", "auto"):  # Auto: the transient (its rule)
-        return None
+    if args.method not in ("transient", "auto"):
+        return None  # Auto: the reference's transient; the linear one's build still overlaps
     later = [f for f in forms[forms.index(form) + 1:] if f in LINEAR_FORMULATIONS]
     return later[0] if later else None
 

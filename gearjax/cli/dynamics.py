@@ -104,8 +104,10 @@ def register(sub, add_rig, add_scenario):
                     help="periodic steady-state solver: harmonic (frequency domain, te and "
                          "perturbation; speeds where the linear orbit loses contact or is not "
                          "proven stable go to the transient), steady (shooting), transient; "
-                         "auto (default): the cheapest measured, today the transient (3D: "
-                         "accelerated by a periodic estimate after every period)")
+                         "auto (default): the cheapest measured from what the model declares "
+                         "(gearjax.Auto): harmonic for te/perturbation of the 3D model, the "
+                         "transient otherwise (3D: accelerated by a periodic estimate after "
+                         "every period)")
     sw.add_argument("--rtol", type=float, default=None, metavar="R",
                     help="requested relative accuracy of the metrics (default: each solver's "
                          "own, rtol 1e-7 and periodicity 1e-3): integrator rtol (atol R/100), "

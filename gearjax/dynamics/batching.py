@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import jax
 
-__all__ = ["MAPPED_MIN_STATES", "sequential_on", "sequential_for", "on_cpu", "over_speeds"]
+__all__ = ["MAPPED_MIN_STATES", "sequential_on", "sequential_for", "on_cpu", "over_speeds",
+           "frequency_domain_sequential", "shard_speeds"]
 
 # Smallest state (first-order unknowns) whose speeds a CPU runs one after the other; the
 # sdof model (2) is vmapped, every 3D model (38 states and up) mapped (module docstring).
@@ -50,6 +51,16 @@ def on_cpu() -> bool:
     return jax.default_backend() == "cpu"
 
 
+def frequency_domain_sequential(lapack_per_speed: bool) -> bool:
+    """Whether the frequency-domain solver (:mod:`gearjax.dynamics.harmonic`) maps its
+    speeds: on a CPU always -- where each speed decomposes its own ``A0``
+    (``lapack_per_speed``) a vmapped batch would run batched LAPACK kernels (module
+    docstring), and mapped speeds skip the windows after the jumps where the grid resolves
+    the ringing (a ``lax.cond`` under ``vmap`` runs both branches); vmapped on
+    accelerators unless ``lapack_per_speed``."""
+    return on_cpu() or bool(lapack_per_speed)
+
+
 def over_speeds(one, *xs, sequential: bool):
     """``one`` at every element of the leading axis of ``xs`` (arrays, or pytrees of
     arrays, of one length), results stacked on a leading axis: ``jax.lax.map`` where
@@ -58,3 +69,17 @@ def over_speeds(one, *xs, sequential: bool):
     if sequential:
         return jax.lax.map(lambda a: one(*a), xs)
     return jax.vmap(one)(*xs)
+
+
+def shard_speeds(body, devices):
+    """``f(shared, speeds)``: ``body(shared, share)`` on each of ``devices`` (one process),
+    each with its share of ``speeds`` (a leading axis, a multiple of ``len(devices)``
+    long), ``shared`` (a pytree of arrays) replicated, the results stacked back along the
+    speeds (``jax.shard_map`` over a 1-D device mesh ``"speed"``; no communication). Each
+    CPU device runs on its own thread: the speeds of a program share the cores."""
+    import numpy as np
+    from jax.sharding import Mesh, PartitionSpec
+
+    mesh = Mesh(np.asarray(devices), ("speed",))
+    return jax.shard_map(body, mesh=mesh, in_specs=(PartitionSpec(), PartitionSpec("speed")),
+                         out_specs=PartitionSpec("speed"), check_vma=False)

@@ -1,9 +1,12 @@
 """Speed sweeps of the frequency-domain solver of :mod:`gearjax.dynamics.harmonic`:
-:func:`harmonic_sweep` raises the number of harmonics per speed until the error estimate
-meets ``rtol``, then proves stability by the small-gain bound
-(:mod:`gearjax.dynamics.small_gain`) or the Floquet radius of the monodromy
+:func:`harmonic_sweep` reads the model's split once
+(:func:`gearjax.dynamics.harmonic_split.harmonic_plan`), solves every speed in one compiled
+program with the number of harmonics that the model's top mode and the tolerance ask for
+(:func:`gearjax.dynamics.harmonic.harmonics_for`), then proves stability by the small-gain
+bound (:mod:`gearjax.dynamics.small_gain`) or the Floquet radius of the monodromy
 (:func:`gearjax.dynamics.stability.monodromy`); :class:`HarmonicSweepResult` is its
-:class:`gearjax.dynamics.results.SweepResult`."""
+:class:`gearjax.dynamics.results.SweepResult`. How the speeds of the program are batched:
+:func:`gearjax.dynamics.batching.frequency_domain_sequential`."""
 
 from __future__ import annotations
 
@@ -17,14 +20,16 @@ import numpy as np
 
 from ..errors import SimulationError
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
-from .harmonic import check_linear_model, harmonic_steady_states
+from .harmonic import check_linear_model, harmonic_steady_states, harmonics_for
+from .harmonic_split import harmonic_plan, harmonic_split
+from .batching import shard_speeds
+from .measure import N_REFINE
 from .orbit import RESULTS
 from .orders import N_MESH_ORDERS
 from .results import SweepResult
 from .solvers import AbstractPeriodicSolver, SweepRun
 from .small_gain import SMALL_GAIN_MARGIN
-from .stability import check_speeds, monodromy
-from .steady import spectral_radius_of
+from .stability import check_speeds, monodromy, spectral_radius_of
 
 __all__ = ["harmonic_sweep", "HarmonicSweepResult", "HarmonicBalance",
            "HARMONIC_FLOQUET_MAX_STATES"]
@@ -38,7 +43,8 @@ class HarmonicSweepResult(SweepResult):
     ``transient_periods`` are 0: nothing is integrated),
     with per speed:
 
-    n_harmonics : harmonics used (the first power of two whose estimate met ``rtol``).
+    n_harmonics : harmonics used (those of :func:`~gearjax.dynamics.harmonic.harmonics_for`,
+        or more where the estimate did not meet ``rtol``).
     error_estimate : see :class:`HarmonicResult`.
     contact_holds : the linear mesh force stays compressive over the period (else the
         orbit is not the model's: fall back to shooting / transient).
@@ -66,9 +72,39 @@ _FIELDS = ("max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m"
 
 
 @eqx.filter_jit
-def _hb_batch(model, speeds, n_h, kwargs):
-    r = harmonic_steady_states(model, speeds, n_h, **dict(kwargs))
+def _hb_batch(model, speeds, n_h, plan, samples_per_mesh_period, n_refine):
+    r = harmonic_steady_states(model, speeds, n_h, plan=plan,
+                               samples_per_mesh_period=samples_per_mesh_period,
+                               n_refine=n_refine)
     return tuple(getattr(r, f) for f in _FIELDS)
+
+
+@eqx.filter_jit
+def _hb_sharded(model, speeds, n_h, plan, samples_per_mesh_period, n_refine, devices):
+    dyn, static = eqx.partition((model, plan), eqx.is_array)
+
+    def body(dyn_, w):
+        m, p = eqx.combine(dyn_, static)
+        r = harmonic_steady_states(m, w, n_h, plan=p,
+                                   samples_per_mesh_period=samples_per_mesh_period,
+                                   n_refine=n_refine)
+        return tuple(getattr(r, f) for f in _FIELDS)
+
+    return shard_speeds(body, devices)(dyn, speeds)
+
+
+def _solve_batch(model, speeds, n_h, plan, samples_per_mesh_period, n_refine, devices):
+    """The batch of ``speeds`` on one device, or shared over ``devices`` (padded with the
+    last speed to a multiple of their number)."""
+    if devices is None or len(devices) < 2:
+        return _hb_batch(model, jnp.asarray(speeds), n_h, plan, samples_per_mesh_period,
+                         n_refine)
+    n_dev = len(devices)
+    pad = -speeds.size % n_dev
+    w = np.concatenate([speeds, np.full(pad, speeds[-1])])
+    out = _hb_sharded(model, jnp.asarray(w), n_h, plan, samples_per_mesh_period, n_refine,
+                      tuple(devices))
+    return tuple(np.asarray(v)[: speeds.size] for v in jax.device_get(out))
 
 
 @eqx.filter_jit
@@ -76,17 +112,22 @@ def _rho_batch(model, speeds):
     return jax.vmap(lambda w: spectral_radius_of(monodromy(model, w)))(speeds)
 
 
-def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: int = 256,
-                   max_harmonics: int = 4096, floquet: bool = True,
-                   samples_per_mesh_period: int = 128, progress: AbstractProgressMeter = NoProgressMeter(),
-                   rank_one_tol: float | None = None) -> HarmonicSweepResult:
+def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
+                   harmonics: int | None = None, max_harmonics: int = 4096,
+                   floquet: bool = True, samples_per_mesh_period: int = 128,
+                   n_refine: int = N_REFINE,
+                   progress: AbstractProgressMeter = NoProgressMeter(),
+                   rank_one_tol: float | None = None, devices=None) -> HarmonicSweepResult:
     """Steady state of a linear formulation (te, perturbation; sdof or 3D) over pinion
-    speeds (rad/s) in the frequency domain (module docstring), vmapped over speeds.
+    speeds (rad/s) in the frequency domain (module docstring): one plan of the model
+    (:func:`~gearjax.dynamics.harmonic_split.harmonic_plan`, at the median speed), one
+    compiled program for every speed.
 
-    The speeds are solved with ``min_harmonics``; those whose ``error_estimate`` exceeds
-    ``rtol`` again with the power of two that the ``H^-3`` decay of the estimate predicts
-    for the worst of them (at least twice as many; one compilation per number of
-    harmonics used), until ``max_harmonics``;
+    ``harmonics``: the number ``H`` of harmonics (a power of two >= 8; None:
+    :func:`~gearjax.dynamics.harmonic.harmonics_for` the speeds and ``rtol``). The speeds
+    whose ``error_estimate`` exceeds ``rtol`` are solved again with the power of two that
+    the ``H^-3`` decay of the estimate predicts for the worst of them (at least twice as
+    many; a compilation each), up to ``max_harmonics``;
     ``converged`` = that estimate met, the orbit finite and not known to be unstable.
     Stability: the small-gain bound (:mod:`gearjax.dynamics.small_gain`, free) proves it
     where it can; with ``floquet`` the Floquet ``spectral_radius`` decides at the other
@@ -95,10 +136,13 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     gearjax.dynamics.harmonic_sweep). Inside a parametric instability zone the periodic
     orbit exists but a transient never reaches it. Where ``contact_holds`` is False the
     linear orbit has a tensile mesh force: exact for the linear equations, not for a
-    contact law that clips it.
+    contact law that clips it. ``samples_per_mesh_period``, ``n_refine``: the measure's
+    grid and windows (:mod:`gearjax.dynamics.measure`).
     ``rank_one_tol`` (default ``max(1e-8, rtol / 10)``): the largest relative residual of
     the rank-one split accepted (it perturbs the orbit by about as much; round-off of the
-    3D long-relief te model's optimised compile reached 1.2e-8).
+    3D long-relief te model's optimised compile reached 1.2e-8). ``devices``: the devices
+    of this process to share the speeds over (a list, ``"all"`` or None: the default one;
+    :func:`gearjax.dynamics.batching.shard_speeds`).
 
     Raises
     ------
@@ -111,38 +155,48 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6, min_harmonics: in
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)
     model.require_structure()
+    devices = jax.devices() if devices == "all" else devices
     if not (0.0 < rtol < 1.0):
         raise SimulationError("rtol", rtol, "must lie in (0, 1)")
     if rank_one_tol is None:  # the split's residual moves the orbit by about as much
         rank_one_tol = max(1e-8, 0.1 * rtol)
-    lo, hi = int(min_harmonics), int(max_harmonics)
-    for name, v in (("min_harmonics", lo), ("max_harmonics", hi)):
-        if v < 8 or v & (v - 1):
+    hi = int(max_harmonics)
+    for name, v in (("harmonics", harmonics), ("max_harmonics", hi)):
+        if v is not None and (int(v) < 8 or int(v) & (int(v) - 1)):
             raise SimulationError(name, v, "must be a power of two >= 8")
-    if hi < lo:
-        raise SimulationError("max_harmonics", hi, f"must be >= min_harmonics={lo}")
+    if harmonics is not None and int(harmonics) > hi:
+        raise SimulationError("max_harmonics", hi, f"must be >= harmonics={harmonics}")
+    # te and perturbation of a 3D build: one program (gearjax.models.base.compiled_form)
+    compiled = model.compiled_form()
+    scaled = model.speed_scaled_state  # one split and one sampling for every speed
+    split = harmonic_split(compiled, float(np.median(speeds)) if scaled
+                           else float(np.min(speeds)))
+    n_h = (int(harmonics) if harmonics is not None else
+           harmonics_for(model, split, speeds, rtol, hi=hi))
     n = model.state_size
     out = {f: np.full(speeds.size, np.nan) for f in _FIELDS}
     out["y0"], out["mesh_orders"] = np.full((speeds.size, n), np.nan), np.full(
         (speeds.size, 3, N_MESH_ORDERS), np.nan)
     n_used = np.zeros(speeds.size, dtype=np.int64)
     todo = np.arange(speeds.size)
-    kw = (("samples_per_mesh_period", int(samples_per_mesh_period)),)
-    n_h = lo
     task = f"harmonic balance {model.formulation}"
     check_meter(progress).start(task, speeds.size, f"H={n_h}")
     t0 = time.perf_counter()
     while todo.size:
         t_batch = time.perf_counter()
-        res = jax.device_get(_hb_batch(model, jnp.asarray(speeds[todo]), n_h, kw))
+        plan = harmonic_plan(compiled, split, n_h) if scaled else None
+        res = jax.device_get(_solve_batch(compiled, speeds[todo], n_h, plan,
+                                          int(samples_per_mesh_period), int(n_refine),
+                                          devices))
         for f, v in zip(_FIELDS, res):
             out[f][todo] = np.asarray(v, dtype=float)
         n_used[todo] = n_h
         if np.any(out["rank_one_error"][todo] > rank_one_tol):
             raise SimulationError(
                 "model", f"rank_one_error={np.max(out['rank_one_error'][todo]):.1e}",
-                "the parametric part of the vector field is not rank one or its forcing "
-                "spans more than 48 directions (a design whose switching angles moved?): use "
+                "the parametric part of the vector field is not rank one, its forcing "
+                "spans more than 48 directions or its state is not speed-scaled as it "
+                "declares (a design whose switching angles moved?): use "
                 "gearjax.dynamics.steady (shooting)")
         batch = todo.size
         todo = todo[~(out["error_estimate"][todo] <= rtol)]
@@ -214,10 +268,11 @@ class HarmonicBalance(AbstractPeriodicSolver):
     model whose parametric part is not rank one."""
 
     rtol: float = 1e-6
-    min_harmonics: int = 256
+    harmonics: int | None = None
     max_harmonics: int = 4096
     floquet: bool | None = None
     samples_per_mesh_period: int = 128
+    n_refine: int = N_REFINE
     rank_one_tol: float | None = None
 
     def solved(self, result: SweepResult) -> np.ndarray:
@@ -225,16 +280,16 @@ class HarmonicBalance(AbstractPeriodicSolver):
             & np.asarray(result.stable) & np.asarray(result.stability_known)
 
     def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> HarmonicSweepResult:
-        if run.devices is not None or jax.process_count() > 1:
-            raise SimulationError("devices", run.devices, "the frequency domain runs on one "
-                                  "device of one process; use Transient() to shard over "
-                                  "devices or hosts")
+        if jax.process_count() > 1:
+            raise SimulationError("devices", run.devices, "the frequency domain runs in one "
+                                  "process; use Transient() to share speeds over hosts")
         floquet = (model.state_size <= HARMONIC_FLOQUET_MAX_STATES if self.floquet is None
                    else bool(self.floquet))
-        res = harmonic_sweep(model, speeds, rtol=self.rtol, min_harmonics=self.min_harmonics,
+        res = harmonic_sweep(model, speeds, rtol=self.rtol, harmonics=self.harmonics,
                              max_harmonics=self.max_harmonics, floquet=floquet,
                              samples_per_mesh_period=self.samples_per_mesh_period,
-                             progress=run.progress, rank_one_tol=self.rank_one_tol)
+                             n_refine=self.n_refine, progress=run.progress,
+                             rank_one_tol=self.rank_one_tol, devices=run.devices)
         if run.sink is not None:
             run.sink(res)
         return res

@@ -53,11 +53,10 @@ from ..errors import SimulationError, check_float64
 from ..models.base import AbstractGearModel, AbstractModalModel
 from .integrate import PeriodicJumpController, jump_controller
 from .legs import solve_legs
-from .metrics import (jump_clusters, jump_window_extrema, jump_windows, n_jump_windows,
-                      output_grid, refine_windows, ringing_length, ringing_resolved,
-                      window_extrema)
-from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
-from .periodicity import (convergence_measure, initial_memo, per_period_extrema,
+from .measure import (N_REFINE, extrema, measure_grid, mesh_orders, n_windows, observer,
+                      ringing, windows)
+from .orders import N_MESH_ORDERS
+from .periodicity import (convergence_measure, initial_memo,
                           with_periods_slid_past)
 
 __all__ = [
@@ -91,7 +90,6 @@ _SOLVERS = {
 
 
 _MANY_JUMPS = 20  # jumps per mesh period above which steps are forced short
-N_REFINE = 64  # refined points per grid interval of the extremum windows (metrics)
 
 
 def jump_density(model) -> float:
@@ -224,11 +222,8 @@ def measured_grid(model, n_measured_periods: int, samples_per_mesh_period: int):
     samples per excitation period, length of each leg of :func:`simulate`'s solve
     (:mod:`gearjax.dynamics.legs`): one period's grid and its end, or the ``2 N_REFINE``
     points of a refinement window if longer)."""
-    period = float(model.period_rad)
-    n_samples = samples_per_mesh_period * int(round(period / model.mesh_period_rad))
-    grid = output_grid(period, n_samples, np.asarray(model.jump_thetas, dtype=float),
-                       n_measured_periods)
-    return grid, n_samples, max(grid.per_period + 1, 2 * N_REFINE)
+    mg = measure_grid(model, n_measured_periods, samples_per_mesh_period)
+    return mg.grid, mg.n_samples, max(mg.grid.per_period + 1, 2 * N_REFINE)
 
 
 def simulate(
@@ -325,7 +320,6 @@ def simulate(
 
     omega = jnp.asarray(omega, dtype=float)
     period = float(model.period_rad)
-    jumps = np.asarray(model.jump_thetas, dtype=float)
     def term(t, y, args):  # the model's vector field in theta (args: omega)
         return model.vector_field(t, y, args)
 
@@ -351,34 +345,22 @@ def simulate(
     t_tr = 0.0 if accelerated else n_tr * period
     # output grid: mid-cell samples (never on an engagement angle) plus both sides of
     # every jump, per measured period (gearjax.dynamics.metrics)
-    grid, n_samples, n_out = measured_grid(model, n_measured_periods, samples_per_mesh_period)
+    mg = measure_grid(model, n_measured_periods, samples_per_mesh_period)
+    grid, n_out = mg.grid, max(mg.grid.per_period + 1, 2 * N_REFINE)
     ts = t_tr + jnp.asarray(grid.offsets)
-
-    def observed(t, y):
-        o = model.outputs(t, y, omega)
-        cols = [o.mesh_force_N, o.dte_m] + ([] if o.accel_m_s2 is None else [o.accel_m_s2])
-        return jnp.stack(cols)
+    observed = observer(model, omega)  # the one measure (gearjax.dynamics.measure)
 
     n_grid = ts.shape[0]
-    n_ref = 2 * jax.eval_shape(observed, ts[0], y0).shape[0]  # a max and a min per output
-    clusters = jump_clusters(grid, period, jumps)
-    omega_n, interval = model.natural_frequency_rad_s(), period / n_samples
-    ring = ringing_length(omega, omega_n, interval)
-    resolved = ringing_resolved(omega, omega_n, interval)  # no windows after the jumps
-
-    def all_windows(vals):  # around the grid's extremes, after the largest jumps
-        j0, tf = refine_windows(vals, ts, N_REFINE)
-        jj, tj = jump_windows(vals, ts, clusters, grid.per_period, ring, 2 * N_REFINE)
-        return (j0, tf), (jj, tj)
-
-    n_win = n_ref + n_jump_windows(clusters, n_ref // 2)
+    n_ref, n_jw = n_windows(mg, jax.eval_shape(observed, ts[0], y0).shape[0])
+    ring, resolved = ringing(model, omega, mg)  # resolved: no windows after the jumps
+    n_win = n_ref + n_jw
     f_s = model.static_force_N
 
     def windows_of(g, memo):  # the measured states on the grid -> the windows' legs,
         vals = jax.vmap(observed)(ts, g)  # the convergence, what a slide keeps
-        (j0, tf), (jj, tj) = all_windows(vals)
-        j0, tf = jnp.concatenate([j0, jj]), jnp.concatenate([tf, tj])
-        return ((ts[j0], g[j0], tf),) + convergence_measure(
+        win = windows(mg, vals, ts, ring)
+        j0 = jnp.concatenate([win.j0, win.jj])
+        return ((ts[j0], g[j0], win.angles()),) + convergence_measure(
             model, omega, vals, g, memo, n_periods=n_measured_periods,
             extrapolate=extrapolate, slide=slide, convergence_tol=convergence_tol)
 
@@ -411,21 +393,15 @@ def simulate(
     ok = ok_tr & jnp.all(success[:n_meas]) & jnp.all(jnp.isfinite(ys))
     steps = steps_tr + jnp.sum(n_steps[:n_meas])
     vals = jax.vmap(observed)(ts, ys)
-    (j0, tf), (jj, tj) = all_windows(vals)
-    wvals = jax.vmap(jax.vmap(observed))(jnp.concatenate([tf, tj]), win_ys)  # (n_win, k, q)
-    cols = jnp.repeat(jnp.arange(vals.shape[1]), 2)  # window k refines output k // 2
-    v_max, v_min = window_extrema(vals, ts, j0, wvals[jnp.arange(n_ref), :, cols])
-    j_max, j_min = jump_window_extrema(vals, ts, jj, tj, wvals[n_ref:])
-    v_max = jnp.where(resolved, v_max, jnp.maximum(v_max, j_max))
-    v_min = jnp.where(resolved, v_min, jnp.minimum(v_min, j_min))
+    win = windows(mg, vals, ts, ring)
+    wvals = jax.vmap(jax.vmap(observed))(win.angles(), win_ys)  # (n_win, k, q)
+    v_max, v_min = extrema(vals, ts, win, wvals, resolved)
     # a sub-harmonic orbit of more periods than measured: its other periods' extrema
     v_max, v_min = with_periods_slid_past(v_max, v_min, memo, multiple, n_measured_periods)
-    per, _ = per_period_extrema(vals, n_measured_periods)
     f_max, f_min = v_max[0], v_min[0]
     dte_ptp = v_max[1] - v_min[1]
     acc_ptp = v_max[2] - v_min[2] if has_acc else jnp.asarray(jnp.nan)
-    orders = mesh_order_amplitudes(order_matrix(period, model.mesh_period_rad, n_samples,
-                                                jumps), per)  # (q, 5): F_D, DTE (, accel)
+    orders = mesh_orders(model, mg, vals)  # (q, 5): F_D, DTE (, accel)
     finite = jnp.isfinite(f_max) & jnp.isfinite(f_min) & jnp.isfinite(dte_ptp)
     ok = ok & finite
     nan = jnp.asarray(jnp.nan)

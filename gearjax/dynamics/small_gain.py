@@ -32,13 +32,13 @@ SMALL_GAIN_GRID = 25  # frequencies per mode over +-3 half-power bandwidths (H-i
 SMALL_GAIN_MARGIN = 0.95  # bound below which stability is proven (covers the sampling)
 
 
-def small_gain_bound(lam, pw, c_radius):
+def small_gain_bound(lam, pw, c_radius, xp=jnp):
     """``sup |g(i chi)| * c_radius`` (module docstring) for the eigenvalues ``lam`` (n,)
     of ``A0``, the modal products ``pw`` (n,) and the radius of ``c``; ``inf`` if ``A0``
-    is not Hurwitz. Jittable."""
-    t = jnp.linspace(-3.0, 3.0, SMALL_GAIN_GRID)
-    chi = jnp.abs(jnp.imag(lam))[:, None] + jnp.abs(jnp.real(lam))[:, None] * t[None, :]
-    chi = jnp.concatenate([jnp.zeros(1), chi.reshape(-1)])
-    g = jnp.sum(pw[None, :] / (1j * chi[:, None] - lam[None, :]), axis=1)
-    hurwitz = jnp.max(jnp.real(lam)) < 0.0
-    return jnp.where(hurwitz, jnp.max(jnp.abs(g)) * c_radius, jnp.inf)
+    is not Hurwitz. Jittable; ``xp=numpy`` computes it on the host."""
+    t = xp.linspace(-3.0, 3.0, SMALL_GAIN_GRID)
+    chi = xp.abs(xp.imag(lam))[:, None] + xp.abs(xp.real(lam))[:, None] * t[None, :]
+    chi = xp.concatenate([xp.zeros(1), chi.reshape(-1)])
+    g = xp.sum(pw[None, :] / (1j * chi[:, None] - lam[None, :]), axis=1)
+    hurwitz = xp.max(xp.real(lam)) < 0.0
+    return xp.where(hurwitz, xp.max(xp.abs(g)) * c_radius, xp.inf)

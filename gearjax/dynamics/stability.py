@@ -37,7 +37,26 @@ from ..models.base import AbstractGearModel
 from .batching import over_speeds, sequential_for
 from .integrate import integrate, jump_controller
 
-__all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "check_speeds"]
+__all__ = ["monodromy", "floquet_multipliers", "spectral_radius", "spectral_radius_of",
+           "check_speeds"]
+
+
+def spectral_radius_of(phi, squarings: int = 40):
+    """Spectral radius of a square matrix by normalised repeated squaring (matrix
+    products only): ``log rho ~ sum_j 2^-j log s_j + 2^-m log ||B_m||`` with
+    ``A_0 = phi``, ``s_j = ||A_j||_F``, ``A_{j+1} = (A_j / s_j)^2``. Error
+    ``O(2^-m log cond)`` plus the ratio of the two largest moduli to the power ``2^m``."""
+    def body(carry, _):
+        a, acc, w = carry
+        s = jnp.sqrt(jnp.sum(a * a))
+        s = jnp.where(s > 0, s, 1.0)
+        b = a / s
+        return (b @ b, acc + w * jnp.log(s), w / 2), None
+
+    (a, acc, w), _ = jax.lax.scan(body, (phi, jnp.zeros((), phi.dtype), jnp.ones((), phi.dtype)),
+                                  None, length=squarings)
+    s = jnp.sqrt(jnp.sum(a * a))
+    return jnp.exp(acc + w * jnp.log(jnp.maximum(s, 1e-300)))
 
 
 def monodromy(model, omega, *, solver=None, rtol: float = 1e-10, atol: float = 1e-12,

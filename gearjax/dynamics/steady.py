@@ -59,7 +59,7 @@ from .orbit import RESULTS, Orbit, measure, metric_status
 from .simulate import SimulationError, SimulationResult, simulate
 from .solvers import AbstractOrbitSolver, SweepRun
 from .sweep import Transient
-from .stability import check_speeds
+from .stability import check_speeds, spectral_radius_of  # noqa: F401 (re-exported)
 
 __all__ = [
     "periodic_state",
@@ -115,24 +115,6 @@ class SteadyStateResult(eqx.Module):
 
     result: SimulationResult
     orbit: Orbit
-
-
-def spectral_radius_of(phi, squarings: int = 40):
-    """Spectral radius of a square matrix by normalised repeated squaring (matrix
-    products only): ``log rho ~ sum_j 2^-j log s_j + 2^-m log ||B_m||`` with
-    ``A_0 = phi``, ``s_j = ||A_j||_F``, ``A_{j+1} = (A_j / s_j)^2``. Error
-    ``O(2^-m log cond)`` plus the ratio of the two largest moduli to the power ``2^m``."""
-    def body(carry, _):
-        a, acc, w = carry
-        s = jnp.sqrt(jnp.sum(a * a))
-        s = jnp.where(s > 0, s, 1.0)
-        b = a / s
-        return (b @ b, acc + w * jnp.log(s), w / 2), None
-
-    (a, acc, w), _ = jax.lax.scan(body, (phi, jnp.zeros((), phi.dtype), jnp.ones((), phi.dtype)),
-                                  None, length=squarings)
-    s = jnp.sqrt(jnp.sum(a * a))
-    return jnp.exp(acc + w * jnp.log(jnp.maximum(s, 1e-300)))
 
 
 def _one_period(model, omega, y_start, solver, rtol, atol, max_steps):

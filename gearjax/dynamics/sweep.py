@@ -43,14 +43,17 @@ import numpy as np
 from ..errors import check_float64
 from .batching import over_speeds, sequential_on
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
-from .solvers import AbstractOrbitSolver, AbstractPeriodicSolver, SweepRun
+from ..models.base import LINEAR_FORMULATIONS
+from .harmonic_sweep import HarmonicBalance
+from .solvers import AbstractOrbitSolver, AbstractPeriodicSolver, Fallback, SweepRun
 from .results import (CSV_COLUMNS, FLAG_FIELDS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult,
                       append_rows, empty_metrics)
 from .orbit import metric_status
 from .simulate import SimulationError, SimulationResult, simulate
 
 __all__ = ["sweep", "Transient", "Auto", "SweepResult", "CSV_COLUMNS", "tolerance_options",
-           "lower_sweep", "default_chunk_size", "memory_chunk", "planned_chunk"]
+           "lower_sweep", "default_chunk_size", "memory_chunk", "planned_chunk",
+           "FREQUENCY_DOMAIN_MIN_STATES"]
 
 
 def _over_speeds(model, speeds, solver, sequential: bool):
@@ -123,7 +126,7 @@ class Transient(AbstractOrbitSolver):
     quasi-static start (:meth:`~gearjax.models.base.AbstractGearModel.transient_start`)
     through a transient to the periodic steady state, then measured over
     ``n_measured_periods`` periods. Any model and formulation, contact loss included; the
-    only solver that shards speeds over devices and writes rows chunk by chunk.
+    only solver that shares speeds over several processes and writes rows chunk by chunk.
 
     The fields are :func:`~gearjax.dynamics.simulate.simulate`'s options of the same names
     (``rtol``/``atol``: None for :func:`~gearjax.dynamics.simulate.default_solver`'s;
@@ -225,16 +228,24 @@ class Transient(AbstractOrbitSolver):
 
 
 class Auto(AbstractPeriodicSolver):
-    """The cheapest solver that is exact for the model (:meth:`choose`), at the relative
-    accuracy ``rtol`` of the metrics (:func:`tolerance_options`; None: every solver's
-    defaults).
+    """The cheapest exact solver for the model (:meth:`choose`), chosen from the model's
+    declared capabilities by measurement, at the relative accuracy ``rtol`` of the metrics
+    (:func:`tolerance_options`; None: every solver's defaults).
 
-    The rule, by measurement (``benchmarks/results/code_notes.md``, section
-    gearjax.dynamics.sweep.auto_method): the accelerated transient beat the frequency-domain
-    solver plus its transient fallback on the sdof and the 3D rigs, so every model takes
-    :class:`Transient`; a model whose initial state is already its periodic orbit
-    (:attr:`~gearjax.models.base.AbstractGearModel.periodic_start`) is measured from there
-    without a transient."""
+    The rule (``benchmarks/bench_auto.py``, ``benchmarks/results/auto.md``: run time and
+    compilation of each solver against a tight reference, sdof and 3D, each formulation):
+
+    * the te and perturbation formulations (linear while the mesh force stays
+      compressive, :data:`~gearjax.models.base.LINEAR_FORMULATIONS`) of a model whose
+      state is speed-scaled (:attr:`~gearjax.models.base.AbstractGearModel.speed_scaled_state`:
+      the frequency domain decomposes it once for every speed) and large enough that a
+      speed of the transient costs more than one of the frequency domain
+      (``model.state_size >= FREQUENCY_DOMAIN_MIN_STATES``): the frequency domain, exact
+      there, its speeds with contact loss, not converged or not proven stable handed to
+      the transient (``Fallback(HarmonicBalance(), Transient())``);
+    * every other model and the reference formulation: the transient (the shooting
+      measured costlier), from the periodic start where the model has one
+      (:attr:`~gearjax.models.base.AbstractGearModel.periodic_start`)."""
 
     rtol: float | None = None
 
@@ -246,8 +257,15 @@ class Auto(AbstractPeriodicSolver):
             options.update(n_transient_periods=0, start="initial")
         return Transient(**options)
 
+    def harmonic(self) -> HarmonicBalance:
+        """The frequency-domain solver at ``rtol`` (its truncation tolerance)."""
+        return HarmonicBalance() if self.rtol is None else HarmonicBalance(rtol=self.rtol)
+
     def choose(self, model) -> AbstractPeriodicSolver:
-        """The solver :meth:`sweep` uses for ``model``."""
+        """The solver :meth:`sweep` uses for ``model`` (class docstring)."""
+        if (model.formulation in LINEAR_FORMULATIONS and model.speed_scaled_state
+                and model.state_size >= FREQUENCY_DOMAIN_MIN_STATES):
+            return Fallback(self.harmonic(), self.transient(model))
         return self.transient(model)
 
     def solved(self, result: SweepResult) -> np.ndarray:
@@ -256,16 +274,22 @@ class Auto(AbstractPeriodicSolver):
     def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> SweepResult:
         """:meth:`choose`'s solver; where it refuses the model (a
         :class:`~gearjax.errors.SimulationError` on ``model``, e.g. a vector field the
-        frequency-domain split does not fit), every speed by the transient."""
+        frequency-domain split does not fit) or the run (several devices or processes:
+        ``devices``), every speed by the transient."""
         chosen = self.choose(model)
         try:
             return chosen.sweep(model, speeds, run)
         except SimulationError as exc:
-            if exc.field != "model" or isinstance(chosen, Transient):
+            if exc.field not in ("model", "devices") or isinstance(chosen, Transient):
                 raise
             run.progress.note(f"sweep {model.formulation}", f"{type(chosen).__name__} not "
                               f"applicable ({exc}); every speed by the transient solver")
             return self.transient(model).sweep(model, speeds, run)
+
+
+# smallest state from which Auto solves te/perturbation in the frequency domain (Auto):
+# measured, benchmarks/results/auto.md
+FREQUENCY_DOMAIN_MIN_STATES = 16
 
 
 def sweep(

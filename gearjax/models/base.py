@@ -176,6 +176,17 @@ class AbstractGearModel(eqx.Module):
         a cell may open while the mesh stays loaded). Default True."""
         return True
 
+    @property
+    def speed_scaled_state(self) -> bool:
+        """True when the state is scaled by the pinion speed so that the homogeneous part
+        of :meth:`vector_field` at speed ``Omega`` is ``Omega^-1`` times one
+        speed-independent operator (the models' ``(z / x, z' / (r x))``, ``r = omega /
+        Omega``: ``d/dtheta = Omega^-1 d/dt`` on the physical time scale): the
+        frequency-domain solver then decomposes the operator once per model, not once
+        per speed (:mod:`gearjax.dynamics.harmonic_split`, which checks it at every
+        speed). Default False."""
+        return False
+
     def compiled_form(self) -> "AbstractGearModel":
         """The model as a compiled sweep program receives it
         (:func:`gearjax.dynamics.sweep.sweep`): models whose equations differ only in
@@ -262,6 +273,10 @@ class AbstractWithoutContactLaw(AbstractGearModel):
     @property
     def periodic_start(self):
         return self.model.periodic_start
+
+    @property
+    def speed_scaled_state(self):
+        return self.model.speed_scaled_state
 
 
     def with_modifications(self, mods):

@@ -534,6 +534,8 @@ class Geared3DModel(AbstractModalModel):
         integrating (why opt-in: ``benchmarks/results/model_notes.md``)."""
         return self.harmonic_start and self._constant_coefficients
 
+    speed_scaled_state = True  # ((q-q0)/a, u/(r a)), r = omega_r/Omega: Omega^-1 A(theta)
+
     @property
     def _constant_coefficients(self) -> bool:
         """Eq. (48a) without NLTE inertial and eccentricity terms, excitation tabulated."""

@@ -565,6 +565,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         """omega_n = sqrt(k_m cos^2 b_b / m_eq) (rad/s) with the mean loaded stiffness."""
         return self.omega_n
 
+    speed_scaled_state = True  # (z/x_ref, z'/(r x_ref)), r = omega_n/Omega: Omega^-1 A(theta)
+
     def mean_stiffness_N_per_m(self):
         """k_m: mean of the loaded quasi-static stiffness (sum k_i)^S over one period (N/m)."""
         return self.k_m
