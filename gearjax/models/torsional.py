@@ -220,8 +220,7 @@ class _TorsionalInputs(eqx.Module):
         return jnp.stack([y / self.cos_bb, k_s, nlte])
 
     def _qs_with_slope(self, theta):
-        theta = jnp.asarray(theta, dtype=float)
-        return jax.jvp(self._qs, (theta,), (jnp.ones((), dtype=float),))
+        return jax.jvp(self._qs, (jnp.asarray(theta, dtype=float),), (jnp.ones((), dtype=float),))
 
     @property
     def moving_jumps(self) -> bool:
@@ -310,8 +309,7 @@ class _TorsionalInputs(eqx.Module):
 
 
 class _TorsionalData(_TorsionalInputs):
-    """The inputs alone (final): what :meth:`TorsionalModel.with_modifications` assembles
-    the derived arrays from."""
+    """The inputs alone (final): what :meth:`TorsionalModel.with_modifications` assembles."""
 
 
 @eqx.filter_jit
