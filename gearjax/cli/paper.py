@@ -52,8 +52,10 @@ class Case(NamedTuple):
     argv: tuple[str, ...]
     needs_3d: bool = False
     default: bool = True  # run without --cases (False: only when named)
+    max_refine: int = 10**9  # at most this many speeds with --refine
 
 
+PITCH_REFINE = 75  # the refined grid of a case with pitch errors (45 + 30 speeds)
 # Pitch errors make the excitation period a pinion revolution (26 mesh periods): the
 # frequency-domain solver then escalates to thousands of harmonics per revolution, one 3D
 # compile per size, and took longer than the transient (benchmarks/results/code_notes.md,
@@ -70,13 +72,16 @@ CASES = (
          ("--encoders", "2", "--formulations", "te"), needs_3d=True),
     Case("encoders3", "6.3.5", "Fig. 7", "encoder position 3 (coupling hubs), te",
          ("--encoders", "3", "--formulations", "te"), needs_3d=True),
+    # with pitch errors every added speed costs a pinion revolution (26 mesh periods) per
+    # period of transient: their grids get one round around the main peaks (30 speeds)
     Case("fig12", "6.3.3", "Fig. 12", "spur, short relief, pinion pitch errors, damping 0.1",
-         ("--pitch-errors", "--method", "transient")),
+         ("--pitch-errors", "--method", "transient"), max_refine=PITCH_REFINE),
     Case("fig12-no-nlte", "6.3.3", "Fig. 12", "pitch errors, NLTE'' terms set to zero (te)",
-         ("--pitch-errors", "--no-nlte-terms", "--formulations", "te", "--method", "transient")),
+         ("--pitch-errors", "--no-nlte-terms", "--formulations", "te", "--method", "transient"),
+         max_refine=PITCH_REFINE),
     Case("fig13", "6.3.4", "Fig. 13", "helical, short relief, pinion pitch errors, damping 0.03",
          ("--rig", "baud-velex-helical", "--pitch-errors", "--damping", "0.03",
-          "--method", "transient")),
+          "--method", "transient"), max_refine=PITCH_REFINE),
     # the other reading of Section 6.2: te and perturbation with the contact resolved cell by
     # cell (gearjax sweep --te-contact cells), the reference beside them on the same grid
     Case("fig08-cells", "6.2", "Fig. 8", "damping 0.03, te/perturbation with the per-cell "
@@ -134,7 +139,8 @@ def register(sub, add_rig, add_scenario):
     p.add_argument("--refine", type=int, default=PAPER_REFINE, metavar="MAX_SPEEDS",
                    help="every case but the up/down one: the speed grid refined around the "
                         "peaks and jumps of its curves (gearjax sweep --refine) up to MAX_SPEEDS "
-                        f"speeds (default {PAPER_REFINE}; 0: the uniform grid alone)")
+                        f"speeds (default {PAPER_REFINE}, the pitch-error cases at most "
+                        f"{PITCH_REFINE}; 0: the uniform grid alone)")
     p.add_argument("--compare", default=None, metavar="DIR",
                    help="a second gearjax paper folder (e.g. the same cases run with "
                         "--stiffness iso6336): the README adds both folders' verdicts side by side")
@@ -146,6 +152,14 @@ def register(sub, add_rig, add_scenario):
     p.add_argument("--overwrite", action="store_true",
                    help="replace the results of an earlier run in the case folders")
     p.set_defaults(func=cmd_paper)
+
+
+def _grid_size(speeds: str) -> int:
+    """N of ``--speeds A:B:N`` (0 when it does not parse: the sweep reports that)."""
+    try:
+        return int(speeds.split(":")[2])
+    except (IndexError, ValueError):
+        return 0
 
 
 def cmd_paper(args) -> int:
@@ -168,8 +182,9 @@ def cmd_paper(args) -> int:
         folder = os.path.join(args.out, c.key)
         argv = ["sweep", "--model", args.model, "--speeds", args.speeds, "--stiffness",
                 args.stiffness, *c.argv, "--out", folder]
-        if args.refine and "--direction" not in c.argv:
-            argv[-2:-2] = ["--refine", str(args.refine)]
+        cap = min(args.refine, c.max_refine)
+        if cap > _grid_size(args.speeds) and "--direction" not in c.argv:
+            argv[-2:-2] = ["--refine", str(cap)]
         # a run stopped before its first rows leaves case.json only: the same folder state
         if any(os.path.exists(os.path.join(folder, f)) for f in ("results.csv", "case.json")):
             if args.resume:
@@ -459,7 +474,8 @@ def write_readme(out, args, seconds) -> str:
         f"Last run: model `{model}`, speeds `{speeds}` rad/s, {seconds / 60:.1f} min; "
         f"{len(runs)} cases below, each with its own command and time (2-core CPU)."
         + (f" Each grid is refined around the peaks and jumps of its curves (`--refine`, up to "
-           f"{' / '.join(refined)} speeds a case: peaks located to 1 % of their speed, "
+           f"{' or '.join(sorted(refined, key=int, reverse=True))} speeds a case: peaks "
+           "located to 1 % of their speed, "
            "amplitudes to 1e-3, jumps and contact-loss edges to 1 %; every formulation of a "
            "case at every added speed), so medians weigh the peaks more than a uniform grid "
            "would; each case's summary.json lists the speeds added and why."

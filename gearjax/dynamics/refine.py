@@ -65,7 +65,9 @@ class Refinement:
         this closely is as resolved as the grid gets (a jump).
     min_height : peaks below this fraction of their curve's maximum are not refined.
     prominence : nor peaks standing less than this fraction of their value above the
-        deeper of the two valleys that separate them from a higher point (or the end).
+        higher of the two valleys that separate them from a higher point or the end of the
+        range (scipy's prominence): flat wiggles, not a broad resonance near the range's
+        end (Fig. 9's, 3 %).
     jump : neighbours whose metric differs by more than this fraction of the larger
         value bracket a jump.
     metrics : the :class:`SweepResult` fields whose peaks and jumps are refined.
@@ -79,7 +81,7 @@ class Refinement:
     max_rounds: int = 12
     min_spacing: float = 1e-3
     min_height: float = 0.3
-    prominence: float = 0.05
+    prominence: float = 0.005
     jump: float = 0.1
     metrics: tuple = PEAK_METRICS
 
