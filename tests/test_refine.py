@@ -63,7 +63,7 @@ def test_oscillator_peak_located_as_the_closed_form():
     w_n = osc.omega_n / osc.order
     w_star = w_n * math.sqrt(1.0 - 2.0 * zeta**2)
     a_star = osc.amplitude / (zeta * math.sqrt(1.0 - zeta**2))
-    solver = HarmonicBalance(min_harmonics=8, max_harmonics=8)
+    solver = HarmonicBalance(harmonics=8, max_harmonics=8)
     run = lambda w: sweep(osc, w, solver)  # noqa: E731
     out = refine(run, run(np.linspace(0.5 * w_n, 1.5 * w_n, 11)),
                  Refinement(metrics=("dte_ptp_m",)))
