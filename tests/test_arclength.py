@@ -157,7 +157,7 @@ def test_jump_up_lands_on_the_high_branch(model, traced):
     grid = np.arange(645.0, 671.0, 5.0)
     up = continuation_sweep(model, grid, "up")
     k = np.searchsorted(grid, fold.speed_rad_s)
-    assert up.restarted[k] and not up.restarted[:k].any()
+    assert up.stats["restarted"][k] and not up.stats["restarted"][:k].any()
     assert up.max_mesh_force_N[k] > 1.5 * up.max_mesh_force_N[k - 1]
 
 
@@ -223,12 +223,12 @@ def test_linear_case_equals_harmonic_balance():
     assert not res.contact_loss.any() and res.stable.all() and res.bifurcations == ()
     assert np.unique(res.branch).tolist() == [0]
     hb = harmonic_sweep(te, res.speed_rad_s, rtol=1e-8)
-    assert hb.contact_holds.all()
-    scale = 1 + np.linalg.norm(hb.y0, axis=1)
-    assert np.all(np.linalg.norm(res.y0 - hb.y0, axis=1) < 1e-6 * scale)
+    assert hb.stats["contact_holds"].all()
+    scale = 1 + np.linalg.norm(hb.stats["y0"], axis=1)
+    assert np.all(np.linalg.norm(res.y0 - hb.stats["y0"], axis=1) < 1e-6 * scale)
     # the same orbits measured the same way (simulate over two periods, the sweep's
     # metrics): the harmonic orbit's measured metrics, to 1e-6 of F_S and of x_ref
-    hb_met = [measure(te, w, y) for w, y in zip(res.speed_rad_s, hb.y0)]
+    hb_met = [measure(te, w, y) for w, y in zip(res.speed_rad_s, hb.stats["y0"])]
     f_s, x_ref = float(te.static_force_N), float(te.x_ref)
     assert np.all(np.abs(res.max_mesh_force_N - [float(m[1]) for m in hb_met]) < 1e-6 * f_s)
     assert np.all(np.abs(res.dte_ptp_m - [float(m[4]) for m in hb_met]) < 1e-6 * x_ref)
