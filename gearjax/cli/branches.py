@@ -148,13 +148,13 @@ def _metrics(m: dict) -> dict:
 def traced_rows(res) -> list[dict]:
     """``branches.csv`` rows (:data:`BRANCH_COLUMNS`) of a
     :class:`~gearjax.dynamics.bifurcation.TracedBranches` (module docstring)."""
-    base = csv_rows(res)
+    base = csv_rows(res.points)
     rows = []
     kinds = {b.index for b in res.bifurcations}
     for i, r in enumerate(base):
         mu = complex(res.multipliers[i][0])
         row = {**r, "stable": str(bool(res.stable[i])), "branch": str(int(res.branch[i])),
-               "floquet_radius": fmt_value(res.spectral_radius[i]),
+               "floquet_radius": fmt_value(res.points.spectral_radius[i]),
                "multiplier_re": fmt_value(mu.real), "multiplier_im": fmt_value(mu.imag),
                "point": str(res.point[i]), "segment": str(int(res.segment[i]))}
         rows.append(row)
@@ -176,13 +176,13 @@ def traced_summary(res, path: str) -> dict:
     branches = []
     for b, ok in stable.items():
         sel = res.branch_indices(b)
-        w = res.speed_rad_s[sel]
+        w = res.points.speed_rad_s[sel]
         branches.append({"branch": b, "stable": ok, "speed_min_rad_s": float(w.min()),
                          "speed_max_rad_s": float(w.max()), "n_points": int(sel.size),
-                         "max_mesh_force_N": _num(np.nanmax(res.max_mesh_force_N[sel]))})
+                         "max_mesh_force_N": _num(np.nanmax(res.points.max_mesh_force_N[sel]))})
     return {
         "method": "pseudo-arclength continuation of the shooting residual in speed",
-        "branches_csv": path, "n_points": int(res.speed_rad_s.size),
+        "branches_csv": path, "n_points": int(res.points.speed_rad_s.size),
         "speed_scale_rad_s": res.speed_scale_rad_s,
         "folds": [bif(b) for b in res.folds()],
         "bifurcations": [bif(b) for b in res.bifurcations],
@@ -197,7 +197,7 @@ def traced_summary(res, path: str) -> dict:
         "jump_up_rad_s": res.jump_up_rad_s(), "jump_down_rad_s": res.jump_down_rad_s(),
         "coexistence_rad_s": res.coexistence_rad_s(),
         "branches": branches,
-        "stopped_rad_s": [float(w) for w in res.speed_rad_s[res.point == "stop"]],
+        "stopped_rad_s": [float(w) for w in res.points.speed_rad_s[res.point == "stop"]],
     }
 
 
