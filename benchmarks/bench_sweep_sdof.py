@@ -112,7 +112,7 @@ def _scipy_method(model):
 def _numpy_rhs(mp, omega):
     """Pure-NumPy right-hand side of the te/perturbation formulations (substitution-free
     case: NLTE = 0) with their contact law, reading the model's Hermite table."""
-    if mp.formulation == "reference" or mp.nlte_terms:
+    if mp.formulation.name == "reference" or mp.nlte_terms:
         raise ValueError("NumPy RHS only for te/perturbation without NLTE terms")
     d = mp
     tab = d.table
@@ -123,7 +123,7 @@ def _numpy_rhs(mp, omega):
     zeta = float(mp.damping_ratio)
     cos_b = mp.cos_bb
     f_s = float(mp.static_force_N)
-    te = mp.formulation == "te"
+    te = mp.formulation.name == "te"
 
     def rhs(t, y):
         s = origin + (t - origin) % period

@@ -197,7 +197,7 @@ def run_scipy(model, speeds, method, rtol, n_measured=3, samples=128):
         n_tr, mp = n_transient(model, w)
         period = model.period_rad
         n_mesh = int(round(period / model.mesh_period_rad))
-        if model.formulation == "reference" or not isinstance(model, TorsionalModel):
+        if model.formulation.name == "reference" or not isinstance(model, TorsionalModel):
             vf = jax.jit(lambda t, y: mp.vector_field(t, y, w))
             f = lambda t, y: np.asarray(vf(t, y))  # noqa: E731
         else:
@@ -224,7 +224,7 @@ def _tables(mp, theta):
 
     val, _ = jax.vmap(mp.excitations)(jnp.asarray(theta))
     out = {"x_s": np.asarray(val[:, 0]), "k_s": np.asarray(val[:, 1])}
-    if mp.formulation == "reference":
+    if mp.formulation.name == "reference":
         cells, de, _ = jax.vmap(lambda t: contact_gaps(mp.mesh, mp.mods, t))(jnp.asarray(theta))
         out["k"] = np.asarray(cells.stiffness_N_per_m)
         out["de"] = np.asarray(de)
@@ -254,8 +254,8 @@ def run_newmark(model, speeds, steps_per_mesh, n_measured=3, samples=128):
     x_ref, k_m, cb = float(d.x_ref), float(d.k_m), model.cos_bb
     f_s = float(model.static_force_N)
     zeta = float(model.damping_ratio)
-    ref = model.formulation == "reference"
-    stiff_tab = tab["k_s"] if model.formulation == "te" else np.full(n_per, k_m)
+    ref = model.formulation.name == "reference"
+    stiff_tab = tab["k_s"] if model.formulation.name == "te" else np.full(n_per, k_m)
 
     def force(j, u):
         """(F/F_S - 1, d/du) at table index j for scaled approaches u (per speed)."""

@@ -40,6 +40,10 @@ from .rigs.baud_velex import table1_relief as table1_relief
 from .rigs.factory import build_model as build_model
 from .models.torsional import TorsionalModel as TorsionalModel
 from .models.geared3d import Geared3DModel as Geared3DModel
+from .models.formulations import AbstractFormulation as AbstractFormulation
+from .models.formulations import Perturbation as Perturbation
+from .models.formulations import Reference as Reference
+from .models.formulations import TransmissionError as TransmissionError
 from .dynamics.simulate import SimulationResult as SimulationResult
 from .dynamics.results import SweepResult as SweepResult
 from .dynamics.stability import floquet_multipliers as floquet_multipliers

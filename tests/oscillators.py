@@ -10,6 +10,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from gearjax.models.base import AbstractGearModel, ModelOutputs
+from gearjax.models.formulations import AbstractFormulation, formulation_of
 
 
 class HarmonicOscillator(AbstractGearModel):
@@ -23,7 +24,7 @@ class HarmonicOscillator(AbstractGearModel):
     damping_ratio: float
     amplitude: float
     order: int = eqx.field(static=True)
-    formulation: str = eqx.field(static=True)
+    formulation: AbstractFormulation = eqx.field(static=True)
     jump_thetas: tuple = eqx.field(static=True)
     forced: bool = eqx.field(static=True)
     structure_ok: bool = eqx.field(static=True)
@@ -33,7 +34,8 @@ class HarmonicOscillator(AbstractGearModel):
                  formulation="perturbation", jump_thetas=(), forced=True):
         self.mass, self.stiffness = mass, stiffness
         self.damping_ratio, self.amplitude, self.order = damping_ratio, amplitude, order
-        self.formulation, self.jump_thetas, self.forced = formulation, jump_thetas, forced
+        self.formulation, self.jump_thetas = formulation_of(formulation), jump_thetas
+        self.forced = forced
         self.structure_ok = True
         self.period_rad = 2 * math.pi / order
 

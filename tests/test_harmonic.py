@@ -34,6 +34,7 @@ from gearjax import Mesh, ToothModifications, baud_velex_pair, static_mesh_force
 from gearjax.dynamics.harmonic import harmonic_steady_states
 from gearjax.dynamics.harmonic_sweep import harmonic_sweep
 from gearjax.errors import SimulationError
+from gearjax.models.formulations import Reference
 from gearjax.models.torsional import TorsionalModel
 from oscillators import HarmonicOscillator
 from test_dynamics_sdof import _closed_form_perturbation
@@ -182,7 +183,7 @@ def test_parametric_instability_is_flagged(square_wave):
 def test_clear_errors(square_wave):
     model = square_wave[0][ZETA]
     with pytest.raises(SimulationError, match="formulation"):
-        harmonic_sweep(dataclasses.replace(model, formulation="reference"), [300.0])
+        harmonic_sweep(dataclasses.replace(model, formulation=Reference()), [300.0])
     with pytest.raises(SimulationError, match="gear model"):
         harmonic_sweep(object(), [300.0])
     with pytest.raises(SimulationError, match="speeds_rad_s"):

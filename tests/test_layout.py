@@ -310,3 +310,26 @@ def test_one_sweep_result_type():
                   if isinstance(node, ast.ClassDef)
                   and any(ast.unparse(b).split(".")[-1] == "SweepResult" for b in node.bases)]
     assert not subclasses, subclasses
+
+
+def test_formulations_are_objects_below_the_command_line():
+    """A model's formulation is an object (:mod:`gearjax.models.formulations`, issue 46):
+    below the host layers no code compares a ``formulation`` with a string or a tuple of
+    strings (``Reference`` etc. are asked with ``isinstance`` or for ``.linear``); results
+    carry the name, ``formulation.name``."""
+    bad = []
+    for mod, tree in _library_trees():
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.Compare):
+                continue
+            names = [n for n in [node.left] + node.comparators
+                     if (isinstance(n, ast.Attribute) and n.attr == "formulation")
+                     or (isinstance(n, ast.Name) and n.id == "formulation")]
+            strings = [n for n in [node.left] + node.comparators
+                       if (isinstance(n, ast.Constant) and isinstance(n.value, str))
+                       or (isinstance(n, (ast.Tuple, ast.List, ast.Set)) and n.elts
+                           and all(isinstance(e, ast.Constant) for e in n.elts))
+                       or (isinstance(n, ast.Name) and n.id.endswith("FORMULATIONS"))]
+            if names and strings:
+                bad.append(f"{mod}:{node.lineno} {ast.unparse(node)}")
+    assert not bad, "\n".join(bad)

@@ -16,6 +16,7 @@ from gearjax.dynamics.harmonic_sweep import HarmonicBalance
 from gearjax.dynamics.orbit import RESULTS, Orbit, measure, status_message
 from gearjax.dynamics.solvers import AbstractPeriodicSolver, Fallback
 from gearjax.dynamics.steady import Shooting
+from gearjax.models.formulations import formulation_of
 from gearjax.dynamics.sweep import Auto, Transient, sweep, tolerance_options
 from gearjax.models.torsional import TorsionalModel
 from gearjax.rigs import baud_velex_rig, build_model
@@ -102,7 +103,7 @@ def test_auto_is_a_rule_of_the_model():
     class Fake:  # the capabilities Auto reads
         def __init__(self, formulation="reference", periodic_start=False, scaled=True,
                      state_size=292):
-            self.formulation, self.periodic_start = formulation, periodic_start
+            self.formulation, self.periodic_start = formulation_of(formulation), periodic_start
             self.speed_scaled_state, self.state_size = scaled, state_size
 
     assert Auto(rtol=1e-9).choose(Fake()) == Transient(**tolerance_options(1e-9))

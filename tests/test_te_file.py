@@ -155,7 +155,7 @@ def test_quasistatic_rows_fed_back_reproduce_the_model_excitation(tmp_path, long
     np.savetxt(path, np.column_stack([t, rows]), delimiter=",", fmt="%.10e", comments="",
                header="theta_rad,te_s_m,nlte_m,mesh_stiffness_N_per_m")
     fed = model.with_te(read_te_csv(path, MESH))
-    assert fed.nlte_terms and fed.formulation == "te"
+    assert fed.nlte_terms and fed.formulation.name == "te"
     np.testing.assert_allclose(fed.jump_thetas, model.jump_thetas, rtol=0, atol=1e-10)
     assert float(fed.k_m) == pytest.approx(float(model.k_m), rel=1e-10)
     x = jnp.asarray(np.random.default_rng(3).uniform(0, 2 * MESH, 1000))

@@ -285,7 +285,7 @@ def _sweep_formulations(case: SweepCase, first, done: dict, devices, lead: bool,
         return speeds[~np.isin(speeds, got)] if got.size else speeds
 
     def sweep_options(model):
-        size = None if a.chunk is None else min(a.chunk, todo_of(model.formulation).size)
+        size = None if a.chunk is None else min(a.chunk, todo_of(model.formulation.name).size)
         return dict(solver=solver_for(a.method, model, a.rtol, case.tolerances),
                     chunk_size=size, devices=devices)
 

@@ -606,7 +606,7 @@ def _result(model, tr: _Tracer, jumps, scale) -> TracedBranches:
             landed_branch=landed, landed_periodic=q is not None, index=j,
             metrics_after=after))
     return TracedBranches(
-        points=SweepResult(**out, formulation=model.formulation,
+        points=SweepResult(**out, formulation=model.formulation.name,
                            solver=np.full(n_pts, "arclength"), spectral_radius=rho,
                            status=status),
         stable=stable, branch=branch, segment=np.array([p.segment for p in pts]),

@@ -188,7 +188,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     out["n_steps"] = np.nan_to_num(out["n_steps"]).astype(np.int64)
     extra["newton_iterations"] = np.nan_to_num(extra["newton_iterations"]).astype(np.int64)
     rho = extra.pop("spectral_radius")
-    return SweepResult(**out, formulation=model.formulation, solver=np.full(n, "continuation"),
+    return SweepResult(**out, formulation=model.formulation.name, solver=np.full(n, "continuation"),
                        spectral_radius=rho,
                        status=metric_status(out["solver_ok"], out["converged"], rho),
                        stats=dict(stable=stable, restarted=restarted, y0=y0s, unstable_y0=uy0s,

@@ -370,9 +370,9 @@ def check_linear_model(model):
     if not isinstance(model, AbstractGearModel):
         raise SimulationError("model", type(model).__name__,
                               "must be a gear model (gearjax.models.base.AbstractGearModel)")
-    if model.formulation not in LINEAR_FORMULATIONS:
+    if not model.formulation.linear:
         raise SimulationError(
-            "formulation", model.formulation,
+            "formulation", model.formulation.name,
             "the frequency-domain solver needs a linear formulation (te, perturbation); the "
             "reference contact law is nonlinear: use gearjax.dynamics.steady (shooting) or "
             "simulate")

@@ -51,6 +51,7 @@ import jax.numpy as jnp
 import numpy as np
 from ..errors import SimulationError, check_float64
 from ..models.base import AbstractGearModel, AbstractModalModel
+from ..models.formulations import formulation_of
 from .integrate import PeriodicJumpController, jump_controller
 from .legs import solve_legs
 from .measure import (N_REFINE, extrema, measure_grid, mesh_orders, n_windows, observer,
@@ -103,8 +104,9 @@ def jump_density(model) -> float:
     return n * model.mesh_period_rad / model.period_rad
 
 
-def default_solver(formulation: str, jumps_per_mesh_period: float = 0.0):
-    """(solver, rtol, atol) used when :func:`simulate` is given none.
+def default_solver(formulation, jumps_per_mesh_period: float = 0.0):
+    """(solver, rtol, atol) used when :func:`simulate` is given none, for a
+    :class:`~gearjax.models.formulations.AbstractFormulation` (or its name).
 
     Reference: Tsit5, rtol 1e-7. te/perturbation: Dopri8, rtol 1e-7 -- unless the model
     has more than 20 separated jump angles per mesh period (:func:`jump_density`) (helical gears: every one of the 40 cells
@@ -114,7 +116,7 @@ def default_solver(formulation: str, jumps_per_mesh_period: float = 0.0):
     the mean static approach). Measured choices: ``benchmarks/results/model_notes.md`` and
     ``benchmarks/results/code_notes.md``, section gearjax.dynamics.simulate.
     """
-    name, rtol, atol = _DEFAULTS.get(formulation, _DEFAULTS["reference"])
+    name, rtol, atol = _DEFAULTS[formulation_of(formulation).name]
     if name == "dopri8" and jumps_per_mesh_period > _MANY_JUMPS:
         name, rtol, atol = "tsit5", rtol / 10, atol / 10
     return _SOLVERS[name](), rtol, atol

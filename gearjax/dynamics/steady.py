@@ -371,7 +371,7 @@ def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
                         f"{time.perf_counter() - t0:.2f} s", elapsed_s=time.perf_counter() - t_start)
     out["transient_periods"][:] = 0.0
     continued = np.zeros(speeds.size, dtype=bool)
-    formulation = model.formulation
+    formulation = model.formulation.name
     if continuation is not None:  # te/perturbation too: with the contact law they are
         # nonlinear there
         need = ~orbit_solved(out["contact_loss"] > 0, rho, out["converged"] > 0)

@@ -43,7 +43,7 @@ import numpy as np
 from ..errors import check_float64
 from .batching import over_speeds, sequential_on
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
-from ..models.base import LINEAR_FORMULATIONS
+
 from .harmonic_sweep import HarmonicBalance
 from .solvers import AbstractOrbitSolver, AbstractPeriodicSolver, Fallback, SweepRun
 from .results import (CSV_COLUMNS, FLAG_FIELDS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult,
@@ -167,7 +167,7 @@ class Transient(AbstractOrbitSolver):
         fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx = _plan(
             model, speeds, run.chunk_size, run.devices, self)
         total = n_chunks * chunk
-        formulation = model.formulation
+        formulation = model.formulation.name
 
         results = empty_metrics(total)
         if not lead:
@@ -236,7 +236,7 @@ class Auto(AbstractPeriodicSolver):
     compilation of each solver against a tight reference, sdof and 3D, each formulation):
 
     * the te and perturbation formulations (linear while the mesh force stays
-      compressive, :data:`~gearjax.models.base.LINEAR_FORMULATIONS`) of a model whose
+      compressive, ``model.formulation.linear``) of a model whose
       state is speed-scaled (:attr:`~gearjax.models.base.AbstractGearModel.speed_scaled_state`:
       the frequency domain decomposes it once for every speed) and large enough that a
       speed of the transient costs more than one of the frequency domain
@@ -263,7 +263,7 @@ class Auto(AbstractPeriodicSolver):
 
     def choose(self, model) -> AbstractPeriodicSolver:
         """The solver :meth:`sweep` uses for ``model`` (class docstring)."""
-        if (model.formulation in LINEAR_FORMULATIONS and model.speed_scaled_state
+        if (model.formulation.linear and model.speed_scaled_state
                 and model.state_size >= FREQUENCY_DOMAIN_MIN_STATES):
             return Fallback(self.harmonic(), self.transient(model))
         return self.transient(model)

@@ -23,17 +23,17 @@ import jax
 import jax.numpy as jnp
 
 from ..errors import ModelError
+from .formulations import FORMULATION_NAMES, AbstractFormulation, Reference, formulation_of
 
 __all__ = ["AbstractGearModel", "AbstractModalModel", "ModelOutputs", "FORMULATIONS",
            "LINEAR_FORMULATIONS", "AbstractWithoutContactLaw", "WithoutContactLaw",
            "ModalWithoutContactLaw", "without_contact_law", "modal_transient_start",
            "modal_periodic_estimate"]
 
-# the three dynamic formulations of the paper: reference Eq. (14)/(16), transmission-error
-# based Eq. (42)/(20), main-order perturbation Eq. (48a)/(47a)
-FORMULATIONS = ("reference", "te", "perturbation")
-# the two linearised about the quasi-static contact (one build, one mesh term apart)
-LINEAR_FORMULATIONS = ("te", "perturbation")
+# the names of the paper's three formulations (gearjax.models.formulations), and of the two
+# linearised about the quasi-static contact (one build, one mesh term apart)
+FORMULATIONS = FORMULATION_NAMES
+LINEAR_FORMULATIONS = tuple(n for n in FORMULATION_NAMES if formulation_of(n).linear)
 
 
 class ModelOutputs(eqx.Module):
@@ -58,10 +58,13 @@ class AbstractGearModel(eqx.Module):
 
     Attributes
     ----------
-    formulation : one of :data:`FORMULATIONS`: ``"reference"`` (Eq. (14), sdof Eq. (16):
-        unilateral contact on every cell, nonlinear), ``"te"`` (Eq. (42), sdof Eq. (20):
-        affine in the state with the loaded quasi-static stiffness) or ``"perturbation"``
-        (Eq. (48a), sdof Eq. (47a): affine with the mean stiffness ``k_m``).
+    formulation : the :class:`~gearjax.models.formulations.AbstractFormulation`:
+        :class:`~gearjax.models.formulations.Reference` (Eq. (14), sdof Eq. (16):
+        unilateral contact on every cell, nonlinear),
+        :class:`~gearjax.models.formulations.TransmissionError` (Eq. (42), sdof Eq. (20):
+        affine in the state with the loaded quasi-static stiffness) or
+        :class:`~gearjax.models.formulations.Perturbation` (Eq. (48a), sdof Eq. (47a):
+        affine with the mean stiffness ``k_m``); ``.name`` is its word in results.
     period_rad : excitation period in theta (rad): one mesh period ``2 pi / z1`` or a
         multiple (pitch errors, eccentricity).
     jump_thetas : sorted simulation angles in ``[0, period_rad)`` where the right-hand side
@@ -72,7 +75,7 @@ class AbstractGearModel(eqx.Module):
         the angle map and the tables are valid for the current modifications.
     """
 
-    formulation: eqx.AbstractVar[str]
+    formulation: eqx.AbstractVar[AbstractFormulation]
     period_rad: eqx.AbstractVar[float]
     jump_thetas: eqx.AbstractVar[tuple]
     damping_ratio: eqx.AbstractVar[jax.Array]
@@ -243,14 +246,14 @@ class AbstractWithoutContactLaw(AbstractGearModel):
     """
 
     model: AbstractGearModel
-    formulation: str
+    formulation: AbstractFormulation
     period_rad: float
     jump_thetas: tuple
     damping_ratio: jax.Array
     structure_ok: jax.Array
 
     def __init__(self, model: AbstractGearModel):
-        if model.formulation == "reference":
+        if isinstance(model.formulation, Reference):
             raise ModelError("formulation", "reference", "the reference formulation's contact "
                              "is per cell and always on; WithoutContactLaw is for te/perturbation")
         self.model = model

@@ -110,9 +110,10 @@ from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..structure.condensation import Condensation, QuasiStatic3D
 from ..structure.element import PinionGearElement
 from ..structure.geared import Eccentricity
-from .base import (FORMULATIONS, LINEAR_FORMULATIONS, AbstractModalModel, ModelOutputs,
-                   modal_periodic_estimate,
-                   modal_transient_amplitudes, modal_transient_start)
+from .base import (LINEAR_FORMULATIONS, AbstractModalModel, ModelOutputs,
+                   modal_periodic_estimate, modal_transient_amplitudes, modal_transient_start)
+from .formulations import (AbstractFormulation, Perturbation, Reference, TransmissionError,
+                           formulation_of)
 from .geared3d_build import EXCITATIONS, MESH_VECTORS, build_geared3d
 from .cutoff import (CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS,  # re-exported
                      default_max_frequency_hz)
@@ -192,7 +193,7 @@ class Geared3DModel(AbstractModalModel):
     table: PeriodicHermiteTable | None
     angle_map: AngleMap | None
     structure_ok: jax.Array
-    formulation: str = eqx.field(static=True)
+    formulation: AbstractFormulation = eqx.field(static=True)
     mesh_vectors: str = eqx.field(static=True)
     nlte_terms: bool = eqx.field(static=True)
     n_modes: int = eqx.field(static=True)
@@ -218,8 +219,9 @@ class Geared3DModel(AbstractModalModel):
     contact_law: TEContactLaw = eqx.field(static=True, default=TEContactLaw.MESH)
 
     def __check_init__(self):
-        if self.formulation not in FORMULATIONS:
-            raise ModelError("formulation", self.formulation, f"must be one of {FORMULATIONS}")
+        if not isinstance(self.formulation, AbstractFormulation):
+            raise ModelError("formulation", self.formulation, "must be a formulation object "
+                             "(gearjax.models.formulations; the builders also take its name)")
         if self.mesh_vectors not in MESH_VECTORS:
             raise ModelError("mesh_vectors", self.mesh_vectors, f"must be one of {MESH_VECTORS}")
         if self.excitation not in EXCITATIONS:
@@ -243,16 +245,18 @@ class Geared3DModel(AbstractModalModel):
     # ------------------------------------------------------------------ construction
     build = classmethod(build_geared3d)
 
-    def with_formulation(self, formulation: str) -> "Geared3DModel":
-        """This model in the other linearised formulation, ``"te"`` <-> ``"perturbation"``.
+    def with_formulation(self, formulation) -> "Geared3DModel":
+        """This model in the other linearised formulation, te <-> perturbation (an
+        :class:`~gearjax.models.formulations.AbstractFormulation` or its name).
         Eqs. (42) and (48a) take the same quasi-static table, ``k_m`` and modal basis from
         the build (only the mesh term of the equations differs), so a sweep of both
         builds once (the reference formulation has no table: build it)."""
-        if self.formulation not in LINEAR_FORMULATIONS or formulation not in LINEAR_FORMULATIONS:
-            raise ModelError("formulation", formulation, f"only {LINEAR_FORMULATIONS} share a "
-                             f"build; this model is {self.formulation!r}")
+        formulation = formulation_of(formulation)
+        if not (self.formulation.linear and formulation.linear):
+            raise ModelError("formulation", formulation.name, f"only {LINEAR_FORMULATIONS} share "
+                             f"a build; this model is {self.formulation.name!r}")
         return dataclasses.replace(self, formulation=formulation,
-                                   te_weight=jnp.asarray(float(formulation == "te")))
+                                   te_weight=jnp.asarray(formulation.te_weight))
 
     def compiled_form(self) -> "Geared3DModel":
         """A perturbation model is handed to compiled sweeps as the te model with its
@@ -260,15 +264,16 @@ class Geared3DModel(AbstractModalModel):
         (:meth:`_elastic`), their solver and transient in nothing, so the main job
         compiles one program for both (one tracing and XLA compile saved). The
         perturbation model's own ``harmonic_start`` state keeps it apart."""
-        if self.formulation == "perturbation" and self.te_weight is not None and not self.periodic_start:
-            return dataclasses.replace(self, formulation="te")
+        if (isinstance(self.formulation, Perturbation) and self.te_weight is not None
+                and not self.periodic_start):
+            return dataclasses.replace(self, formulation=TransmissionError())
         return self
 
     # ------------------------------------------------------------------ constants
     @property
     def cell_contact(self) -> bool:
         """te/perturbation with the per-cell contact law (:attr:`contact_law` ``CELLS``)."""
-        return self.contact_law is TEContactLaw.CELLS and self.formulation != "reference"
+        return self.contact_law is TEContactLaw.CELLS and not isinstance(self.formulation, Reference)
 
     @property
     def mesh_level_contact(self) -> bool:
@@ -324,7 +329,7 @@ class Geared3DModel(AbstractModalModel):
             v_local=self.v_local, free12=self.free12, static_force_N=self.static_force_N,
             v_x0=self.v_x0, c_vv=self.c_vv, c_wv=self.c_wv, mesh_vectors=self.mesh_vectors,
             qs_max_iter=self.qs_max_iter, nlte_terms=self.nlte_terms,
-            loaded_codes=self.formulation != "reference", cell_states=self.cell_contact)
+            loaded_codes=not isinstance(self.formulation, Reference), cell_states=self.cell_contact)
 
     def with_modifications(self, mods: ToothModifications) -> "Geared3DModel":
         """The complete model of the design ``mods`` (same structure, modal basis, ``k_m``
@@ -382,7 +387,7 @@ class Geared3DModel(AbstractModalModel):
 
     def _static_q(self, theta):
         """Modal coordinates of the quasi-static X_S seen by this formulation."""
-        if self.formulation == "reference":
+        if isinstance(self.formulation, Reference):
             # K X_S = F_0 - f_mesh with K = K_bar - k_m V V^T and V^T X_S = V_l^T x_l
             qs = self.quasi_static(theta)
             cells, _, _ = contact_gaps(self.mesh, self.mods, theta)
@@ -468,7 +473,7 @@ class Geared3DModel(AbstractModalModel):
         :func:`gearjax.gears.contact.te_contact` unless ``contact=False`` (linear)."""
         z = q - self.q0
         f_s = self.static_force_N
-        if self.formulation == "reference":  # no angle map: s = theta
+        if isinstance(self.formulation, Reference):  # no angle map: s = theta
             cells, de, nlte = contact_gaps(self.mesh, self.mods, s)
             qsm = self.quasi_static_mesh()
             vecs = qsm.vectors(cells)
@@ -493,7 +498,7 @@ class Geared3DModel(AbstractModalModel):
         k_eq = k
         if self.te_weight is not None:
             k_eq = jnp.where(self.te_weight > 0.5, k, self.k_m)
-        elif self.formulation == "perturbation":
+        elif isinstance(self.formulation, Perturbation):
             k_eq = self.k_m
         f_eq = k_eq * v_q - k_eq * self.cos_bb * d - (k_eq - self.k_m) * f_s / self.k_m
         force = self._stiffness_product(z) + (f_eq - self.k_m * v_q) * self.v_r
@@ -569,7 +574,7 @@ class Geared3DModel(AbstractModalModel):
     def homogeneous_vector_field(self, theta, y, omega):
         """The linear part of :meth:`vector_field` (te/perturbation without the contact law,
         affine in ``y``), for the Floquet analysis of :mod:`gearjax.dynamics.stability`."""
-        if self.formulation == "reference":
+        if isinstance(self.formulation, Reference):
             raise ModelError("formulation", "reference", "the contact law is not linear; the "
                              "linearisation about the quasi-static contact is the te formulation")
         f = lambda y: self.vector_field(theta, y, omega, contact=False)  # noqa: E731
@@ -588,7 +593,7 @@ class Geared3DModel(AbstractModalModel):
     @property
     def _constant_coefficients(self) -> bool:
         """Eq. (48a) without NLTE inertial and eccentricity terms, excitation tabulated."""
-        return (self.formulation == "perturbation" and not self.nlte_inertial_terms
+        return (isinstance(self.formulation, Perturbation) and not self.nlte_inertial_terms
                 and self.ecc is None and self.table_knots is not None)
 
     def harmonic_state(self, omega, theta0=0.0, n_harmonics: int | None = None):
@@ -601,7 +606,7 @@ class Geared3DModel(AbstractModalModel):
         ``n_harmonics`` kept, default 128 per mesh period: ``d_h = O(h^-2)``, ``z_h =
         O(h^-4)``)."""
         if not self._constant_coefficients:
-            raise ModelError("formulation", self.formulation,
+            raise ModelError("formulation", self.formulation.name,
                              "harmonic_state needs the perturbation formulation without NLTE "
                              "or eccentricity terms and with the excitation table")
         n_mesh = max(1, round(self.period_rad / self.mesh_period_rad))
@@ -642,7 +647,7 @@ class Geared3DModel(AbstractModalModel):
             _, nl1, nl2 = self._nlte_derivs(theta, order=2)
             qpp = up - nl2 * e - nl1 * ep
         dte = self.w_r @ q
-        if self.formulation == "reference" or self.nlte_terms:
+        if isinstance(self.formulation, Reference) or self.nlte_terms:
             dte = dte + (self.table(theta)[0][2] if self.table is not None
                          else contact_gaps(self.mesh, self.mods, theta)[2])
         return ModelOutputs(mesh_force_N=f_d, dte_m=dte, accel_m_s2=omega**2 * (self.acc_r @ qpp))

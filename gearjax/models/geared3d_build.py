@@ -6,7 +6,6 @@ and the excitation table, all outside ``jit``. Kept apart from the model's equat
 from __future__ import annotations
 
 import math
-from typing import Literal
 
 import equinox as eqx
 import jax
@@ -24,7 +23,7 @@ from ..gears.modifications import ToothModifications
 from ..gears.quasistatic import static_mesh_force
 from ..structure.condensation import Condensation, quasi_static_3d
 from ..structure.geared import Eccentricity, disc_mass, geared_structure
-from .base import FORMULATIONS
+from .formulations import AbstractFormulation, Reference, formulation_of
 from .geared3d_excitation import file_mean_stiffness, own_table_fields, te_file_fields
 
 
@@ -62,7 +61,6 @@ def _quasi_static_scan(cond, el, mods, thetas, f_s, v12, mesh_vectors, max_iter,
 
 MESH_VECTORS = ("cells", "mean")
 EXCITATIONS = ("table", "inline")
-Formulation = Literal["reference", "te", "perturbation"]
 
 
 def build_geared3d(
@@ -75,7 +73,7 @@ def build_geared3d(
     torque_node: int | None = None,
     encoder_nodes: tuple[int, int] | None = None,
     damping_ratio: float = 0.03,
-    formulation: Formulation = "reference",
+    formulation: AbstractFormulation | str = "reference",
     mesh_vectors: str = "cells",
     nlte_terms: bool | None = None,
     max_frequency_hz: float | None = None,
@@ -110,8 +108,10 @@ def build_geared3d(
     encoder_nodes : nodes (I, II) of the TE encoders (Eq. (9)); default the pinion and
         gear nodes (Fig. 7 position 1).
     damping_ratio : unique modal damping factor zeta in [0, 1).
-    formulation : ``"reference"`` (Eq. (14)), ``"te"`` (Eq. (42)) or
-        ``"perturbation"`` (Eq. (48a)).
+    formulation : :class:`~gearjax.models.formulations.Reference` (Eq. (14)),
+        :class:`~gearjax.models.formulations.TransmissionError` (Eq. (42)) or
+        :class:`~gearjax.models.formulations.Perturbation` (Eq. (48a)), or its name
+        (``"reference"``, ``"te"``, ``"perturbation"``).
     mesh_vectors : ``"cells"`` (V(M_i), paper) or ``"mean"`` (averaged V everywhere:
         the reference contact and the quasi-static TE_S then use V, Eq. (27)).
     nlte_terms : keep NLTE in the equations (default: unless NLTE is identically zero);
@@ -159,8 +159,7 @@ def build_geared3d(
     ModelError
         naming the field, its value and the reason.
     """
-    if formulation not in FORMULATIONS:
-        raise ModelError("formulation", formulation, f"must be one of {FORMULATIONS}")
+    formulation = formulation_of(formulation)
     if mesh_vectors not in MESH_VECTORS:
         raise ModelError("mesh_vectors", mesh_vectors, f"must be one of {MESH_VECTORS}")
     if excitation not in EXCITATIONS:
@@ -179,7 +178,7 @@ def build_geared3d(
         raise ModelError("contact_law", contact_law.value, "the per-cell te/perturbation "
                          "contact law has no back flanks; with backlash_m use the mesh-level "
                          "law (TEContactLaw.MESH)")
-    if backlash is not None and formulation == "reference":
+    if backlash is not None and isinstance(formulation, Reference):
         check_backlash_mods(backlash, mods, mesh.pair)
     torque = float(pinion_torque_Nm)
     if not (math.isfinite(torque) and torque > 0):
@@ -210,7 +209,7 @@ def build_geared3d(
         raise ModelError("qs_max_iter", qs_max_iter, f"active set did not converge at theta={bad[:3]}")
     k_m = float(np.mean(np.asarray(qs.loaded_stiffness_N_per_m)))
     if te_table is not None:
-        if formulation == "reference" or excitation != "table":
+        if isinstance(formulation, Reference) or excitation != "table":
             raise ModelError("te_table", te_table.source, "a TE file drives te or perturbation"
                              " with excitation='table', not the reference formulation "
                              "(Eq. (14): a gap per cell)")
@@ -254,16 +253,16 @@ def build_geared3d(
         free12=jnp.asarray(mask12), static_force_N=jnp.asarray(f_s), v_x0=v_r_j @ q0_j,
         c_vv=v_r_j @ c_v_r_j, c_wv=w_r_j @ c_v_r_j, mesh_vectors=mesh_vectors,
         qs_max_iter=int(qs_max_iter), nlte_terms=bool(nlte_terms),
-        loaded_codes=formulation != "reference",
-        cell_states=contact_law is TEContactLaw.CELLS and formulation != "reference")
+        loaded_codes=not isinstance(formulation, Reference),
+        cell_states=contact_law is TEContactLaw.CELLS and not isinstance(formulation, Reference))
 
     # speed-independent RHS jumps (te/perturbation: + table events: NLTE' jumps at zone kinks)
-    tabulated = formulation != "reference" and excitation == "table"
+    tabulated = not isinstance(formulation, Reference) and excitation == "table"
     jumps, layout = own_table_fields(qsm, theta_tab, period, tabulated, moving_events)
     if te_table is not None:
         jumps, layout, period = te_file_fields(te_table, layout, jumps, red.w_r @ red.q0,
                                                nlte_terms)
-    if backlash is not None and formulation == "reference":  # back cells entering / leaving
+    if backlash is not None and isinstance(formulation, Reference):  # back cells entering / leaving
         back = np.mod(back_flank_angle_rad(pair) - engagement_angles(mesh, period), period)
         jumps = distinct_angles(np.concatenate([np.asarray(jumps, dtype=float), back]), period)
 
@@ -282,7 +281,7 @@ def build_geared3d(
         harmonic_start=bool(harmonic_start),
         te_source=None if te_table is None else te_table.source,
         nlte_inertia=bool(nlte_inertia), **modal_structure(red.kbar_r, red.c_r, red.n_modes),
-        te_weight=None if formulation == "reference" else jnp.asarray(float(formulation == "te")),
+        te_weight=None if isinstance(formulation, Reference) else jnp.asarray(formulation.te_weight),
         backlash_m=None if backlash is None else jnp.asarray(backlash),
         contact_law=contact_law,
         **layout,

@@ -108,7 +108,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Literal
 
 import equinox as eqx
 import jax
@@ -127,14 +126,14 @@ from ..excitation.events import EV_FIXED, NEWTON_STEPS, code_jnp, moved_event_an
 from ..excitation.sdof import sdof_signature, sdof_switch
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..excitation.te_file import te_model_fields
-from .base import FORMULATIONS, AbstractGearModel, ModelOutputs
+from .base import AbstractGearModel, ModelOutputs
+from .formulations import (AbstractFormulation, Perturbation, Reference, TransmissionError,
+                           formulation_of)
 from .torsional_layout import sdof_table_layout, with_back_flank_jumps
 from ..errors import ModelError
 
-__all__ = ["TorsionalModel", "ModelOutputs", "ModelError", "FORMULATIONS",
-           "solid_cylinder_inertias"]
+__all__ = ["TorsionalModel", "ModelOutputs", "ModelError", "solid_cylinder_inertias"]
 
-Formulation = Literal["reference", "te", "perturbation"]
 NLTE_METHODS = ("substitution", "spectral")
 EXCITATIONS = ("table", "inline")
 NLTE_REACTIONS = ("drive", "pinion")  # default first
@@ -153,7 +152,7 @@ class _TorsionalInputs(eqx.Module):
     table_knots: jax.Array
     table_cell_first: jax.Array
     table_side: jax.Array
-    formulation: str = eqx.field(static=True)
+    formulation: AbstractFormulation = eqx.field(static=True)
     nlte_terms: bool = eqx.field(static=True)
     nlte_method: str = eqx.field(static=True)
     nlte_harmonics: int = eqx.field(static=True)
@@ -336,8 +335,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
     inertias_kg_m2 : (2,) polar inertias J1, J2 of the pinion and gear shaft lines (kg m^2).
     pinion_torque_Nm : input torque C_m0 on the pinion (N m), > 0.
     damping_ratio : zeta in [0, 1), ``c = 2 zeta sqrt(k_m cos^2 b_b m_eq)``.
-    formulation : ``"reference"`` (Eq. (16)), ``"te"`` (Eq. (20)) or ``"perturbation"``
-        (Eq. (47a)).
+    formulation : :class:`~gearjax.models.formulations.AbstractFormulation`: Reference
+        (Eq. (16)), TransmissionError (Eq. (20)) or Perturbation (Eq. (47a)).
     nlte_terms : keep the NLTE terms (see module docstring).
     nlte_inertia : keep the NLTE'' inertial term (False: Section 6.3.2, NLTE'' = 0 only).
     nlte_method : ``"substitution"`` (exact, default) or ``"spectral"``.
@@ -378,8 +377,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
     nlte_dd_coeffs: jax.Array | None = eqx.field(kw_only=True)
 
     def __check_init__(self):
-        if self.formulation not in FORMULATIONS:
-            raise ModelError("formulation", self.formulation, f"must be one of {FORMULATIONS}")
+        if not isinstance(self.formulation, AbstractFormulation):
+            raise ModelError("formulation", self.formulation, "must be a formulation object")
         if self.inertias_kg_m2.shape != (2,):
             raise ModelError("inertias_kg_m2", self.inertias_kg_m2.shape, "must have shape (2,)")
         if self.table.values.shape != (self.table_knots.shape[0], 3):
@@ -410,8 +409,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
     def with_te(self, te, nlte_terms: bool | None = None) -> "TorsionalModel":
         """This te/perturbation model driven by a TE file (module docstring, "TE from a
         file"); ``nlte_terms`` None: kept iff the file's NLTE is not 0."""
-        if self.formulation == "reference" or (self.excitation, self.nlte_method) != ("table", "substitution"):
-            raise ModelError("formulation", self.formulation, "a TE file drives te or perturbation"
+        if isinstance(self.formulation, Reference) or (self.excitation, self.nlte_method) != ("table", "substitution"):
+            raise ModelError("formulation", self.formulation.name, "a TE file drives te or perturbation"
                              " (excitation='table', nlte_method='substitution'), not the reference"
                              " formulation (Eq. (16): a gap per cell)")
         inputs = {f.name: getattr(self, f.name) for f in dataclasses.fields(_TorsionalData)}
@@ -427,7 +426,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         pinion_torque_Nm: float = 254.8,
         inertias_kg_m2=None,
         damping_ratio: float = 0.03,
-        formulation: Formulation = "reference",
+        formulation: AbstractFormulation | str = "reference",
         nlte_terms: bool | None = None,
         nlte_method: str = "substitution",
         nlte_harmonics: int = 64,
@@ -448,7 +447,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         pinion_torque_Nm : C_m0 (N m), default 254.8 (paper Section 6.1).
         inertias_kg_m2 : (J1, J2) (kg m^2); default :func:`solid_cylinder_inertias`.
         damping_ratio : zeta in [0, 1), default 0.03 (paper Section 6.1).
-        formulation : ``"reference"``, ``"te"`` or ``"perturbation"``.
+        formulation : a formulation object or its name: ``"reference"``, ``"te"`` or
+            ``"perturbation"``.
         nlte_terms : keep NLTE in the equations; None (default) keeps them unless NLTE is
             identically zero for these modifications. False: NLTE = 0 everywhere.
         nlte_inertia : keep the NLTE'' inertial term (default); False drops it alone
@@ -478,8 +478,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             inconsistent sizes, or a backlash that is not finite, negative or above a
             module (or, reference formulation, with pitch errors or eccentricity).
         """
-        for name, value, allowed in (("formulation", formulation, FORMULATIONS),
-                                     ("nlte_method", nlte_method, NLTE_METHODS),
+        formulation = formulation_of(formulation)
+        for name, value, allowed in (("nlte_method", nlte_method, NLTE_METHODS),
                                      ("excitation", excitation, EXCITATIONS),
                                      ("nlte_reaction", nlte_reaction, NLTE_REACTIONS)):
             if value not in allowed:
@@ -492,7 +492,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             raise ModelError("contact_law", contact_law.value, "the per-cell te/perturbation "
                              "contact law has no back flanks; with backlash_m use the mesh-level "
                              "law (TEContactLaw.MESH)")
-        if backlash is not None and formulation == "reference":
+        if backlash is not None and isinstance(formulation, Reference):
             check_backlash_mods(backlash, mods, mesh.pair)
         torque = float(pinion_torque_Nm)
         if not (math.isfinite(torque) and torque > 0):
@@ -518,7 +518,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             mesh = dataclasses.replace(mesh, cells_per_line=1)
         force = static_mesh_force(mesh.pair, torque)
         layout = sdof_table_layout(mesh, mods, force, n_table)
-        if backlash is not None and formulation == "reference":
+        if backlash is not None and isinstance(formulation, Reference):
             layout = with_back_flank_jumps(layout, mesh)
         period, nlte_max = layout.pop("period"), layout.pop("nlte_max")
         if nlte_terms is None:
@@ -603,7 +603,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         three-state law of :func:`gearjax.gears.contact.three_state_force` (module
         docstring, "Backlash"): F_D < 0 on the back flanks."""
         f_s = self.static_force_N
-        if self.formulation == "reference":
+        if isinstance(self.formulation, Reference):
             if self.backlash_m is not None:
                 f_d = cell_backlash_force(self.mesh, self.mods, theta, x * self.cos_bb,
                                           self.backlash_m)
@@ -614,7 +614,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             return f_d / f_s - 1.0, f_d
         x_static, k_s, x_s = self._static_part(theta, exc)
         x_d = x - x_static
-        stiff = k_s if self.formulation == "te" else self.k_m
+        stiff = k_s if isinstance(self.formulation, TransmissionError) else self.k_m
         # Eq. (24) with the loaded stiffness for both; contact law: gears.contact
         f_eq, f_ld = f_s + stiff * self.cos_bb * x_d, f_s + k_s * self.cos_bb * x_d
         if not contact:
@@ -631,7 +631,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         return (stiff * self.cos_bb * x_d - cut) / f_s, f_d
 
     def _exc(self, s):
-        needs = self._substitution or (self.formulation != "reference" and self.excitation == "table")
+        needs = self._substitution or (not isinstance(self.formulation, Reference) and self.excitation == "table")
         return self._table(s) if needs else None
 
     def vector_field(self, s, y, omega, contact: bool = True):
@@ -656,7 +656,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         r = self.omega_n / omega
         val, der = self._table(jnp.asarray(theta0, dtype=float))
         x_s, x_s_p = val[_X_S], der[_X_S]
-        if self.formulation != "reference" and not self.nlte_terms:
+        if not isinstance(self.formulation, Reference) and not self.nlte_terms:
             x_s, x_s_p = x_s + val[_NLTE], x_s_p + der[_NLTE]
         if self._substitution:
             x_s = x_s + self.kappa * val[_NLTE]
@@ -669,7 +669,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         theta, _ = self.angle(theta)  # pinion angle of the simulation angle
         x, _ = self._x_and_slope(theta, y, omega, exc)
         _, f_d = self._mesh_terms(theta, x, exc, contact)
-        if self.formulation != "reference" and not self.nlte_terms:
+        if not isinstance(self.formulation, Reference) and not self.nlte_terms:
             dte = x  # NLTE = 0 in this model (paper Fig. 10)
         else:
             dte = x + exc[0][_NLTE]
@@ -686,7 +686,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         linearised about the quasi-static contact) or ``k_m`` (perturbation). Used by
         :mod:`gearjax.dynamics.stability`."""
         r = self.omega_n / omega
-        if self.formulation == "perturbation":
+        if isinstance(self.formulation, Perturbation):
             ratio = jnp.ones(())
         else:
             ratio = self.table(theta)[0][_K_S] / self.k_m
