@@ -38,7 +38,7 @@ from gearjax.gears.modifications import ToothModifications
 from gearjax.rigs.baud_velex import baud_velex_pair, table1_relief
 from gearjax.structure.element import PinionGearElement
 
-from oscillators import (KS_LENGTH_M, KS_STIFFNESS_N_PER_M, KahramanSingh, _settle_measure,
+from oscillators import (KS_LENGTH_M, KS_STIFFNESS_N_PER_M, KS_Z1, KahramanSingh, _settle_measure,
                          impact_regime, ks_gear_model, ks_gearjax_sweep, ks_speed_rad_s,
                          ks_state, ks_te_file)
 
@@ -410,6 +410,42 @@ def test_ks_up_and_down_sweeps_against_scipy(ks_models, case):
                 for j, i in enumerate(order)]
         assert [r["regime"] for r in rows] == [r["regime"] for r in sp]
         assert _jumps(rows, "regime") == _jumps(sp, "regime")
+
+
+@pytest.mark.slow
+def test_ks_folds_are_where_brute_force_sweeps_jump(ks_models):
+    """Case A traced by pseudo-arclength continuation (``trace_speed``) against SciPy's
+    brute-force up and down transient sweeps (step 0.05 in W). Where the two sweeps' max
+    forces differ by more than 20 % two stable orbits coexist (a hysteresis band); the up
+    sweep leaves a band between its last speed and the next one, the down sweep between its
+    first speed and the one below. For each such jump the trace has exactly one jump speed
+    of that direction (a fold ending the branch the sweep was on) within the sweep's step of
+    it, and no other. The branch exists where the sweep still was on it, so the fold lies
+    beyond that speed; a sweep may leave a branch a step early, where its transient from
+    the last orbit falls out of the shrinking basin near the fold (the down sweep at W 0.60,
+    0.0018 above the fold), never late: up, ``lo < fold < hi + step``; down, ``lo - step <
+    fold < hi``."""
+    from gearjax.dynamics.arclength import trace_speed
+
+    ks, m = ks_models["A"]
+    ws = np.round(np.arange(0.40, 1.6001, 0.05), 3)
+    traced = trace_speed(m, ks_speed_rad_s(m, ws))
+    to_w = lambda om: om * KS_Z1 / float(m.omega_n)  # noqa: E731
+    folds = {"up": [to_w(w) for w in traced.jump_up_rad_s()],
+             "down": [to_w(w) for w in traced.jump_down_rad_s()]}
+    up = {r["w"]: r["f_max"] for r in ks.sweep(ws, [0.1, 0.0])}
+    down = {r["w"]: r["f_max"] for r in ks.sweep(ws[::-1], [0.1, 0.0])}
+    band = [abs(up[w] - down[w]) > 0.2 * min(up[w], down[w]) for w in ws]
+    leaves = {"up": [(ws[i], ws[i + 1]) for i in range(ws.size - 1) if band[i] and not band[i + 1]],
+              "down": [(ws[i], ws[i + 1]) for i in range(ws.size - 1)
+                       if not band[i] and band[i + 1]]}
+    assert leaves["up"] and leaves["down"]
+    step = 0.05
+    for direction in ("up", "down"):
+        assert len(leaves[direction]) == len(folds[direction]), (leaves, folds)
+        for lo, hi in leaves[direction]:
+            lo, hi = (lo, hi + step) if direction == "up" else (lo - step, hi)
+            assert sum(lo < w < hi for w in folds[direction]) == 1, (lo, hi, folds)
 
 
 # ------------------------------------------------------------------ bad values
