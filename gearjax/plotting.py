@@ -267,12 +267,17 @@ def plot_branches(csv_path: str, path: str, title: str = ""):
                             label=f"{form}, unstable orbit ({d})")
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
-    axes[0].legend(loc="best", fontsize=8)
+    return _finish_speed_axes(fig, axes, path, title, legend_size=8)
+
+
+def _finish_speed_axes(fig, axes, path: str, title: str, legend_size: int) -> str:
+    """Legend on the first panel, the pinion-speed label on the last, the title; save."""
+    axes[0].legend(loc="best", fontsize=legend_size)
     axes[-1].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
     if title:
         fig.suptitle(_mu(title))
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _pyplot().close(fig)
     return path
 
 
@@ -339,13 +344,7 @@ def plot_traced_branches(branches_csv: str, path: str, title: str = "", jumps=No
                             ms=3, alpha=0.6, ls="none", label=f"{form}, sweep {d}")
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
-    axes[0].legend(loc="best", fontsize=7)
-    axes[-1].set_xlabel("pinion speed $\\Omega_1$ [rad/s]")
-    if title:
-        fig.suptitle(_mu(title))
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _finish_speed_axes(fig, axes, path, title, legend_size=7)
 
 
 def plot_mesh_force_signals(signals: dict, path: str, title: str = ""):

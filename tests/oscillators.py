@@ -342,3 +342,22 @@ def ks_gearjax_sweep(ks: KahramanSingh, model, ws, xv0, settle=2.0):
                         contact_loss=bool(r.contact_loss), back_contact=bool(r.back_contact),
                         converged=bool(r.converged)))
     return out
+
+
+@eqx.filter_jit
+def plain_period_map(model, omega, y0, rtol, atol, max_steps):
+    """y(P) from y(0) = y0 over one excitation period by a plain diffrax Dopri5 solve under
+    a plain PID controller (the model's jump angles as ``jump_ts``): independent of
+    gearjax's integrator, step-size controller and variational equations."""
+    import diffrax
+
+    p = float(model.period_rad)
+    jumps = np.asarray(model.jump_thetas, dtype=float)
+    jumps = jumps[(jumps > 0) & (jumps < p)]
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(lambda t, y, a: model.vector_field(t, y, a)), diffrax.Dopri5(),
+        t0=0.0, t1=p, dt0=None, y0=jnp.asarray(y0), args=jnp.asarray(omega),
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol,
+                                                  jump_ts=jnp.asarray(jumps)),
+        max_steps=max_steps)
+    return sol.ys[-1]

@@ -40,6 +40,8 @@ from gearjax.errors import SimulationError
 from gearjax.rigs import build_model
 from gearjax.rigs.registry import get_rig
 
+from oscillators import plain_period_map
+
 ZETA = 0.03
 
 # one worker runs both continuation files: they share the corrector's compiled programs
@@ -59,19 +61,8 @@ def traced(model):
     return trace_speed(model, [640.0, 655.0, 670.0])
 
 
-@eqx.filter_jit
 def _period_map(model, omega, y0):
-    """y(P) from y(0) = y0 by a plain diffrax solve (the jumps of k(theta) as jump_ts)."""
-    p = float(model.period_rad)
-    jumps = np.asarray(model.jump_thetas, dtype=float)
-    jumps = jumps[(jumps > 0) & (jumps < p)]
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(lambda t, y, a: model.vector_field(t, y, a)), diffrax.Dopri5(),
-        t0=0.0, t1=p, dt0=None, y0=jnp.asarray(y0), args=jnp.asarray(omega),
-        stepsize_controller=diffrax.PIDController(rtol=1e-12, atol=1e-14,
-                                                  jump_ts=jnp.asarray(jumps)),
-        max_steps=500_000)
-    return sol.ys[-1]
+    return plain_period_map(model, omega, y0, 1e-12, 1e-14, 500_000)
 
 
 def _stable_at(res, w, branches):

@@ -17,8 +17,6 @@ from __future__ import annotations
 
 import math
 
-import diffrax
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -34,6 +32,8 @@ from gearjax.dynamics.sweep import sweep
 from gearjax.rigs import build_model
 from gearjax.rigs.registry import get_rig
 
+from oscillators import plain_period_map
+
 # one worker runs both continuation files: they share the corrector's compiled programs
 pytestmark = pytest.mark.xdist_group("sdof_continuation")
 
@@ -44,19 +44,8 @@ def model():
                        formulation="reference", damping_ratio=0.03)
 
 
-@eqx.filter_jit
 def _period_map(model, omega, y0):
-    """y(P) from y(0) = y0 by a plain diffrax solve (jumps of k(theta) as jump_ts)."""
-    p = float(model.period_rad)
-    jumps = np.asarray(model.jump_thetas, dtype=float)
-    jumps = jumps[(jumps > 0) & (jumps < p)]
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(lambda t, y, a: model.vector_field(t, y, a)), diffrax.Dopri5(),
-        t0=0.0, t1=p, dt0=None, y0=jnp.asarray(y0), args=jnp.asarray(omega),
-        stepsize_controller=diffrax.PIDController(rtol=1e-11, atol=1e-13,
-                                                  jump_ts=jnp.asarray(jumps)),
-        max_steps=200_000)
-    return sol.ys[-1]
+    return plain_period_map(model, omega, y0, 1e-11, 1e-13, 200_000)
 
 
 def _check_periodic_and_liouville(model, branch):
