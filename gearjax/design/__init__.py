@@ -42,6 +42,7 @@ Measurements behind these choices: ``benchmarks/results/code_notes.md``, gearjax
 
 from ..errors import DesignError as DesignError
 from .maps import HarrisMap as HarrisMap
+from .maps import MapPatch as MapPatch
 from .maps import harris_curves as harris_curves
 from .maps import harris_map as harris_map
 from .objectives import DEFAULT_SHARPNESS as DEFAULT_SHARPNESS
@@ -55,6 +56,9 @@ from .objectives import QuasiStaticObjective as QuasiStaticObjective
 from .objectives import design_inertias as design_inertias
 from .objectives import make_objective as make_objective
 from .objectives import smooth_max as smooth_max
+from .orbits import ORBIT_STARTS as ORBIT_STARTS
+from .orbits import OrbitSet as OrbitSet
+from .orbits import implicit_steady_metrics as implicit_steady_metrics
 from .optimise import OptimisationResult as OptimisationResult
 from .optimise import coarse_starts as coarse_starts
 from .optimise import multi_start as multi_start
@@ -80,5 +84,9 @@ __all__ = [
     "coarse_starts",
     "harris_map",
     "HarrisMap",
+    "MapPatch",
+    "ORBIT_STARTS",
+    "OrbitSet",
+    "implicit_steady_metrics",
     "harris_curves",
 ]

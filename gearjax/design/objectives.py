@@ -19,6 +19,7 @@ from ..dynamics.sweep import Transient
 from ..errors import DesignError
 from ..gears.mesh import Mesh
 from ..gears.quasistatic import quasi_static, static_mesh_force
+from .orbits import OrbitSet
 from .spaces import ReliefSpace
 
 __all__ = ["OBJECTIVES", "DYNAMIC_OBJECTIVES", "DESIGN_MODELS", "DEFAULT_SHARPNESS", "DESIGN_INERTIAS", "design_inertias", "smooth_max", "Evaluation", "QuasiStaticObjective", "DynamicObjective", "make_objective", "default_torque_Nm"]
@@ -89,6 +90,8 @@ class Evaluation(eqx.Module):
     grad : d smooth / d x (same units over those of x), or None.
     per_case : the per-speed (dynamic) or per-load (quasi-static) values.
     structure_ok : the model's discrete structure matched (dynamic objectives), else True.
+    per_orbit : dynamic objectives over several orbit starts (:class:`OrbitSet`): the
+        exact maximum over the speeds from each start, in the set's order; else None.
     """
 
     x: np.ndarray
@@ -97,6 +100,7 @@ class Evaluation(eqx.Module):
     grad: np.ndarray | None
     per_case: np.ndarray
     structure_ok: bool = True
+    per_orbit: np.ndarray | None = None
 
 
 def _value_and_jac(f, jac=jax.jacfwd):
@@ -262,6 +266,13 @@ class DynamicObjective:
         :class:`~gearjax.Shooting` (the periodic orbit by Newton; forward mode only). The
         transient is the default because it is far cheaper for equal values (see
         ``benchmarks/results/code_notes.md``, section gearjax.design.objectives).
+    orbits : the starts of the steady state at every speed, an :class:`OrbitSet` or the
+        tuple of its start names (default the quasi-static state alone, as a forward
+        ``sweep``); several: the objective is the largest value over the orbits they reach
+        (robust to a switch of the orbit a start lands on, :mod:`gearjax.design.orbits`).
+    implicit : with :class:`~gearjax.Shooting`, differentiate the periodic orbit by the
+        implicit function theorem (default; :func:`gearjax.design.orbits.
+        implicit_steady_metrics`) rather than through the Newton iterations.
     sharpness : beta of the smooth maximum over speeds (:mod:`gearjax.design`).
     n_table : table knots per mesh period of the model.
     adjoint : diffrax adjoint for the gradient (default ``diffrax.ForwardMode()`` with
@@ -280,7 +291,7 @@ class DynamicObjective:
                  inertias_kg_m2=DESIGN_INERTIAS, damping_ratio: float = 0.03,
                  nlte_reaction: str = "drive", max_frequency_hz: float | str | None = "auto",
                  solver=None, sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
-                 adjoint=None):
+                 adjoint=None, orbits=("quasi-static",), implicit: bool = True):
         if kind not in DYNAMIC_OBJECTIVES:
             raise DesignError("objective", kind, f"dynamic objectives are {DYNAMIC_OBJECTIVES}")
         if model not in DESIGN_MODELS:
@@ -326,12 +337,13 @@ class DynamicObjective:
         cos_bb = math.cos(mesh.pair.base_helix_angle_rad)
         self._x_ref_m = self.static_force_N / (float(mesh.mean_stiffness()) * cos_bb)
         self.scale = self._scales()[DYNAMIC_OBJECTIVES.index(kind)]
+        self.orbits = orbits if isinstance(orbits, OrbitSet) else OrbitSet(tuple(orbits))
         self.model = None
         self._earlier: list = []  # models of other structures, newest first (_model_for)
         self.n_builds = 0
         self.build_time_s = 0.0
         self._static = (space, tuple(float(v) for v in self._scales()), self.sharpness,
-                        solver)
+                        solver, self.orbits, bool(implicit))
 
     # model management
     def build(self, x, frozen: bool = False):
@@ -344,10 +356,8 @@ class DynamicObjective:
         if self.model_type == "torsional":
             from ..models.torsional import TorsionalModel
 
-            m = TorsionalModel.build(self.mesh, mods, **self.model_kwargs)
-            if frozen:
-                m = dataclasses.replace(m, jump_kinds=(0,) * len(m.jump_kinds))
-                m = m.with_modifications(m.mods)  # re-assembled without the angle map
+            m = TorsionalModel.build(self.mesh, mods, moving_events=not frozen,
+                                     **self.model_kwargs)
         else:
             from ..rigs.factory import build_model
 
@@ -386,7 +396,10 @@ class DynamicObjective:
             if bool(ok) or attempt == 1:
                 break
             self.model = None  # a failed integration: once more on a model built at x
-        return Evaluation(x, float(sm[k]), float(ex[k]), g, np.asarray(per)[k], bool(ok))
+        per = np.asarray(per)[k]
+        per_orbit = per.max(axis=0) if per.ndim == 2 else None  # (speeds, starts)
+        per = per.max(axis=1) if per.ndim == 2 else per
+        return Evaluation(x, float(sm[k]), float(ex[k]), g, per, bool(ok), per_orbit)
 
     def _model_for(self, x, fresh: bool = False):
         """The current model if its discrete structure holds at ``x`` (switching events
@@ -443,27 +456,50 @@ class DynamicObjective:
         return np.asarray(sm), np.asarray(ex), None
 
     def grid(self, xs, reference_x=None) -> tuple[np.ndarray, np.ndarray]:
-        """(smooth, exact) at every row of ``xs`` in one compiled call, with a *frozen*
-        model built at ``reference_x`` (default: the middle row): switching angles of other
-        designs are resolved to the table spacing (1/n_table of a mesh period), which is
-        what a forward map needs (no derivatives)."""
+        """(smooth, exact) at every row of ``xs`` in one compiled call. The torsional
+        model is built at every row inside that program (its build is traceable: the
+        objective itself, to the integration's accuracy, at every design); the 3D model,
+        whose build is not, as a *frozen* model built at ``reference_x`` (default: the
+        middle row): switching angles of other designs resolved to the table spacing
+        (1/n_table of a mesh period). Rows whose model could not be built (a layout
+        bound outgrown, a failed integration) are NaN."""
         xs = np.asarray(xs, dtype=float)
-        ref = xs[len(xs) // 2] if reference_x is None else reference_x
-        model = self.build(ref, frozen=True)
-        sm, (ex, _, _) = _dyn_grid(model, jnp.asarray(xs), jnp.asarray(self.speeds), self._static)
-        return np.asarray(sm)[:, self._index], np.asarray(ex)[:, self._index]
+        speeds = jnp.asarray(self.speeds)
+        if self.model_type == "torsional":
+            from ..models.torsional import TorsionalModel
+
+            base = (self.mesh, jnp.asarray(self.model_kwargs["inertias_kg_m2"]),
+                    jnp.asarray(self.model_kwargs["pinion_torque_Nm"]),
+                    jnp.asarray(self.model_kwargs["damping_ratio"]))
+            opts = {k: v for k, v in self.model_kwargs.items()
+                    if k not in ("inertias_kg_m2", "pinion_torque_Nm", "damping_ratio")}
+            sm, (ex, _, ok) = _dyn_grid_built(TorsionalModel, base, tuple(sorted(opts.items())),
+                                              jnp.asarray(xs), speeds, self._static)
+        else:
+            ref = xs[len(xs) // 2] if reference_x is None else reference_x
+            model = self.build(ref, frozen=True)
+            sm, (ex, _, ok) = _dyn_grid(model, jnp.asarray(xs), speeds, self._static)
+        bad = ~np.asarray(ok, dtype=bool)
+        sm = np.where(bad, np.nan, np.asarray(sm)[:, self._index])
+        return sm, np.where(bad, np.nan, np.asarray(ex)[:, self._index])
+
+
+def _model_values(m, speeds, static, adjoint=None):
+    """Smooth and exact maxima over ``speeds`` (and the orbit set's starts) of (max F_D,
+    max F_D / F_S, DTE ptp) of the model ``m``, the values per speed and start, and
+    whether every solve succeeded on a model of the right structure."""
+    _, scales, sharpness, solver, orbits, implicit = static
+    res = over_speeds(lambda w: orbits.metrics(solver, m, w, adjoint, implicit), speeds,
+                      sequential=sequential_for(m))
+    per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])  # (3, w, s)
+    sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
+    ok = m.structure_ok & jnp.all(res.solver_ok)
+    return sm, (jnp.max(per, axis=(1, 2)), per, ok)
 
 
 def _dyn_values_impl(model, x, speeds, static, adjoint=None):
-    """Smooth and exact maxima over ``speeds`` of (max F_D, max F_D / F_S, DTE ptp)."""
-    space, scales, sharpness, solver = static
-    m = model.with_modifications(space.mods(x))
-    res = over_speeds(lambda w: solver.orbit_metrics(m, w, adjoint), speeds,
-                      sequential=sequential_for(m))
-    per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])
-    sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
-    ok = m.structure_ok & jnp.all(res.solver_ok)
-    return sm, (jnp.max(per, axis=1), per, ok)
+    """:func:`_model_values` of ``model`` mapped to the design ``x``."""
+    return _model_values(model.with_modifications(static[0].mods(x)), speeds, static, adjoint)
 
 
 _dyn_values = eqx.filter_jit(_dyn_values_impl)
@@ -486,6 +522,20 @@ def _dyn_vjac(model, x, speeds, static, adjoint):
 def _dyn_grid(model, xs, speeds, static):
     return over_speeds(lambda x: _dyn_values_impl(model, x, speeds, static), xs,
                        sequential=sequential_for(model))
+
+
+@eqx.filter_jit
+def _dyn_grid_built(cls, base, options, xs, speeds, static):
+    """The objective at every row of ``xs`` on a model built there (``cls.build``
+    traced: one program for every design of the grid)."""
+    mesh, inertias, torque, zeta = base
+
+    def one(x):
+        m = cls.build(mesh, static[0].mods(x), inertias_kg_m2=inertias,
+                      pinion_torque_Nm=torque, damping_ratio=zeta, **dict(options))
+        return _model_values(m, speeds, static)
+
+    return over_speeds(one, xs, sequential=False)
 
 
 def make_objective(kind: str, mesh: Mesh, space: ReliefSpace, *, speeds_rad_s=None,

@@ -31,7 +31,7 @@ lambda_k)`` and ``f_h`` the response of ``sigma`` to ``b`` alone::
 
 (``*`` the convolution of the coefficient sequences, applied by FFT: Hill's equation of
 the scalar, solved by GMRES). ``k(theta)`` jumps (cell engagement, active-set changes:
-``model.jump_thetas``), so ``b`` and ``c`` have Fourier coefficients ``O(1/h)`` and a
+``model.jumps``), so ``b`` and ``c`` have Fourier coefficients ``O(1/h)`` and a
 plain truncated series has Gibbs errors ``O(1)`` at the jumps in the velocity and
 ``O(1/H)`` between them. Both are removed exactly: every function that jumps is split
 into its jumps and kinks at the known angles (the one-sided values and slopes there, by
@@ -71,12 +71,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import SimulationError
-from ..excitation.events import distinct_angles
 from ..models.base import LINEAR_FORMULATIONS, AbstractGearModel
+from . import grid as grids
 from .batching import on_cpu, over_speeds
 from .krylov import gmres
-from .metrics import JumpClusters, jump_clusters, output_grid, refined_extrema, ringing_length
-from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
+from .metrics import (MAX_JUMP_WINDOWS, NEAR_EXTREME_WINDOWS, jump_window_extrema,
+                      refine_windows, ringing_length, window_extrema)
+from .orders import N_MESH_ORDERS
 from .small_gain import small_gain_bound
 from .stability import check_speeds, monodromy
 from .steady import spectral_radius_of
@@ -186,12 +187,15 @@ def _prepare(model, omega, n_h: int):
     nu = 2.0 * math.pi / period
     n, n_s = model.state_size, 4 * n_h
     th = (jnp.arange(n_s) + 0.5) * (period / n_s)
-    thj_np = distinct_angles(model.jump_thetas, period)
+    thj, use = _distinct_jumps(model.jumps, period)
     d = _JUMP_SIDE * period
     # one-sided slopes by differences over ``step`` (< a quarter of the closest jumps)
-    gaps = np.diff(np.concatenate([thj_np, thj_np[:1] + period])) if thj_np.size else [period]
-    step = min(1e-6 * period, 0.25 * float(np.min(gaps)))
-    thj = jnp.asarray(thj_np)
+    step = 1e-6 * period
+    if thj.shape[0]:
+        u = jnp.sort(jnp.where(use, thj, jnp.inf))  # the angles that count, then inf
+        i, n_use = jnp.arange(u.shape[0]), jnp.sum(use)
+        gaps = jnp.where(i + 1 < n_use, jnp.roll(u, -1) - u, u[0] + period - u)
+        step = jnp.minimum(step, 0.25 * jnp.min(jnp.where(i < n_use, gaps, period)))
     t_all = jnp.concatenate([th, thj - d - step, thj - d, thj + d, thj + d + step])
     f = _field(model, omega)
     ref = jax.vmap(_reference(model, omega))(t_all)
@@ -230,10 +234,12 @@ def _prepare(model, omega, n_h: int):
                    rank_one_error=jnp.maximum(err, b_err),
                    c_radius=0.5 * (jnp.max(c_all) - jnp.min(c_all)))
     v = jnp.concatenate([v[:, :n] @ basis, v[:, n:] - cbar], axis=1)  # (.., k + 1)
-    n_j = thj_np.size
+    n_j = thj.shape[0]
     vl2, vl1, vr1, vr2 = (v[n_s + i * n_j: n_s + (i + 1) * n_j] for i in range(4))
     dl, dr = (vl1 - vl2) / step, (vr2 - vr1) / step
     lo, hi = vl1 + d * dl, vr1 - d * dr  # one-sided limits at theta_j
+    # padding and merged entries of the jump set jump by nothing
+    hi, dr = jnp.where(use[:, None], hi, lo), jnp.where(use[:, None], dr, dl)
     j0, j1s = hi - lo, dr - dl
     s0, s1 = _saw(th[:, None] - thj[None, :], period)  # (N, J)
     smooth = v[:n_s] - s0 @ j0 - s1 @ j1s  # C^1 remainder
@@ -244,6 +250,21 @@ def _prepare(model, omega, n_h: int):
     ph = jnp.exp(-1j * nu * jnp.outer(k, thj))  # (4H+1, J)
     coeffs = dft + (ph * c0[:, None]) @ j0 + (ph * c1[:, None]) @ j1s
     return split, (thj, (lo, hi, dl, dr), coeffs)
+
+
+def _distinct_jumps(jumps, period: float, rtol: float = 1e-9):
+    """The jump set's angles (sorted, padded) and which of them count: the valid ones,
+    less any within ``rtol * period`` of the one before it or, for the last, of the first
+    one period on (:func:`gearjax.excitation.events.distinct_angles`' merging, traced)."""
+    thj, valid = jumps.thetas, jumps.valid
+    if thj.shape[0] == 0:
+        return thj, valid
+    close = jnp.concatenate([jnp.zeros(1, bool), jnp.diff(thj) <= rtol * period])
+    use = valid & ~close
+    n = jnp.sum(valid)
+    last = jnp.arange(thj.shape[0]) == n - 1
+    use = use & ~(last & (n > 1) & (thj[0] + period - thj <= rtol * period))
+    return thj, use
 
 
 def _modal_form(a0):
@@ -474,14 +495,17 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
     n_mesh = int(round(period / model.mesh_period_rad))
     # the output grid of simulate (mid-cell samples, both sides of every jump) over one
     # period, closed by the periodic neighbours of its ends so that every point is interior
-    grid = output_grid(period, samples_per_mesh_period * n_mesh, model.jump_thetas, 1)
-    offs = grid.offsets
-    ts = jnp.asarray(np.concatenate([offs[-1:] - period, offs, offs[:1] + period]))
+    # (gearjax.dynamics.grid: the padding after the closing point)
+    n_samples = samples_per_mesh_period * n_mesh
+    pg = grids.period_grid(period, n_samples, model.jumps)
+    per, nv, offs = pg.per_period, pg.n_valid, pg.offsets
+    k = jnp.arange(per + 2)
+    ts = jnp.where(k == 0, offs[nv - 1] - period,
+                   jnp.where(k <= nv, offs[jnp.clip(k - 1, 0, per - 1)], offs[0] + period))
     # the windows after the jumps, as in simulate (metrics, rule 3); ts[i + 1] is offs[i]
-    clusters = jump_clusters(grid, period, model.jump_thetas)
-    clusters = JumpClusters(clusters.before + 1, clusters.after + 1)
-    ring = ringing_length(omega, model.natural_frequency_rad_s(),
-                          period / (samples_per_mesh_period * n_mesh))
+    cl = grids.jump_clusters(pg, period, n_samples, model.jumps)
+    cl = grids.Clusters(cl.before + 1, cl.after + 1, cl.count)
+    ring = ringing_length(omega, model.natural_frequency_rad_s(), period / n_samples)
     ys = orbit(ts)
     err = jnp.max(jnp.abs(ys - half(ts))) / jnp.maximum(jnp.max(jnp.abs(ys)), 1e-300)
 
@@ -493,11 +517,21 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
         return jnp.stack(cols)
 
     # the orbit is the flow: the refinement windows read it instead of integrating
-    vals, v_max, v_min = refined_extrema(observed, lambda t0, y0, t: orbit(t), ts, ys,
-                                         n_refine=_N_REFINE, jumps=(clusters, ring))
-    orders = mesh_order_amplitudes(order_matrix(  # one period of the grid: vals[1:-1]
-        period, model.mesh_period_rad, samples_per_mesh_period * n_mesh, model.jump_thetas),
-        vals[None, 1:-1])
+    # (gearjax.dynamics.metrics.refined_extrema on the traced grid)
+    vals = jax.vmap(observed)(ts, ys)
+    n_valid = nv + 2
+    j0, tf = refine_windows(vals, ts, _N_REFINE, n_valid)
+    cols = jnp.repeat(jnp.arange(vals.shape[1]), 2)
+    wvals = jax.vmap(lambda c, t: jax.vmap(observed)(t, orbit(t))[:, c])(cols, tf)
+    v_max, v_min = window_extrema(vals, ts, j0, wvals, n_valid)
+    n_jw = min(MAX_JUMP_WINDOWS + 2 * vals.shape[1] * NEAR_EXTREME_WINDOWS, model.jumps.bound)
+    if n_jw:
+        jj, tj = grids.jump_windows(vals, ts, cl, n_valid, 1, n_jw, ring, 2 * _N_REFINE)
+        wj = jax.vmap(lambda t: jax.vmap(observed)(t, orbit(t)))(tj)
+        j_max, j_min = jump_window_extrema(vals, ts, jj, tj, wj)
+        v_max, v_min = jnp.maximum(v_max, j_max), jnp.minimum(v_min, j_min)
+    orders = grids.order_amplitudes(pg, model.jumps, period, model.mesh_period_rad,
+                                    n_samples, vals[None, 1:per + 1], N_MESH_ORDERS)
     orders = jnp.concatenate([orders, jnp.full((3 - orders.shape[0], N_MESH_ORDERS), nan)])
     f_s = model.static_force_N
     acc = v_max[2] - v_min[2] if v_max.shape[0] > 2 else nan

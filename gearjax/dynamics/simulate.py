@@ -53,10 +53,10 @@ from ..errors import SimulationError, check_float64
 from ..models.base import AbstractGearModel
 from .integrate import PeriodicJumpController, jump_controller
 from .legs import solve_legs
-from .metrics import (jump_clusters, jump_window_extrema, jump_windows, n_jump_windows,
-                      output_grid, refine_windows, ringing_length, ringing_resolved,
-                      window_extrema)
-from .orders import N_MESH_ORDERS, mesh_order_amplitudes, order_matrix
+from . import grid as grids
+from .metrics import (MAX_JUMP_WINDOWS, NEAR_EXTREME_WINDOWS, jump_window_extrema,
+                      refine_windows, ringing_length, ringing_resolved, window_extrema)
+from .orders import N_MESH_ORDERS
 from .periodicity import (convergence_measure, initial_memo, per_period_extrema,
                           with_periods_slid_past)
 
@@ -95,14 +95,11 @@ N_REFINE = 64  # refined points per grid interval of the extremum windows (metri
 
 
 def jump_density(model) -> float:
-    """Separated jump angles per mesh period: jumps closer than 1e-3 of a mesh period count
-    once (the cells of one 3D contact line engaging one after the other cost a few tiny
-    steps together, not a cut of every step as the 240 spread-out helical jumps do)."""
-    j = np.sort(np.asarray(model.jump_thetas, dtype=float))
-    if j.size == 0:
-        return 0.0
-    n = 1 + int(np.sum(np.diff(j) > 1e-3 * model.mesh_period_rad))
-    return n * model.mesh_period_rad / model.period_rad
+    """Separated jump angles per mesh period of ``model`` (its jump set's static
+    ``density``: jumps closer than 1e-3 of a mesh period count once, so the cells of one 3D
+    contact line engaging one after the other cost a few tiny steps together, not a cut of
+    every step as the 240 spread-out helical jumps do)."""
+    return float(model.jumps.density)
 
 
 def default_solver(formulation: str, jumps_per_mesh_period: float = 0.0):
@@ -216,16 +213,24 @@ DEFAULT_MEASURED_PERIODS = 2
 DEFAULT_SAMPLES_PER_MESH_PERIOD = 128  # and its output grid density
 
 
-def measured_grid(model, n_measured_periods: int, samples_per_mesh_period: int):
-    """(output grid of the measured periods (:func:`gearjax.dynamics.metrics.output_grid`),
-    samples per excitation period, length of each leg of :func:`simulate`'s solve
-    (:mod:`gearjax.dynamics.legs`): one period's grid and its end, or the ``2 N_REFINE``
-    points of a refinement window if longer)."""
+def grid_size(model, n_measured_periods: int, samples_per_mesh_period: int):
+    """(samples per excitation period, output grid points per period (the samples and
+    both sides of every jump of the model's jump set, padding included:
+    :func:`gearjax.dynamics.grid.period_grid`), length of each leg of :func:`simulate`'s
+    solve (:mod:`gearjax.dynamics.legs`): one period's grid and its end, or the
+    ``2 N_REFINE`` points of a refinement window if longer)."""
     period = float(model.period_rad)
     n_samples = samples_per_mesh_period * int(round(period / model.mesh_period_rad))
-    grid = output_grid(period, n_samples, np.asarray(model.jump_thetas, dtype=float),
-                       n_measured_periods)
-    return grid, n_samples, max(grid.per_period + 1, 2 * N_REFINE)
+    per_period = n_samples + 2 * model.jumps.bound
+    return n_samples, per_period, max(per_period + 1, 2 * N_REFINE)
+
+
+def n_jump_windows(bound: int, n_outputs: int) -> int:
+    """Windows after the jumps (static): :data:`~gearjax.dynamics.metrics.MAX_JUMP_WINDOWS`
+    after the largest jumps and :data:`~gearjax.dynamics.metrics.NEAR_EXTREME_WINDOWS` per
+    extremum of each of ``n_outputs`` outputs, every cluster where the jump set's
+    ``bound`` is smaller (:func:`gearjax.dynamics.metrics.n_jump_windows` of the bound)."""
+    return min(MAX_JUMP_WINDOWS + 2 * n_outputs * NEAR_EXTREME_WINDOWS, int(bound))
 
 
 def simulate(
@@ -322,7 +327,7 @@ def simulate(
 
     omega = jnp.asarray(omega, dtype=float)
     period = float(model.period_rad)
-    jumps = np.asarray(model.jump_thetas, dtype=float)
+
     def term(t, y, args):  # the model's vector field in theta (args: omega)
         return model.vector_field(t, y, args)
 
@@ -347,35 +352,51 @@ def simulate(
     accelerated = accelerated and n_max > 0
     t_tr = 0.0 if accelerated else n_tr * period
     # output grid: mid-cell samples (never on an engagement angle) plus both sides of
-    # every jump, per measured period (gearjax.dynamics.metrics)
-    grid, n_samples, n_out = measured_grid(model, n_measured_periods, samples_per_mesh_period)
-    ts = t_tr + jnp.asarray(grid.offsets)
+    # every jump, per measured period (gearjax.dynamics.metrics), computed in the program
+    # from the model's jump set (gearjax.dynamics.grid): its padding sits at each period's
+    # end, and the windows read the valid points of all periods side by side
+    n_samples, per_period, n_out = grid_size(model, n_measured_periods,
+                                             samples_per_mesh_period)
+    pg = grids.period_grid(period, n_samples, model.jumps)
+    n_meas = n_measured_periods
+    ts = t_tr + (pg.offsets[None, :] + period * jnp.arange(n_meas)[:, None]).ravel()
+    cidx, n_valid = grids.compact_index(pg, n_meas)
+    valid_u = grids.valid_points(pg, n_meas)
+    block_first = (jnp.arange(ts.shape[0]) // per_period) * per_period
+    ts_c = ts[cidx]
 
     def observed(t, y):
         o = model.outputs(t, y, omega)
         cols = [o.mesh_force_N, o.dte_m] + ([] if o.accel_m_s2 is None else [o.accel_m_s2])
         return jnp.stack(cols)
 
+    def grid_values(g):  # padding points hold their period's first value
+        vals = jax.vmap(observed)(ts, g)
+        return jnp.where(valid_u[:, None], vals, vals[block_first])
+
     n_grid = ts.shape[0]
     n_ref = 2 * jax.eval_shape(observed, ts[0], y0).shape[0]  # a max and a min per output
-    clusters = jump_clusters(grid, period, jumps)
+    clusters = grids.jump_clusters(pg, period, n_samples, model.jumps)
+    n_jw = n_jump_windows(model.jumps.bound, n_ref // 2)
     omega_n, interval = model.natural_frequency_rad_s(), period / n_samples
     ring = ringing_length(omega, omega_n, interval)
     resolved = ringing_resolved(omega, omega_n, interval)  # no windows after the jumps
 
-    def all_windows(vals):  # around the grid's extremes, after the largest jumps
-        j0, tf = refine_windows(vals, ts, N_REFINE)
-        jj, tj = jump_windows(vals, ts, clusters, grid.per_period, ring, 2 * N_REFINE)
+    def all_windows(vals_c):  # around the grid's extremes, after the largest jumps
+        j0, tf = refine_windows(vals_c, ts_c, N_REFINE, n_valid)
+        jj, tj = grids.jump_windows(vals_c, ts_c, clusters, pg.n_valid, n_meas, n_jw, ring,
+                                    2 * N_REFINE)
         return (j0, tf), (jj, tj)
 
-    n_win = n_ref + n_jump_windows(clusters, n_ref // 2)
+    n_win = n_ref + n_jw
     f_s = model.static_force_N
 
     def windows_of(g, memo):  # the measured states on the grid -> the windows' legs,
-        vals = jax.vmap(observed)(ts, g)  # the convergence, what a slide keeps
-        (j0, tf), (jj, tj) = all_windows(vals)
+        vals = grid_values(g)  # the convergence, what a slide keeps
+        g_c = g[cidx]
+        (j0, tf), (jj, tj) = all_windows(vals[cidx])
         j0, tf = jnp.concatenate([j0, jj]), jnp.concatenate([tf, tj])
-        return ((ts[j0], g[j0], tf),) + convergence_measure(
+        return ((ts_c[j0], g_c[j0], tf),) + convergence_measure(
             model, omega, vals, g, memo, n_periods=n_measured_periods,
             extrapolate=extrapolate, slide=slide, convergence_tol=convergence_tol)
 
@@ -403,16 +424,16 @@ def simulate(
     if accelerated:
         n_tr = k_tr
     n_tr = n_tr + n_slid
-    n_meas = n_measured_periods
     ys = grid_ys.reshape((n_grid,) + y0.shape)
     ok = ok_tr & jnp.all(success[:n_meas]) & jnp.all(jnp.isfinite(ys))
     steps = steps_tr + jnp.sum(n_steps[:n_meas])
-    vals = jax.vmap(observed)(ts, ys)
-    (j0, tf), (jj, tj) = all_windows(vals)
+    vals = grid_values(ys)
+    vals_c = vals[cidx]
+    (j0, tf), (jj, tj) = all_windows(vals_c)
     wvals = jax.vmap(jax.vmap(observed))(jnp.concatenate([tf, tj]), win_ys)  # (n_win, k, q)
     cols = jnp.repeat(jnp.arange(vals.shape[1]), 2)  # window k refines output k // 2
-    v_max, v_min = window_extrema(vals, ts, j0, wvals[jnp.arange(n_ref), :, cols])
-    j_max, j_min = jump_window_extrema(vals, ts, jj, tj, wvals[n_ref:])
+    v_max, v_min = window_extrema(vals_c, ts_c, j0, wvals[jnp.arange(n_ref), :, cols], n_valid)
+    j_max, j_min = jump_window_extrema(vals_c, ts_c, jj, tj, wvals[n_ref:])
     v_max = jnp.where(resolved, v_max, jnp.maximum(v_max, j_max))
     v_min = jnp.where(resolved, v_min, jnp.minimum(v_min, j_min))
     # a sub-harmonic orbit of more periods than measured: its other periods' extrema
@@ -421,15 +442,15 @@ def simulate(
     f_max, f_min = v_max[0], v_min[0]
     dte_ptp = v_max[1] - v_min[1]
     acc_ptp = v_max[2] - v_min[2] if has_acc else jnp.asarray(jnp.nan)
-    orders = mesh_order_amplitudes(order_matrix(period, model.mesh_period_rad, n_samples,
-                                                jumps), per)  # (q, 5): F_D, DTE (, accel)
+    orders = grids.order_amplitudes(pg, model.jumps, period, model.mesh_period_rad,
+                                    n_samples, per, N_MESH_ORDERS)  # (q, 5): F_D, DTE (, accel)
     finite = jnp.isfinite(f_max) & jnp.isfinite(f_min) & jnp.isfinite(dte_ptp)
     ok = ok & finite
     nan = jnp.asarray(jnp.nan)
     bad = lambda v: jnp.where(ok, v, nan)
     signals = None
     if save_signals:  # the uniform mid-cell samples only (one-sided jump points left out)
-        mid = np.nonzero(grid.samples)[0]
+        mid = (pg.mid[None, :] + per_period * jnp.arange(n_meas)[:, None]).ravel()
         signals = Signals(
             theta_rad=ts[mid], mesh_force_N=vals[mid, 0], dte_m=vals[mid, 1],
             accel_m_s2=vals[mid, 2] if has_acc else None,

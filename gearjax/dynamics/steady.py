@@ -62,6 +62,8 @@ from .stability import check_speeds
 
 __all__ = [
     "periodic_state",
+    "period_and_monodromy",
+    "period_end",
     "PeriodicState",
     "steady_state",
     "SteadyStateResult",
@@ -251,11 +253,37 @@ def periodic_state(model, omega, *, solver=None, rtol: float | None = None,
     )
 
 
+def period_and_monodromy(model, omega, y_start, *, solver=None, rtol: float | None = None,
+                         atol: float | None = None, max_steps: int = 1_000_000):
+    """``(y(P), Phi(P), ok, steps)``: the state after one excitation period from
+    ``y_start`` and the monodromy matrix of the linearised flow there (the shooting's
+    augmented period, one diffeqsolve; solver options as :func:`periodic_state`'s)."""
+    solver, rtol, atol = _solver_options(solver, rtol, atol)
+    return _one_period(model, jnp.asarray(omega, dtype=float), y_start, solver, rtol, atol,
+                       max_steps)
+
+
+def period_end(model, omega, y_start, *, solver=None, rtol: float | None = None,
+               atol: float | None = None, max_steps: int = 1_000_000):
+    """``(y(P), ok)``: the state after one excitation period from ``y_start``, integrated
+    as the shooting integrates its period (solver options as :func:`periodic_state`'s)
+    without the monodromy: forward-mode derivatives of ``y(P)`` at the cost of the state
+    alone."""
+    solver, rtol, atol = _solver_options(solver, rtol, atol)
+    sol = integrate(model.vector_field, solver, jump_controller(model, rtol, atol), 0.0,
+                    float(model.period_rad), y_start, jnp.asarray(omega, dtype=float),
+                    saveat=diffrax.SaveAt(t1=True), max_steps=max_steps,
+                    adjoint=diffrax.ForwardMode())
+    y_p = sol.ys[-1]
+    return y_p, (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y_p))
+
+
 def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
                  rtol: float | None = None, atol: float | None = None, max_newton: int = 8,
                  newton_tol: float = 1e-10, measure_solver=None,
                  measure_rtol: float | None = None, measure_atol: float | None = None,
-                 convergence_tol: float = 1e-3, **simulate_kwargs) -> SteadyStateResult:
+                 convergence_tol: float = 1e-3, periodic: PeriodicState | None = None,
+                 **simulate_kwargs) -> SteadyStateResult:
     """Steady-state metrics at one speed from the periodic orbit (no transient, no
     continuation: see :func:`steady_sweep` for that). Jit/vmap-compatible.
 
@@ -263,13 +291,16 @@ def steady_state(model, omega, *, n_measured_periods: int = 2, solver=None,
     periods started on ``y*`` (``measure_*``: its solver options, default
     ``simulate``'s). ``converged`` = simulate's (the orbit is periodic to
     ``convergence_tol``) and ``spectral_radius < 1`` and, for the reference formulation,
-    the Newton residual below ``newton_tol``.
+    the Newton residual below ``newton_tol``. ``periodic``: the orbit's
+    :class:`PeriodicState` where the caller has it already (e.g. with its own
+    derivative rule, :mod:`gearjax.design.orbits`), else :func:`periodic_state`.
     """
     if n_measured_periods < 2:
         raise SimulationError("n_measured_periods", n_measured_periods,
                               "need >= 2 periods to measure periodicity")
-    ps = periodic_state(model, omega, solver=solver, rtol=rtol, atol=atol,
-                        max_newton=max_newton, newton_tol=newton_tol)
+    ps = periodic if periodic is not None else periodic_state(
+        model, omega, solver=solver, rtol=rtol, atol=atol, max_newton=max_newton,
+        newton_tol=newton_tol)
     y0 = jnp.where(ps.ok, ps.y0, model.initial_state(jnp.asarray(omega, dtype=float)))
     res = simulate(model, omega, n_transient_periods=0, y0=y0,
                    n_measured_periods=n_measured_periods, solver=measure_solver,

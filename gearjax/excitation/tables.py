@@ -45,14 +45,16 @@ class PeriodicHermiteTable(eqx.Module):
     knots : (K,) sorted angles (rad), ``knots[0] = origin``, ``knots[-1] = origin + period``.
     values, slopes : (K, q) signal values and d/dtheta at the knots.
     cell_first : (n_cells,) index of the uniform knot opening each cell.
-    origin, period, n_cells, max_extra : static layout.
+    origin : () the first knot (rad), data (it moves with the design's jumps).
+    period, n_cells, max_extra : static layout (``max_extra`` a bound: knots beyond the
+        last real one repeat it, zero-width segments that no lookup selects).
     """
 
     knots: jax.Array
     values: jax.Array
     slopes: jax.Array
     cell_first: jax.Array
-    origin: float = eqx.field(static=True)
+    origin: jax.Array = eqx.field(converter=jnp.asarray)
     period: float = eqx.field(static=True)
     n_cells: int = eqx.field(static=True)
     max_extra: int = eqx.field(static=True)

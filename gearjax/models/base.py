@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from ..errors import ModelError
+from ..excitation.jumps import JumpSet
 
 __all__ = ["AbstractGearModel", "ModelOutputs", "FORMULATIONS", "LINEAR_FORMULATIONS",
            "WithoutContactLaw",
@@ -63,8 +64,11 @@ class AbstractGearModel(eqx.Module):
         (Eq. (48a), sdof Eq. (47a): affine with the mean stiffness ``k_m``).
     period_rad : excitation period in theta (rad): one mesh period ``2 pi / z1`` or a
         multiple (pitch errors, eccentricity).
-    jump_thetas : sorted simulation angles in ``[0, period_rad)`` where the right-hand side
-        jumps or kinks independently of speed (passed to the step-size controller).
+    jumps : :class:`~gearjax.excitation.jumps.JumpSet`, the sorted simulation angles in
+        ``[0, period_rad)`` where the right-hand side jumps or kinks independently of
+        speed (passed to the step-size controller), padded to a static bound: data, so
+        that a design that moves them (or changes their count within the bound) is not a
+        new program.
     damping_ratio : modal / mesh viscous damping ratio zeta (dimensionless).
     structure_ok : traced bool, the discrete structure of the quasi-static solution
         (active sets, NLTE cell, relief zones at every table knot) is the build one, so
@@ -73,11 +77,16 @@ class AbstractGearModel(eqx.Module):
 
     formulation: eqx.AbstractVar[str]
     period_rad: eqx.AbstractVar[float]
-    jump_thetas: eqx.AbstractVar[tuple]
+    jumps: eqx.AbstractVar[JumpSet]
     damping_ratio: eqx.AbstractVar[jax.Array]
     structure_ok: eqx.AbstractVar[jax.Array]
 
     # ------------------------------------------------------------------ constants
+    @property
+    def jump_thetas(self) -> tuple:
+        """The valid angles of :attr:`jumps` (rad), a tuple (concrete models only)."""
+        return self.jumps.angles()
+
     @property
     @abc.abstractmethod
     def mesh_period_rad(self) -> float:
@@ -220,7 +229,7 @@ class WithoutContactLaw(AbstractGearModel):
     model: AbstractGearModel
     formulation: str
     period_rad: float
-    jump_thetas: tuple
+    jumps: JumpSet
     damping_ratio: jax.Array
     structure_ok: jax.Array
 
@@ -230,7 +239,7 @@ class WithoutContactLaw(AbstractGearModel):
                              "is per cell and always on; WithoutContactLaw is for te/perturbation")
         self.model = model
         self.formulation, self.period_rad = model.formulation, model.period_rad
-        self.jump_thetas, self.damping_ratio = model.jump_thetas, model.damping_ratio
+        self.jumps, self.damping_ratio = model.jumps, model.damping_ratio
         self.structure_ok = model.structure_ok
 
     @property

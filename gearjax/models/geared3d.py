@@ -73,6 +73,7 @@ import jax.numpy as jnp
 from ..errors import ModelError
 from ..linalg import solve as dense_solve
 from ..excitation.events import NEWTON_STEPS
+from ..excitation.jumps import JumpSet
 from ..excitation.mesh3d import QuasiStaticMesh3D, tabulate
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..gears.mesh import Mesh
@@ -127,7 +128,7 @@ class Geared3DModel(AbstractGearModel):
     diagonal_stiffness and damping_split (:func:`modal_structure`: ``kbar_r`` is applied as
     its diagonal, ``c_r`` as its diagonal on the first ``damping_split`` coordinates and a
     dense block on the rest),
-    period_rad, jump_thetas, decay_omega_rad_s (slowest mode with a mesh participation
+    period_rad, decay_omega_rad_s (slowest mode with a mesh participation
     above ``participation_tol``), qs_max_iter, table_origin, table_cells,
     table_max_extra, excitation, harmonic_start, event_thetas, event_kinds, event_cells,
     te_source (the TE file driving the excitation, or None).
@@ -161,13 +162,13 @@ class Geared3DModel(AbstractGearModel):
     table: PeriodicHermiteTable | None
     angle_map: AngleMap | None
     structure_ok: jax.Array
+    jumps: JumpSet
     formulation: str = eqx.field(static=True)
     mesh_vectors: str = eqx.field(static=True)
     nlte_terms: bool = eqx.field(static=True)
     n_modes: int = eqx.field(static=True)
     n_static: int = eqx.field(static=True)
     period_rad: float = eqx.field(static=True)
-    jump_thetas: tuple = eqx.field(static=True)
     decay_omega_rad_s: float = eqx.field(static=True)
     qs_max_iter: int = eqx.field(static=True)
     table_origin: float = eqx.field(static=True)
