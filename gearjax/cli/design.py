@@ -269,7 +269,8 @@ def _cmd_optimise(args) -> int:
 
     def _step(record):  # one optimiser step done: tell the user
         steps.append(time.monotonic())
-        at["start"] += record["iteration"] == 0
+        at["start"] = (record["start"] + 1 if "start" in record  # lockstep starts
+                       else at["start"] + (record["iteration"] == 0))
         if args.json:  # stdout is the JSON; progress as sweep gives it: not with --json
             return
         builds = n_builds()

@@ -9,7 +9,7 @@ from ..errors import DesignError
 
 __all__ = ["add_orbits", "orbits_of", "add_map_refine", "map_refine_of", "DEFAULT_ORBITS"]
 
-DEFAULT_ORBITS = "quasi-static,separated"
+DEFAULT_ORBITS = "quasi-static,separated,far"
 
 
 def add_orbits(p, default: str = DEFAULT_ORBITS) -> None:

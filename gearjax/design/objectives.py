@@ -30,6 +30,7 @@ DYNAMIC_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp")
 DESIGN_MODELS = ("torsional", "3d")
 DEFAULT_SHARPNESS = 200.0
 MODELS_KEPT = 8  # earlier models of other structures a DynamicObjective may return to
+DEFAULT_ROWS = 4  # rows of a batch before any (a map's chunks; the CLI's 4 starts)
 DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (:mod:`gearjax.design`)
 
 
@@ -340,6 +341,7 @@ class DynamicObjective:
         self.orbits = orbits if isinstance(orbits, OrbitSet) else OrbitSet(tuple(orbits))
         self.model = None
         self._earlier: list = []  # models of other structures, newest first (_model_for)
+        self._rows: list = []  # each row's current model (batch)
         self.n_builds = 0
         self.build_time_s = 0.0
         self._static = (space, tuple(float(v) for v in self._scales()), self.sharpness,
@@ -435,9 +437,15 @@ class DynamicObjective:
         3D te objective (spur, 2 speeds, modes < 8.9 kHz) after 5 optimiser steps from
         (20 um, 0.40) to (17 um, 0.39): 3.1e-4 relative, the rebuilt value equal to
         ``gearjax sweep``'s to 1e-9."""
+        x = self.space.check(x)
+        if self._rows:  # the lockstep program, one row per start (no other compilation)
+            m = self.build(x)
+            xs = np.repeat(x[None], len(self._rows), axis=0)
+            return _evaluations(xs, self._rows_call([m] * len(self._rows), xs), self._index,
+                                False)[0]
         kept = self.model
         try:
-            self.model = self.build(self.space.check(x))
+            self.model = self.build(x)
             return self(x, grad=False)
         finally:
             self.model = kept
@@ -456,32 +464,95 @@ class DynamicObjective:
         return np.asarray(sm), np.asarray(ex), None
 
     def grid(self, xs, reference_x=None) -> tuple[np.ndarray, np.ndarray]:
-        """(smooth, exact) at every row of ``xs`` in one compiled call. The torsional
-        model is built at every row inside that program (its build is traceable: the
-        objective itself, to the integration's accuracy, at every design); the 3D model,
-        whose build is not, as a *frozen* model built at ``reference_x`` (default: the
-        middle row): switching angles of other designs resolved to the table spacing
-        (1/n_table of a mesh period). Rows whose model could not be built (a layout
-        bound outgrown, a failed integration) are NaN."""
+        """(smooth, exact) at every row of ``xs``. The torsional objective evaluates the
+        rows by :meth:`batch`, in calls of its row count (the optimiser's program: the
+        objective itself at every design, no other compilation); the 3D objective, whose
+        builds are slow, in one compiled call on a *frozen* model built at
+        ``reference_x`` (default: the middle row): switching angles of other designs
+        resolved to the table spacing (1/n_table of a mesh period). Rows whose
+        integration failed are NaN."""
         xs = np.asarray(xs, dtype=float)
-        speeds = jnp.asarray(self.speeds)
+        k = self._index
         if self.model_type == "torsional":
-            from ..models.torsional import TorsionalModel
-
-            base = (self.mesh, jnp.asarray(self.model_kwargs["inertias_kg_m2"]),
-                    jnp.asarray(self.model_kwargs["pinion_torque_Nm"]),
-                    jnp.asarray(self.model_kwargs["damping_ratio"]))
-            opts = {k: v for k, v in self.model_kwargs.items()
-                    if k not in ("inertias_kg_m2", "pinion_torque_Nm", "damping_ratio")}
-            sm, (ex, _, ok) = _dyn_grid_built(TorsionalModel, base, tuple(sorted(opts.items())),
-                                              jnp.asarray(xs), speeds, self._static)
-        else:
-            ref = xs[len(xs) // 2] if reference_x is None else reference_x
-            model = self.build(ref, frozen=True)
-            sm, (ex, _, ok) = _dyn_grid(model, jnp.asarray(xs), speeds, self._static)
+            size = len(self._rows) or DEFAULT_ROWS
+            pad = -(-xs.shape[0] // size) * size - xs.shape[0]
+            rows = np.concatenate([xs, np.repeat(xs[-1:], pad, axis=0)])
+            evs = []
+            for i in range(0, rows.shape[0], size):
+                evs += self.batch(rows[i:i + size], grad=False)
+            evs = evs[:xs.shape[0]]
+            bad = np.array([not e.structure_ok for e in evs])
+            sm = np.array([e.smooth for e in evs])
+            ex = np.array([e.exact for e in evs])
+            return np.where(bad, np.nan, sm), np.where(bad, np.nan, ex)
+        ref = xs[len(xs) // 2] if reference_x is None else reference_x
+        model = self.build(ref, frozen=True)
+        sm, (ex, _, ok) = _dyn_grid(model, jnp.asarray(xs), jnp.asarray(self.speeds),
+                                    self._static)
         bad = ~np.asarray(ok, dtype=bool)
-        sm = np.where(bad, np.nan, np.asarray(sm)[:, self._index])
-        return sm, np.where(bad, np.nan, np.asarray(ex)[:, self._index])
+        return (np.where(bad, np.nan, np.asarray(sm)[:, k]),
+                np.where(bad, np.nan, np.asarray(ex)[:, k]))
+
+    # lockstep evaluation of several designs (multi-start optimisation, maps)
+    def batch(self, xs, grad: bool = True) -> list:
+        """:class:`Evaluation` of every row of ``xs`` (n, size) from one compiled call:
+        the rows' models (each row's current model while its structure holds, else one
+        of the same structure built before, else one built at the row) stacked and the
+        objective and its gradient vmapped over them (the same program for every call of
+        ``n`` rows: an optimiser's starts in lockstep, a map's grid in chunks). A row whose
+        integration failed is evaluated once more on a model built at it."""
+        xs = np.stack([self.space.check(x) for x in np.asarray(xs, dtype=float)])
+        n = xs.shape[0]
+        if len(self._rows) != n:
+            self._rows = [None] * n
+        fresh = np.zeros(n, bool)
+        for attempt in range(2):
+            models = [self._row_model(i, xs[i], bool(fresh[i])) for i in range(n)]
+            out = self._rows_call(models, xs)
+            ok = np.asarray(out[1][1][2], dtype=bool)
+            if ok.all() or attempt == 1:
+                break
+            fresh = ~ok
+            for i in np.nonzero(fresh)[0]:
+                self._rows[i] = None
+        return _evaluations(xs, out, self._index, grad)
+
+    def _rows_call(self, models, xs):
+        dyn = [eqx.partition(m, eqx.is_array) for m in models]
+        static = dyn[0][1]
+        stacked = jax.tree.map(lambda *a: jnp.stack(a), *[d for d, _ in dyn])
+        return _dyn_rows(stacked, static, jnp.asarray(xs), jnp.asarray(self.speeds),
+                         self._static, self.adjoint)
+
+    def _row_model(self, i: int, x, fresh: bool):
+        """Row ``i``'s model for the design ``x`` (:meth:`batch`; the pool of earlier
+        models is shared with :meth:`_model_for`)."""
+        xj = jnp.asarray(x)
+        m = self._rows[i]
+        if m is not None and not bool(_structure_holds(m, xj, self.space)):
+            if not any(m is e for e in self._earlier):
+                self._earlier = [m] + self._earlier[:MODELS_KEPT - 1]
+            m = None
+        if m is None and not fresh:
+            m = next((e for e in self._earlier if bool(_structure_holds(e, xj, self.space))),
+                     None)
+        if m is None:
+            m = self.build(x)
+            self._earlier = [m] + self._earlier[:MODELS_KEPT - 1]
+        self._rows[i] = m
+        return m
+
+
+def _evaluations(xs, out, k: int, grad: bool) -> list:
+    """The :class:`Evaluation` of each row of a :func:`_dyn_rows` call."""
+    g, (sm, (ex, per, ok)) = jax.device_get(out)
+    evs = []
+    for i in range(xs.shape[0]):
+        p = np.asarray(per[i])[k]  # (speeds, starts)
+        evs.append(Evaluation(xs[i], float(sm[i][k]), float(ex[i][k]),
+                              np.asarray(g[i])[k] if grad else None, p.max(axis=1),
+                              bool(ok[i]), p.max(axis=0)))
+    return evs
 
 
 def _model_values(m, speeds, static, adjoint=None):
@@ -525,17 +596,15 @@ def _dyn_grid(model, xs, speeds, static):
 
 
 @eqx.filter_jit
-def _dyn_grid_built(cls, base, options, xs, speeds, static):
-    """The objective at every row of ``xs`` on a model built there (``cls.build``
-    traced: one program for every design of the grid)."""
-    mesh, inertias, torque, zeta = base
+def _dyn_rows(stacked, static_model, xs, speeds, static, adjoint):
+    """Value and forward-mode Jacobian of :func:`_dyn_values_impl` for every row: the
+    stacked array parts of the rows' models (``static_model`` the static part they share)
+    and designs ``xs``, vmapped."""
+    def one(dyn, x):
+        model = eqx.combine(dyn, static_model)
+        return _value_and_jac(lambda y: _dyn_values_impl(model, y, speeds, static, adjoint))(x)
 
-    def one(x):
-        m = cls.build(mesh, static[0].mods(x), inertias_kg_m2=inertias,
-                      pinion_torque_Nm=torque, damping_ratio=zeta, **dict(options))
-        return _model_values(m, speeds, static)
-
-    return over_speeds(one, xs, sequential=False)
+    return jax.vmap(one)(stacked, xs)
 
 
 def make_objective(kind: str, mesh: Mesh, space: ReliefSpace, *, speeds_rad_s=None,

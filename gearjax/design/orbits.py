@@ -13,10 +13,13 @@ value (the peak force over the orbits those starts reach):
 
 * ``"quasi-static"``: the model's transient start (:meth:`~gearjax.models.base.
   AbstractGearModel.transient_start`, the state every forward ``sweep`` starts from);
-* ``"separated"``: the quasi-static state mirrored about zero deflection, ``-2 y_S``
-  (teeth apart by twice the static approach, moving apart): a start with the energy of the
-  high, contact-losing orbit where one coexists (sdof te, Table 1 long relief, 694 rad/s:
-  14.8 kN from it, 10.1 kN from the quasi-static state).
+* ``"separated"`` and ``"far"``: the quasi-static state with its displacements scaled by
+  -1 (the static deflection of the mesh mirrored: teeth apart by the static approach) and
+  by -3, velocities kept (:meth:`~gearjax.models.base.AbstractGearModel.deflected_start`):
+  starts with the energy of a high, contact-losing orbit where one coexists. Their basins
+  of attraction are fragmented, so a set of starts finds more of the coexisting orbits than
+  one start, never certainly all of them (measurements: ``benchmarks/results/
+  code_notes.md``, section gearjax.design.orbits).
 
 Implicit derivative of a shooting orbit
 ---------------------------------------
@@ -46,7 +49,10 @@ from ..linalg import solve as dense_solve
 
 __all__ = ["ORBIT_STARTS", "OrbitSet", "implicit_steady_metrics"]
 
-ORBIT_STARTS = ("quasi-static", "separated")
+ORBIT_STARTS = ("quasi-static", "separated", "far")
+# the factor on the quasi-static displacements of each start but the first
+# (AbstractGearModel.deflected_start)
+_FACTORS = {"separated": -1.0, "far": -3.0}
 
 
 class OrbitSet(eqx.Module):
@@ -82,8 +88,8 @@ class OrbitSet(eqx.Module):
             if name == "quasi-static":
                 out.append(model.transient_start(omega) if transient
                            else model.initial_state(omega))
-            else:  # "separated"
-                out.append(-2.0 * model.initial_state(omega))
+            else:
+                out.append(model.deflected_start(omega, _FACTORS[name]))
         return jax.lax.stop_gradient(jnp.stack(out))
 
     def metrics(self, solver, model, omega, adjoint=None, implicit: bool = True):

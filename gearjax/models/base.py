@@ -169,6 +169,18 @@ class AbstractGearModel(eqx.Module):
         mean (:func:`modal_transient_start`)."""
         return self.initial_state(omega)
 
+    def deflected_start(self, omega, factor):
+        """The quasi-static state at theta = 0 (:meth:`initial_state`) with its
+        displacements scaled by ``factor`` and its velocities kept: ``factor = -1`` mirrors
+        the static deflection of the mesh about zero (teeth apart by the static approach), a
+        start from which a transient can reach a contact-losing orbit that coexists with
+        the one reached from the quasi-static state (:class:`gearjax.design.OrbitSet`).
+        Default: a state ``(displacements, velocities)`` in two halves, zero at zero
+        deflection (the sdof model's ``(z / x_ref, z' / (r x_ref))``)."""
+        y = self.initial_state(omega)
+        half = y.shape[0] // 2
+        return y.at[:half].multiply(factor)
+
     def slowest_output_mode(self):
         """``(omega_s (rad/s), zeta)`` of the slowest mode the outputs see, used to
         extrapolate the convergence measure of a transient; None (default) when the model
@@ -287,6 +299,9 @@ class WithoutContactLaw(AbstractGearModel):
 
     def transient_start(self, omega):
         return self.model.transient_start(omega)
+
+    def deflected_start(self, omega, factor):
+        return self.model.deflected_start(omega, factor)
 
     def slowest_output_mode(self):
         return self.model.slowest_output_mode()

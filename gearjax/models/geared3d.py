@@ -482,6 +482,15 @@ class Geared3DModel(AbstractGearModel):
         r = self.omega_r / omega
         return jnp.concatenate([(qs - self.q0) / self.scale_a, u / (r * self.scale_a)])
 
+    def deflected_start(self, omega, factor):
+        """The quasi-static state with its modal displacements ``q_S`` scaled by ``factor``
+        (``q = factor q_S``, so ``factor = -1`` mirrors the static deflection of the mesh
+        and of the shafts), velocities kept (the state measures ``q`` from ``q_0``)."""
+        y = self.initial_state(omega)
+        r = self.n_reduced
+        q_s = y[:r] * self.scale_a + self.q0
+        return y.at[:r].set((factor * q_s - self.q0) / self.scale_a)
+
     def outputs(self, theta, y, omega, contact: bool = True) -> ModelOutputs:
         """Mesh force F_D (N), DTE = W^T X + NLTE (m) and the pinion-centre acceleration
         along s (m/s^2) at one angle."""

@@ -48,7 +48,7 @@ def sdof_bounds(mesh: Mesh, period: float) -> LayoutBounds:
     n_mesh = int(round(period / mesh.pair.mesh_period_rad))
     geo = np.unique(np.round(np.mod(geometric_jumps(mesh, period), period) / period, 12))
     jumps = round_up(geo.size + (4 * mesh.cells_per_line + 2) * n_mesh)
-    extra = 4 if jumps <= 16 * n_mesh else 16
+    extra = 8 if jumps <= 16 * n_mesh else 16
     return LayoutBounds(jumps=jumps, brackets=round_up(1.125 * jumps + 4), max_extra=extra)
 
 
