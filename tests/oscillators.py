@@ -9,6 +9,7 @@ import numpy as np
 import equinox as eqx
 import jax.numpy as jnp
 
+from gearjax.excitation.jumps import JumpSet
 from gearjax.models.base import AbstractGearModel, ModelOutputs
 
 
@@ -24,7 +25,7 @@ class HarmonicOscillator(AbstractGearModel):
     amplitude: float
     order: int = eqx.field(static=True)
     formulation: str = eqx.field(static=True)
-    jump_thetas: tuple = eqx.field(static=True)
+    jumps: JumpSet
     forced: bool = eqx.field(static=True)
     structure_ok: bool = eqx.field(static=True)
     period_rad: float = eqx.field(static=True)
@@ -33,9 +34,10 @@ class HarmonicOscillator(AbstractGearModel):
                  formulation="perturbation", jump_thetas=(), forced=True):
         self.mass, self.stiffness = mass, stiffness
         self.damping_ratio, self.amplitude, self.order = damping_ratio, amplitude, order
-        self.formulation, self.jump_thetas, self.forced = formulation, jump_thetas, forced
+        self.formulation, self.forced = formulation, forced
         self.structure_ok = True
         self.period_rad = 2 * math.pi / order
+        self.jumps = JumpSet.from_angles(jump_thetas, self.period_rad)
 
     @property
     def mesh_period_rad(self):
