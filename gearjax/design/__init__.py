@@ -23,16 +23,12 @@ objective's unit (F_S, 1, or the mean static mesh deflection), so ``max v <= sma
 
 Gradients: forward mode (``jax.jacfwd``, ``diffrax.ForwardMode``) through mesh cells,
 quasi-static table, solve and metric; the switching angles follow the design through the
-models' angle map (:mod:`gearjax.excitation.events`, "Derivatives with respect to the
-design"), valid while the discrete quasi-static structure is the build one, which
-:class:`DynamicObjective` checks at every evaluation (rebuilding the model when it fails:
-the sdof model's structure is data, so a rebuild compiles nothing). With
-:class:`~gearjax.Shooting` the periodic orbit is differentiated by the implicit function
-theorem (:mod:`gearjax.design.orbits`); an :class:`OrbitSet` of several starts makes the
-objective the largest value over the orbits they reach.
-With contact loss the objective is continuous with kinks (a contact-loss interval appearing
-at the maximum, a switch of the instant of the maximum, rebuilds); between them it is the
-orbit's derivative (the vector field is continuous across contact loss: no saltation).
+models' angle map (:mod:`gearjax.excitation.events`), valid while the quasi-static
+structure is the build one, which :class:`DynamicObjective` checks at every evaluation
+(rebuilding the model, which compiles nothing for the sdof model). Shooting orbits are
+differentiated implicitly (:mod:`gearjax.design.orbits`); an :class:`OrbitSet` of starts
+takes the largest value over the orbits they reach. With contact loss the objective is
+continuous with kinks; between them it is the orbit's derivative (no saltation).
 
 Inertias (:data:`DESIGN_INERTIAS`): the sdof model uses the gear bodies (solid cylinders at
 the pitch radii) and puts the NLTE'' reaction on the drive (``kappa = 1``), because the

@@ -148,14 +148,10 @@ def classify_events(angles, lo, hi, c_lo, c_hi, n_cells, period, rtol: float = 1
 
     Returns
     -------
-    (kinds, cells) : tuples of int and of (int, int), one per angle; for traced inputs
-    (a build inside a program) the arrays of :func:`gearjax.excitation.layout.
-    classify_events`, the same rule.
+    (kinds, cells) : tuples of int and of (int, int), one per angle (concrete inputs; a
+    build inside a program uses :func:`gearjax.excitation.layout.classify_events`, the
+    same rule).
     """
-    if any(isinstance(a, jax.core.Tracer) for a in (angles, lo, hi, c_lo, c_hi)):
-        from .layout import classify_events as traced
-
-        return traced(angles, lo, hi, c_lo, c_hi, n_cells, period, rtol)
     angles = np.asarray(angles, dtype=float).reshape(-1)
     at = np.mod(np.asarray(hi, dtype=float), period)
     classified = [event_kinds(np.asarray(c_lo[i]), np.asarray(c_hi[i]), n_cells)

@@ -26,6 +26,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .events import EV_FIXED, EV_LOADED, EV_NLTE, EV_ZONE1, EV_ZONE2, NEWTON_STEPS, moved_event_angles
 
@@ -146,7 +147,7 @@ def event_kinds(c_lo, c_hi, n):
 
 
 # which of coinciding state changes names the event (events.classify_events)
-_PRIORITY = jnp.asarray([3, 1, 2, 0, 0])  # by kind: fixed (never chosen), loaded, nlte, zones
+_PRIORITY = np.asarray([3, 1, 2, 0, 0])  # by kind: fixed (never chosen), loaded, nlte, zones
 
 
 def classify_events(angles, lo, hi, c_lo, c_hi, n_cells: int, period: float,
@@ -165,7 +166,7 @@ def classify_events(angles, lo, hi, c_lo, c_hi, n_cells: int, period: float,
     near = dist <= rtol * period  # NaN (unused bracket) compares False
     fixed = jnp.any(near & (kind == EV_FIXED)[None, :], axis=1) | ~jnp.any(near, axis=1)
     m = kind.shape[0]
-    score = jnp.where(near, _PRIORITY[kind][None, :] * m + jnp.arange(m)[None, :],
+    score = jnp.where(near, jnp.asarray(_PRIORITY)[kind][None, :] * m + jnp.arange(m)[None, :],
                       jnp.iinfo(jnp.int32).max)
     i = jnp.argmin(score, axis=1)
     kinds = jnp.where(fixed, EV_FIXED, kind[i]).astype(jnp.int32)
