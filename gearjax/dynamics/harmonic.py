@@ -14,7 +14,7 @@ pair, the state being real), with ``g_h`` the receptance ``sum_k (w^T Q)_k (Q^-1
 
 (``*`` the convolution of the coefficient sequences, applied by FFT: Hill's equation of
 the scalar, solved by GMRES, :mod:`gearjax.dynamics.krylov`). ``k(theta)`` jumps (cell
-engagement, active-set changes: ``model.jump_thetas``), so ``b`` and ``c`` have Fourier
+engagement, active-set changes: ``model.jumps``), so ``b`` and ``c`` have Fourier
 coefficients ``O(1/h)`` and a plain truncated series has Gibbs errors ``O(1)`` at the jumps
 in the velocity and ``O(1/H)`` between them. Both are removed exactly: every function
 that jumps is split into its jumps and kinks at the known angles times the periodic

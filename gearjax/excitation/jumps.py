@@ -84,6 +84,20 @@ class JumpSet(eqx.Module):
         """(bound,) bool, True at the valid entries."""
         return jnp.arange(self.bound) < self.count
 
+    def distinct(self, rtol: float = 1e-9):
+        """(bound,) bool: the entries that count as distinct angles, as
+        :func:`gearjax.excitation.events.distinct_angles` merges them (traced): the valid
+        ones, less any within ``rtol * period`` of the one before it or, for the last, of
+        the first one period on (so the padding, a repeat, never counts)."""
+        thj, valid = self.thetas, self.valid
+        if self.bound == 0:
+            return valid
+        tol = rtol * self.period
+        close = jnp.concatenate([jnp.zeros(1, bool), jnp.diff(thj) <= tol])
+        last = jnp.arange(self.bound) == self.count - 1
+        wrap = last & (self.count > 1) & (thj[0] + self.period - thj <= tol)
+        return valid & ~close & ~wrap
+
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_angles(cls, thetas, period: float, kinds=None, cells=None, *,
