@@ -90,23 +90,28 @@ def find_changes(code_fn, theta, period: float, bound: int) -> Changes:
     ca, cb = c[idx], nxt[idx]
     inf = jnp.full(bound, jnp.inf)
 
-    def bisect(a, b, ca, on):
-        def body(_, lh):
-            lo, hi = lh
+    def bisect(a, b, ca, cb, on):
+        # the codes at the ends are those the bisection read there (a code re-read at an
+        # end in another program may round the other way a few floats from a change)
+        def body(_, lhc):
+            lo, hi, c_hi = lhc
             mid = 0.5 * (lo + hi)
             interior = on & (mid > lo) & (mid < hi)
-            same = jnp.all(code_fn(mid) == ca, axis=1)
-            return jnp.where(interior & same, mid, lo), jnp.where(interior & ~same, mid, hi)
+            c_mid = code_fn(mid)
+            same = jnp.all(c_mid == ca, axis=1)
+            move_hi = interior & ~same
+            return (jnp.where(interior & same, mid, lo), jnp.where(move_hi, mid, hi),
+                    jnp.where(move_hi[:, None], c_mid, c_hi))
 
-        return jax.lax.fori_loop(0, BISECTIONS, body, (a, b))
+        return jax.lax.fori_loop(0, BISECTIONS, body, (a, b, cb))
 
     def cond(s):
         return jnp.any(s["on"]) & (s["round"] < MAX_ROUNDS)
 
     def body(s):
         on = s["on"]
-        lo, hi = bisect(s["a"], s["b"], s["ca"], on)
-        c_lo, c_hi = code_fn(lo), code_fn(hi)
+        lo, hi, c_hi = bisect(s["a"], s["b"], s["ca"], s["cb"], on)
+        c_lo = s["ca"]  # lo moved only onto angles whose code was ca
         pos = jnp.where(on, s["count"] + jnp.cumsum(on) - 1, bound)  # bound: dropped
         put = lambda arr, v: arr.at[pos].set(v, mode="drop")  # noqa: E731
         more = on & jnp.any(c_hi != s["cb"], axis=1)  # another change between hi and b
