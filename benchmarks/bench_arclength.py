@@ -125,7 +125,7 @@ def main() -> int:
         if args.library:
             first, second, res = library_times(case)
             print(f"\ntrace_speed alone: first call {first:.1f} s (compiles), second "
-                  f"{second:.1f} s, {res.speed_rad_s.size} points")
+                  f"{second:.1f} s, {res.points.speed_rad_s.size} points")
     return 0
 
 

@@ -103,7 +103,7 @@ def hb_start_sweep(model, te, speeds):
 
         _RUNS["run"] = run
     qs = jax.vmap(model.transient_start)(jnp.asarray(speeds))
-    y0 = jnp.asarray(start.y0)
+    y0 = jnp.asarray(start.stats["y0"])
     y = jnp.where(jnp.isfinite(y0), y0, qs)
     out = jax.device_get(_RUNS["run"](model, jnp.asarray(speeds), y, options))
     return {k: np.asarray(v, dtype=float) for k, v in zip(

@@ -85,7 +85,7 @@ def convergence(speeds=(100.0, 226.0, 600.0), harmonics=(16, 32, 64, 128, 256, 5
         r = harmonic_sweep(model, np.asarray(speeds), harmonics=h, max_harmonics=h,
                            floquet=False)
         cells = [f"{abs(r.max_mesh_force_N[i] - e[0]) / f_s:.1e}, "
-                 f"{abs(r.min_mesh_force_N[i] - e[1]) / f_s:.1e}; {r.error_estimate[i]:.1e}"
+                 f"{abs(r.min_mesh_force_N[i] - e[1]) / f_s:.1e}; {r.stats['error_estimate'][i]:.1e}"
                  for i, e in enumerate(exact)]
         print(f"| {h} | " + " | ".join(cells) + " |", flush=True)
 
@@ -130,16 +130,16 @@ def main():
             ref = sh.max_mesh_force_N
             err = lambda r: np.max(np.abs(r.max_mesh_force_N - ref)) / f_s  # noqa: E731
             n_tr = tr.transient_periods + 3
-            hs = np.unique(hb.n_harmonics)
+            hs = np.unique(hb.stats['n_harmonics'])
             rows = [
                 ("transient", tr_c, tr_r, f"{n_tr.sum():.0f} / {n_tr.max():.0f}", err(tr),
                  f"converged {int(tr.converged.sum())}/{len(speeds)}"),
                 ("harmonic", hb_c, hb_r, "0 / 0", err(hb),
-                 f"H in {hs.tolist()}, est max {np.max(hb.error_estimate):.1e}, "
-                 f"contact holds {int(hb.contact_holds.sum())}/{len(speeds)}"),
+                 f"H in {hs.tolist()}, est max {np.max(hb.stats['error_estimate']):.1e}, "
+                 f"contact holds {int(hb.stats['contact_holds'].sum())}/{len(speeds)}"),
                 ("harmonic + Floquet", hf_c, hf_r, f"{len(speeds)} / 1", err(hf),
                  f"rho max {np.nanmax(hf.spectral_radius):.4f}, "
-                 f"unstable {int((~hf.stable).sum())}"),
+                 f"unstable {int((~hf.stats['stable']).sum())}"),
                 ("shooting", sh_c, sh_r, f"{3 * len(speeds)} / 3", 0.0,
                  "reference: rtol 1e-10 (n+1 columns over 1 period, 2 measured)"),
             ]
@@ -181,8 +181,8 @@ def three_d(speeds, args, subset=(2, 22, 42)):
         n_tr = tr.transient_periods + 3
         print(f"| {form} | harmonic | {len(speeds)} | {hb_c:.1f} | {hb_r:.2f} | "
               f"{hb_r / len(speeds):.3f} | 0 / 0 | {e_hb:.1e} | H in "
-              f"{np.unique(hb.n_harmonics).tolist()}, est max {np.max(hb.error_estimate):.1e}, "
-              f"contact holds {int(hb.contact_holds.sum())}/{len(speeds)}, DF max "
+              f"{np.unique(hb.stats['n_harmonics']).tolist()}, est max {np.max(hb.stats['error_estimate']):.1e}, "
+              f"contact holds {int(hb.stats['contact_holds'].sum())}/{len(speeds)}, DF max "
               f"{np.max(hb.dynamic_factor):.4f} |")
         print(f"| {form} | harmonic (subset) | {len(sub)} | - | {hs_r:.2f} | "
               f"{hs_r / len(sub):.3f} | 0 / 0 | - | same compiled function |")

@@ -43,7 +43,6 @@ from bench_accelerator import models  # noqa: E402  (the main job's three models
 
 from gearjax.dynamics.simulate import simulate  # noqa: E402
 from gearjax.models import geared3d as g3  # noqa: E402
-from gearjax.models.geared3d_modal import damping_product  # noqa: E402
 
 SPEEDS = (20.0, 35.0, 50.0, 100.0, 200.0, 300.0)
 
@@ -57,8 +56,8 @@ def scaled(accel, kappa: float, floor_hz: float):
         mu = jnp.maximum(1.0, (self.omega_r / wc) ** 2)
         d4 = mu ** 0.25
         force, _ = self._elastic(s, q, contact)
-        plain = -(force + omega * damping_product(self, qp)) / omega**2
-        heavy = -(force + omega * d4 * damping_product(self, qp * d4)) / (omega**2 * mu)
+        plain = -(force + omega * self._damping_product(qp)) / omega**2
+        heavy = -(force + omega * d4 * self._damping_product(qp * d4)) / (omega**2 * mu)
         return q, qp, up - plain + heavy
 
     return _accel

@@ -5,7 +5,7 @@ Scenario: the README main job's models (Baud-Velex spur rig, short relief, dampi
 modes below the command line's default cut-off for 900 rad/s plus static corrections),
 reference and te formulations. For each, the model as built (``kbar_r`` applied as its
 diagonal, ``c_r`` as diagonal plus the static-correction block:
-:mod:`gearjax.models.geared3d_modal`) against the same model with the dense products forced
+:func:`gearjax.models.geared3d_build.modal_structure`) against the same model with the dense products forced
 (``dataclasses.replace(model, diagonal_stiffness=False, damping_split=0)``), in one run:
 
 * right-hand side: one speed and 45 vmapped speeds (mean of repeated jitted calls);

@@ -155,7 +155,7 @@ def run_harmonic(model, speeds, rtol):
     def f():
         return harmonic_sweep(model, speeds, rtol=rtol, floquet=False)
     res, run, comp = timed(f)
-    keep = np.asarray(res.contact_holds)
+    keep = np.asarray(res.stats["contact_holds"])
     return (np.where(keep, res.max_mesh_force_N, np.nan), np.where(keep, res.dte_ptp_m, np.nan),
             run, comp)
 
@@ -555,7 +555,7 @@ def harmonics_scaling(model):
             return harmonic_sweep(model, speeds, rtol=0.5, harmonics=h, max_harmonics=h,
                                   floquet=False)
         res, run, comp = timed(f)
-        keep = np.asarray(res.contact_holds)
+        keep = np.asarray(res.stats["contact_holds"])
         ef, ed = errors(np.where(keep, res.max_mesh_force_N, np.nan),
                         np.where(keep, res.dte_ptp_m, np.nan), rf, rd, f_s)
         say(f"| {h} | {ef:.2e} | {ed:.2e} | {run:.4f} | {comp:.1f} |")

@@ -77,7 +77,7 @@ def continuation(model, ws, direction):
     return [dict(w=float(ws[i]), f_max=float(res.max_mesh_force_N[i]) / f_ref,
                  f_min=float(res.min_mesh_force_N[i]) / f_ref,
                  contact_loss=bool(res.contact_loss[i]), back_contact=bool(res.back_contact[i]),
-                 stable=bool(res.stable[i])) for i in order]
+                 stable=bool(res.stats["stable"][i])) for i in order]
 
 
 def accuracy(ks, model, ws, rtols):

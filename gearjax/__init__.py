@@ -46,7 +46,6 @@ from .dynamics.stability import floquet_multipliers as floquet_multipliers
 from .dynamics.stability import spectral_radius as spectral_radius
 from .dynamics.steady import steady_state as steady_state
 from .dynamics.steady import steady_sweep as steady_sweep
-from .dynamics.continuation import BranchResult as BranchResult
 from .dynamics.continuation import continuation_sweep as continuation_sweep
 from .dynamics.refine import Refinement as Refinement
 from .dynamics.refine import propose_speeds as propose_speeds

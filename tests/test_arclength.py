@@ -79,11 +79,11 @@ def _stable_at(res, w, branches):
     out = []
     for b in branches:
         sel = res.branch == b
-        ws = res.speed_rad_s[sel]
+        ws = res.points.speed_rad_s[sel]
         if ws.min() <= w <= ws.max():
             o = np.argsort(ws)
-            out.append((np.interp(w, ws[o], res.max_mesh_force_N[sel][o]),
-                        np.interp(w, ws[o], res.dte_ptp_m[sel][o])))
+            out.append((np.interp(w, ws[o], res.points.max_mesh_force_N[sel][o]),
+                        np.interp(w, ws[o], res.points.dte_ptp_m[sel][o])))
     return out
 
 
@@ -91,7 +91,7 @@ def test_traced_points_are_periodic_orbits(model, traced):
     """Every point (stable, unstable, the fold) returns to itself after one period of an
     independent integration; Liouville's modulus where the multipliers are complex."""
     omega_n = float(model.natural_frequency_rad_s())
-    for w, y0, mu in zip(traced.speed_rad_s, traced.y0, traced.multipliers):
+    for w, y0, mu in zip(traced.points.speed_rad_s, traced.y0, traced.multipliers):
         y_p = np.asarray(_period_map(model, jnp.asarray(w), jnp.asarray(y0)))
         # the trace's Newton stops at a step below 1e-8 (1 + |y|)
         assert np.linalg.norm(y_p - y0) < 1e-7 * (1 + np.linalg.norm(y0)), w
@@ -124,7 +124,8 @@ def test_fold_multiplier_is_one(model, traced):
     mu = np.linalg.eigvals(np.stack(cols, axis=1))
     assert np.min(np.abs(mu - 1.0)) < 1e-4
     # either side of it: one side stable, the other a saddle (a real multiplier above 1)
-    before, after = traced.spectral_radius[fold.index - 1], traced.spectral_radius[fold.index + 1]
+    rho = traced.points.spectral_radius
+    before, after = rho[fold.index - 1], rho[fold.index + 1]
     assert min(before, after) < 1.0 < max(before, after)
 
 
@@ -137,11 +138,11 @@ def test_unstable_branch_lies_between_the_stable_ones(traced):
     pts = np.flatnonzero((traced.branch == unstable[0]) & (traced.point == "regular"))
     assert pts.size >= 3
     for i in pts:
-        both = _stable_at(traced, traced.speed_rad_s[i], stable)
-        assert len(both) == 2, traced.speed_rad_s[i]
+        both = _stable_at(traced, traced.points.speed_rad_s[i], stable)
+        assert len(both) == 2, traced.points.speed_rad_s[i]
         (f_lo, d_lo), (f_hi, d_hi) = sorted(both)
-        assert f_lo < traced.max_mesh_force_N[i] < f_hi
-        assert d_lo < traced.dte_ptp_m[i] < d_hi
+        assert f_lo < traced.points.max_mesh_force_N[i] < f_hi
+        assert d_lo < traced.points.dte_ptp_m[i] < d_hi
     assert traced.coexistence_rad_s()[0][1] == pytest.approx(traced.folds()[0].speed_rad_s)
 
 
@@ -157,7 +158,7 @@ def test_jump_up_lands_on_the_high_branch(model, traced):
     grid = np.arange(645.0, 671.0, 5.0)
     up = continuation_sweep(model, grid, "up")
     k = np.searchsorted(grid, fold.speed_rad_s)
-    assert up.restarted[k] and not up.restarted[:k].any()
+    assert up.stats["restarted"][k] and not up.stats["restarted"][:k].any()
     assert up.max_mesh_force_N[k] > 1.5 * up.max_mesh_force_N[k - 1]
 
 
@@ -195,9 +196,9 @@ def test_stable_points_equal_transients_from_the_neighbouring_orbit(model, trace
     for b, ok in traced.branch_stable().items():
         idx = np.flatnonzero((traced.branch == b) & np.isin(traced.point, ("regular", "end")))
         for i, j in zip(idx[1:], idx[:-1]):
-            if not (ok and traced.spectral_radius[i] ** n < 1e-9):
+            if not (ok and traced.points.spectral_radius[i] ** n < 1e-9):
                 continue
-            w, y_i = jnp.asarray(traced.speed_rad_s[i]), traced.y0[i]
+            w, y_i = jnp.asarray(traced.points.speed_rad_s[i]), traced.y0[i]
             y_end = np.asarray(_transient_end(model, w, jnp.asarray(traced.y0[j]), n))
             assert np.linalg.norm(y_end - y_i) < 1e-7 * (1 + np.linalg.norm(y_i))
             brute, mine = meas(model, w, jnp.asarray(y_end)), meas(model, w, jnp.asarray(y_i))
@@ -220,19 +221,20 @@ def test_linear_case_equals_harmonic_balance():
     te = build_model(get_rig("baud-velex-spur"), table1_relief("short"), model="torsional",
                      formulation="te", law="iso6336", damping_ratio=0.1)
     res = trace_speed(te, [300.0, 350.0, 400.0])
-    assert not res.contact_loss.any() and res.stable.all() and res.bifurcations == ()
+    assert not res.points.contact_loss.any() and res.stable.all() and res.bifurcations == ()
     assert np.unique(res.branch).tolist() == [0]
-    hb = harmonic_sweep(te, res.speed_rad_s, rtol=1e-8)
-    assert hb.contact_holds.all()
-    scale = 1 + np.linalg.norm(hb.y0, axis=1)
-    assert np.all(np.linalg.norm(res.y0 - hb.y0, axis=1) < 1e-6 * scale)
+    hb = harmonic_sweep(te, res.points.speed_rad_s, rtol=1e-8)
+    assert hb.stats["contact_holds"].all()
+    scale = 1 + np.linalg.norm(hb.stats["y0"], axis=1)
+    assert np.all(np.linalg.norm(res.y0 - hb.stats["y0"], axis=1) < 1e-6 * scale)
     # the same orbits measured the same way (simulate over two periods, the sweep's
     # metrics): the harmonic orbit's measured metrics, to 1e-6 of F_S and of x_ref
-    hb_met = [measure(te, w, y) for w, y in zip(res.speed_rad_s, hb.y0)]
+    hb_met = [measure(te, w, y) for w, y in zip(res.points.speed_rad_s, hb.stats["y0"])]
     f_s, x_ref = float(te.static_force_N), float(te.x_ref)
-    assert np.all(np.abs(res.max_mesh_force_N - [float(m[1]) for m in hb_met]) < 1e-6 * f_s)
-    assert np.all(np.abs(res.dte_ptp_m - [float(m[4]) for m in hb_met]) < 1e-6 * x_ref)
-    np.testing.assert_allclose(res.spectral_radius, spectral_radius(te, res.speed_rad_s),
+    assert np.all(np.abs(res.points.max_mesh_force_N - [float(m[1]) for m in hb_met]) < 1e-6 * f_s)
+    assert np.all(np.abs(res.points.dte_ptp_m - [float(m[4]) for m in hb_met]) < 1e-6 * x_ref)
+    np.testing.assert_allclose(res.points.spectral_radius,
+                               spectral_radius(te, res.points.speed_rad_s),
                                rtol=1e-6)
 
 
@@ -249,13 +251,13 @@ def test_period_doubling_at_the_parametric_instability_zone():
                     formulation="reference", law="uniform", damping_ratio=ZETA)
     res = trace_speed(m, [545.0, 560.0, 575.0])
     pd = [b for b in res.bifurcations if b.kind == "period_doubling"]
-    assert len(pd) == 2 and not res.contact_loss.any()
+    assert len(pd) == 2 and not res.points.contact_loss.any()
     for b in pd:
         assert b.located and abs(b.multiplier + 1.0) < 1e-6
         rho = spectral_radius(m, [b.speed_rad_s - 0.05, b.speed_rad_s + 0.05])
         assert (rho[0] - 1.0) * (rho[1] - 1.0) < 0, (b.speed_rad_s, rho)
     lo, hi = sorted(b.speed_rad_s for b in pd)
-    inside = (res.speed_rad_s > lo) & (res.speed_rad_s < hi)
+    inside = (res.points.speed_rad_s > lo) & (res.points.speed_rad_s < hi)
     assert inside.any() and not res.stable[inside].any() and res.stable[~inside & (
         res.point == "regular")].all()
 

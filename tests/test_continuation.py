@@ -61,7 +61,7 @@ def _period_map(model, omega, y0):
 
 def _check_periodic_and_liouville(model, branch):
     omega_n = float(model.natural_frequency_rad_s())
-    for w, y0, rho in zip(branch.speed_rad_s, branch.y0, branch.spectral_radius):
+    for w, y0, rho in zip(branch.speed_rad_s, branch.stats["y0"], branch.spectral_radius):
         y_p = np.asarray(_period_map(model, jnp.asarray(w), jnp.asarray(y0)))
         assert np.linalg.norm(y_p - y0) < 1e-7 * np.linalg.norm(y0), (branch.direction, w)
         # complex multipliers at these speeds: |mu| = sqrt(det Phi) = exp(-zeta omega_n T)
@@ -78,7 +78,7 @@ def test_up_and_down_sweeps_differ_in_the_hysteresis_band(model):
     up = continuation_sweep(model, speeds, "up")
     down = continuation_sweep(model, speeds, "down")
     np.testing.assert_array_equal(up.speed_rad_s, speeds)
-    assert up.stable.all() and down.stable.all() and up.converged.all()
+    assert up.stats["stable"].all() and down.stats["stable"].all() and up.converged.all()
     f_s = float(model.static_force_N)
     low, high = (speeds < 650) & (speeds > 600), speeds > 650
     far = speeds == 340.0
@@ -92,10 +92,10 @@ def test_up_and_down_sweeps_differ_in_the_hysteresis_band(model):
     np.testing.assert_allclose(up.max_mesh_force_N[high], down.max_mesh_force_N[high],
                                rtol=1e-6)
     assert np.all(up.max_mesh_force_N > f_s) and np.all(down.max_mesh_force_N > f_s)
-    (jump,) = branch_jumps(up)
+    (jump,) = branch_jumps(up, "up")
     assert (jump["from_rad_s"], jump["to_rad_s"]) == (640.0, 665.0) and jump["restarted"]
     # the down sweep's only jump is the step 615 -> 340 rad/s, off the high branch's end
-    assert [(j["from_rad_s"], j["to_rad_s"]) for j in branch_jumps(down)] == [(615.0, 340.0)]
+    assert [(j["from_rad_s"], j["to_rad_s"]) for j in branch_jumps(down, "down")] == [(615.0, 340.0)]
     assert hysteresis_band(up, down) == [615.0, 640.0]
     for br in (up, down):
         _check_periodic_and_liouville(model, br)
@@ -114,8 +114,8 @@ def test_one_orbit_far_from_resonance_agrees_with_the_sweep(model):
     # the transient's own accuracy (rtol 1e-7, decay 1e-6 of the transient)
     np.testing.assert_allclose(up.max_mesh_force_N, ref.max_mesh_force_N, rtol=1e-5)
     np.testing.assert_allclose(up.dte_ptp_m, ref.dte_ptp_m, rtol=1e-5)
-    assert not up.restarted.any() and not down.restarted.any()
-    assert hysteresis_band(up, down) is None and branch_jumps(up) == []
+    assert not up.stats["restarted"].any() and not down.stats["restarted"].any()
+    assert hysteresis_band(up, down) is None and branch_jumps(up, "up") == []
 
 
 def test_bad_input(model):

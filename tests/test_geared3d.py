@@ -312,7 +312,7 @@ def test_structured_modal_products_equal_dense(rig_te):
     static-correction block (modal damping); with the dense products forced it is the
     same to round-off, for all three formulations; a damping matrix with modal coupling is
     detected and applied dense."""
-    from gearjax.models.geared3d_modal import modal_structure
+    from gearjax.models.geared3d_build import modal_structure
 
     ref = dataclasses.replace(rig_te, formulation="reference")
     y = jnp.asarray(np.random.default_rng(3).normal(size=rig_te.state_size)) * 0.3

@@ -95,12 +95,12 @@ def test_sdof_perturbation_with_nlte_against_closed_form():
     for i, omega in enumerate(speeds):
         f_d, dte = _closed_form_perturbation(model, omega)
         scale = np.max(np.abs(f_d - f_s))
-        assert res.error_estimate[i] < 1e-9 and res.converged[i]
+        assert res.stats["error_estimate"][i] < 1e-9 and res.converged[i]
         assert abs(res.max_mesh_force_N[i] - f_d.max()) < 1e-6 * scale
         assert abs(res.min_mesh_force_N[i] - f_d.min()) < 1e-6 * scale
         assert abs(res.dte_ptp_m[i] / np.ptp(dte) - 1) < 1e-6
-        assert res.contact_holds[i] == (f_d.min() > 0)
-    assert np.all(res.transient_periods == 0) and np.all(res.n_harmonics == 512)
+        assert res.stats["contact_holds"][i] == (f_d.min() > 0)
+    assert np.all(res.transient_periods == 0) and np.all(res.stats["n_harmonics"] == 512)
 
 
 # ---------------------------------------------------------------------- Eq. (20)
@@ -137,13 +137,13 @@ def test_sdof_te_against_exact_orbit(square_wave):
         f_max, f_min = exact_force_extrema(pair, k1, k2, inert, w, f_s)
         assert abs(res.max_mesh_force_N[i] - f_max) < 1e-7 * f_s, w
         assert abs(res.min_mesh_force_N[i] - f_min) < 1e-7 * f_s, w
-        assert res.contact_holds[i] == (f_min > 0.0), w
-    assert not np.all(res.contact_holds)  # 353 and 800 rad/s turn tensile
+        assert res.stats["contact_holds"][i] == (f_min > 0.0), w
+    assert not np.all(res.stats["contact_holds"])  # 353 and 800 rad/s turn tensile
     assert np.all(res.converged)
     period = model.period_rad
     for i in (0, 3):
-        y_end = _one_period(model, speeds[i], res.y0[i], [period])[-1]
-        assert np.max(np.abs(y_end - res.y0[i])) < 1e-8 * np.max(np.abs(res.y0[i]))
+        y_end = _one_period(model, speeds[i], res.stats["y0"][i], [period])[-1]
+        assert np.max(np.abs(y_end - res.stats["y0"][i])) < 1e-8 * np.max(np.abs(res.stats["y0"][i]))
 
 
 def _exact_spectral_radius(pair, k1, k2, inertias, zeta, omega):
@@ -174,7 +174,7 @@ def test_parametric_instability_is_flagged(square_wave):
     rho = [_exact_spectral_radius(pair, k1, k2, inert, 0.02, w) for w in speeds]
     assert rho[0] > 1.05 and rho[1] < 1.0
     np.testing.assert_allclose(res.spectral_radius, rho, rtol=1e-6)
-    np.testing.assert_array_equal(res.stable, [False, True])
+    np.testing.assert_array_equal(res.stats["stable"], [False, True])
     np.testing.assert_array_equal(res.converged, [False, True])
     assert np.all(res.solver_ok) and np.all(np.isfinite(res.max_mesh_force_N))
 
@@ -239,20 +239,20 @@ def test_small_gain_bound_proves_only_what_floquet_confirms(square_wave):
     for z in (ZETA,):  # 0.02: test_parametric_instability_is_flagged
         res = harmonic_sweep(models[z], speeds, rtol=1e-6, harmonics=512,
                              max_harmonics=512)
-        assert np.all(res.small_gain > 1.0)  # the bound cannot decide here
+        assert np.all(res.stats["small_gain"] > 1.0)  # the bound cannot decide here
         exact = [_exact_spectral_radius(pair, k1, k2, inert, z, w) for w in speeds]
         np.testing.assert_allclose(res.spectral_radius, exact, rtol=1e-6)
-        assert np.all(res.stability_known)
+        assert np.all(res.stats["stability_known"])
     heavy = TorsionalModel.build(mesh, ToothModifications.none(), formulation="te",
                                  damping_ratio=0.4, pinion_torque_Nm=TORQUE)
     res = harmonic_sweep(heavy, speeds, rtol=1e-6, harmonics=512, max_harmonics=512)
-    assert np.all(res.small_gain < 0.95) and np.all(res.stable)
+    assert np.all(res.stats["small_gain"] < 0.95) and np.all(res.stats["stable"])
     assert np.all(np.isnan(res.spectral_radius))  # proven: no monodromy integrated
     assert all(_exact_spectral_radius(pair, k1, k2, inert, 0.4, w) < 1.0 for w in speeds)
     pert = TorsionalModel.build(mesh, ToothModifications.none(), formulation="perturbation",
                                 damping_ratio=ZETA, pinion_torque_Nm=TORQUE)
     res = harmonic_sweep(pert, speeds, rtol=1e-6)
-    assert np.all(res.small_gain == 0.0) and np.all(res.stable)
+    assert np.all(res.stats["small_gain"] == 0.0) and np.all(res.stats["stable"])
 
 
 def test_auto_falls_back_to_the_transient_when_the_split_does_not_fit(square_wave, monkeypatch,
@@ -337,8 +337,8 @@ def test_the_orbit_is_measured_as_an_integrated_one(sdof_linear):
                          floquet=False)
     f_s = float(model.static_force_N)
     for i, w in enumerate(speeds):
-        assert res.contact_holds[i]
-        sim = simulate(model, w, n_transient_periods=0, y0=res.y0[i], rtol=1e-12, atol=1e-14)
+        assert res.stats["contact_holds"][i]
+        sim = simulate(model, w, n_transient_periods=0, y0=res.stats["y0"][i], rtol=1e-12, atol=1e-14)
         for f in ("max_mesh_force_N", "min_mesh_force_N"):
             assert abs(float(getattr(sim, f)) - getattr(res, f)[i]) < 2e-8 * f_s, (w, f)
         assert abs(float(sim.dte_ptp_m) / res.dte_ptp_m[i] - 1) < 1e-7

@@ -299,3 +299,14 @@ def test_the_model_interface_signals_no_capability_by_none():
             and isinstance(n.left.func.value, ast.Name) and n.left.func.value.id == "model"
             and any(isinstance(c, ast.Constant) and c.value is None for c in n.comparators)]
     assert not asks, asks
+
+
+def test_one_sweep_result_type():
+    """Every speed sweep returns a :class:`gearjax.dynamics.results.SweepResult` (issue 46):
+    no class subclasses it (a subclass's extra fields would be dropped by ``take`` and
+    ``merge_results``); solver-specific per-speed diagnostics go to its ``stats``."""
+    subclasses = [f"{mod}:{node.lineno} {node.name}" for mod, path in _modules().items()
+                  for node in ast.walk(ast.parse(path.read_text()))
+                  if isinstance(node, ast.ClassDef)
+                  and any(ast.unparse(b).split(".")[-1] == "SweepResult" for b in node.bases)]
+    assert not subclasses, subclasses

@@ -7,7 +7,7 @@ formatting only.
 (:data:`gearjax.dynamics.results.CSV_COLUMNS`) plus :data:`EXTRA_COLUMNS`: ``direction``
 (``up``/``down``), ``orbit`` (``followed``: the orbit the sweep follows at that speed;
 ``unstable``: an unstable periodic orbit the continuation met there, see
-:class:`gearjax.dynamics.continuation.BranchResult`), ``spectral_radius`` (Floquet) and
+:data:`gearjax.dynamics.continuation.BRANCH_STATS`), ``spectral_radius`` (Floquet) and
 ``restarted``. The default ``--direction independent`` (each speed from the quasi-static
 start, as before) writes the default columns only.
 
@@ -64,27 +64,28 @@ def check_direction(args) -> None:
                          "and runs on one process")
 
 
-def _rows(branch) -> list[dict]:
+def _rows(branch, direction: str) -> list[dict]:
     rows = []
     base = csv_rows(branch)
+    st = branch.stats
     for i, r in enumerate(base):
-        rows.append({**r, "direction": branch.direction, "orbit": "followed",
+        rows.append({**r, "direction": direction, "orbit": "followed",
                      "spectral_radius": fmt_value(branch.spectral_radius[i]),
-                     "restarted": str(bool(branch.restarted[i]))})
-        if np.isfinite(branch.unstable_max_mesh_force_N[i]):
+                     "restarted": str(bool(st["restarted"][i]))})
+        if np.isfinite(st["unstable_max_mesh_force_N"][i]):
             rows.append({**{k: "" for k in CSV_COLUMNS}, "speed_rad_s": r["speed_rad_s"],
                          "formulation": r["formulation"],
-                         "max_mesh_force_N": fmt_value(branch.unstable_max_mesh_force_N[i]),
-                         "dte_ptp_m": fmt_value(branch.unstable_dte_ptp_m[i]),
+                         "max_mesh_force_N": fmt_value(st["unstable_max_mesh_force_N"][i]),
+                         "dte_ptp_m": fmt_value(st["unstable_dte_ptp_m"][i]),
                          "contact_loss": "", "converged": "False",
-                         "direction": branch.direction, "orbit": "unstable",
-                         "spectral_radius": fmt_value(branch.unstable_spectral_radius[i]),
+                         "direction": direction, "orbit": "unstable",
+                         "spectral_radius": fmt_value(st["unstable_spectral_radius"][i]),
                          "restarted": "False"})
     return rows
 
 
 def _peak(branch) -> float:
-    f = np.asarray(branch.max_mesh_force_N)[np.asarray(branch.stable, bool)]
+    f = np.asarray(branch.max_mesh_force_N)[np.asarray(branch.stats["stable"], bool)]
     f = f[np.isfinite(f)]
     return float(f.max()) if f.size else float("nan")
 
@@ -110,17 +111,17 @@ def run_branches(model, speeds, direction: str, csv_path: str, progress) -> dict
     branches = {d: continuation_sweep(model, speeds, d, newton_tol=tol, progress=progress)
                 for d in dirs}
     append_rows(csv_path, CSV_COLUMNS + EXTRA_COLUMNS,
-                [row for br in branches.values() for row in _rows(br)])
+                [row for d, br in branches.items() for row in _rows(br, d)])
     out = {"direction": direction, "jump_threshold": JUMP_THRESHOLD,
            "jump_definition": ("neighbouring speeds of one sweep whose max mesh force differs "
                                "by more than jump_threshold times the smaller one")}
     for d, br in branches.items():
         out[f"{d}_sweep"] = {
-            "jumps": branch_jumps(br),
-            "restarted_speeds": [float(w) for w in br.speed_rad_s[br.restarted]],
-            "no_stable_orbit_speeds": [float(w) for w in br.speed_rad_s[~br.stable]],
-            "unstable_orbit_speeds": [float(w) for w in
-                                      br.speed_rad_s[np.isfinite(br.unstable_max_mesh_force_N)]],
+            "jumps": branch_jumps(br, d),
+            "restarted_speeds": [float(w) for w in br.speed_rad_s[br.stats["restarted"]]],
+            "no_stable_orbit_speeds": [float(w) for w in br.speed_rad_s[~br.stats["stable"]]],
+            "unstable_orbit_speeds": [float(w) for w in br.speed_rad_s[
+                np.isfinite(br.stats["unstable_max_mesh_force_N"])]],
             "peak_max_mesh_force_N": _peak(br),
         }
     jumps = [j for d in dirs for j in out[f"{d}_sweep"]["jumps"]]
@@ -147,13 +148,13 @@ def _metrics(m: dict) -> dict:
 def traced_rows(res) -> list[dict]:
     """``branches.csv`` rows (:data:`BRANCH_COLUMNS`) of a
     :class:`~gearjax.dynamics.bifurcation.TracedBranches` (module docstring)."""
-    base = csv_rows(res)
+    base = csv_rows(res.points)
     rows = []
     kinds = {b.index for b in res.bifurcations}
     for i, r in enumerate(base):
         mu = complex(res.multipliers[i][0])
         row = {**r, "stable": str(bool(res.stable[i])), "branch": str(int(res.branch[i])),
-               "floquet_radius": fmt_value(res.spectral_radius[i]),
+               "floquet_radius": fmt_value(res.points.spectral_radius[i]),
                "multiplier_re": fmt_value(mu.real), "multiplier_im": fmt_value(mu.imag),
                "point": str(res.point[i]), "segment": str(int(res.segment[i]))}
         rows.append(row)
@@ -175,13 +176,13 @@ def traced_summary(res, path: str) -> dict:
     branches = []
     for b, ok in stable.items():
         sel = res.branch_indices(b)
-        w = res.speed_rad_s[sel]
+        w = res.points.speed_rad_s[sel]
         branches.append({"branch": b, "stable": ok, "speed_min_rad_s": float(w.min()),
                          "speed_max_rad_s": float(w.max()), "n_points": int(sel.size),
-                         "max_mesh_force_N": _num(np.nanmax(res.max_mesh_force_N[sel]))})
+                         "max_mesh_force_N": _num(np.nanmax(res.points.max_mesh_force_N[sel]))})
     return {
         "method": "pseudo-arclength continuation of the shooting residual in speed",
-        "branches_csv": path, "n_points": int(res.speed_rad_s.size),
+        "branches_csv": path, "n_points": int(res.points.speed_rad_s.size),
         "speed_scale_rad_s": res.speed_scale_rad_s,
         "folds": [bif(b) for b in res.folds()],
         "bifurcations": [bif(b) for b in res.bifurcations],
@@ -196,7 +197,7 @@ def traced_summary(res, path: str) -> dict:
         "jump_up_rad_s": res.jump_up_rad_s(), "jump_down_rad_s": res.jump_down_rad_s(),
         "coexistence_rad_s": res.coexistence_rad_s(),
         "branches": branches,
-        "stopped_rad_s": [float(w) for w in res.speed_rad_s[res.point == "stop"]],
+        "stopped_rad_s": [float(w) for w in res.points.speed_rad_s[res.point == "stop"]],
     }
 
 

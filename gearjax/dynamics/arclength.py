@@ -60,7 +60,7 @@ from .corrector import (CorrectorOptions, chord, correct, linearise, measure, se
 from .steady import shooting_solver
 from .orbit import metric_status
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
-from .results import FLAG_FIELDS, METRIC_FIELDS, empty_metrics
+from .results import FLAG_FIELDS, METRIC_FIELDS, SweepResult, empty_metrics
 from .stability import check_speeds
 
 __all__ = ["Arclength", "trace_speed", "CHORD_MIN_STATES"]
@@ -606,9 +606,10 @@ def _result(model, tr: _Tracer, jumps, scale) -> TracedBranches:
             landed_branch=landed, landed_periodic=q is not None, index=j,
             metrics_after=after))
     return TracedBranches(
-        **out, formulation=model.formulation, solver=np.full(n_pts, "arclength"),
+        points=SweepResult(**out, formulation=model.formulation,
+                           solver=np.full(n_pts, "arclength"), spectral_radius=rho,
+                           status=status),
         stable=stable, branch=branch, segment=np.array([p.segment for p in pts]),
-        spectral_radius=rho, status=status,
         multipliers=np.stack([p.mu for p in pts]),
         tangent_speed=np.array([float(p.tangent[-1]) for p in pts]),
         point=np.array([p.point for p in pts]),

@@ -181,15 +181,17 @@ class Jump(eqx.Module):
         return bool(self.max_mesh_force_after_N > self.max_mesh_force_before_N)
 
 
-class TracedBranches(SweepResult):
+class TracedBranches(eqx.Module):
     """Curves of periodic orbits traced in speed by pseudo-arclength continuation
-    (:func:`gearjax.dynamics.arclength.trace_speed`): the
-    :class:`~gearjax.dynamics.results.SweepResult` fields per point, in the order traced
-    along each segment (speeds repeat where the curve folds back; metrics of each orbit
-    measured as :func:`gearjax.dynamics.steady.steady_state` measures one), plus
+    (:func:`gearjax.dynamics.arclength.trace_speed`), point by point in the order traced
+    along each segment (speeds repeat where the curve folds back).
 
     Attributes
     ----------
+    points : the :class:`~gearjax.dynamics.results.SweepResult` of the points (metrics of
+        each orbit measured as :func:`gearjax.dynamics.steady.steady_state` measures one;
+        ``spectral_radius`` the Floquet radius, max |multiplier|, ``status`` ``unstable``
+        where it is >= 1; ``solver`` ``"arclength"``).
     stable : every Floquet multiplier inside the unit circle (False at a located
         bifurcation: a multiplier on the circle).
     branch : branch id: a branch is a run of points between bifurcations (or changes of
@@ -198,9 +200,6 @@ class TracedBranches(SweepResult):
     segment : the traced segment (0: from the quasi-static start at the lowest speed;
         later ones from the orbits a jump landed on, or the highest speed's, where these
         were not on a traced segment).
-    spectral_radius : the Floquet radius, max |multiplier| (the
-        :class:`~gearjax.dynamics.results.SweepResult` field; ``status`` says ``unstable``
-        where it is >= 1).
     multipliers : (n_points, n) complex Floquet multipliers by decreasing modulus.
     tangent_speed : speed component of the unit tangent ``(dy, dOmega / speed_scale)``
         oriented along the segment (its sign changes at a fold).
@@ -216,6 +215,7 @@ class TracedBranches(SweepResult):
     speed_scale_rad_s : the speed scale of the arclength norm (rad/s).
     """
 
+    points: SweepResult
     stable: np.ndarray
     branch: np.ndarray
     segment: np.ndarray
@@ -259,7 +259,7 @@ class TracedBranches(SweepResult):
         spans = []
         for b, ok in self.branch_stable().items():
             if ok:
-                w = self.speed_rad_s[self.branch_indices(b)]
+                w = self.points.speed_rad_s[self.branch_indices(b)]
                 spans.append((float(w.min()), float(w.max())))
         return coexistence(spans)
 
@@ -273,7 +273,7 @@ class TracedBranches(SweepResult):
 
     def point_metrics(self, i: int) -> dict:
         """The metrics of point ``i`` as a dict of floats (SI units)."""
-        return metrics_dict(self, i)
+        return metrics_dict(self.points, i)
 
 
 def metrics_dict(res, i: int) -> dict:

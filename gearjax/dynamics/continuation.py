@@ -45,7 +45,6 @@ from __future__ import annotations
 import math
 import time
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -58,43 +57,28 @@ from .orbit import metric_status
 from .results import FLAG_FIELDS, METRIC_FIELDS, SweepResult, empty_metrics
 from .stability import check_speeds
 
-__all__ = ["continuation_sweep", "BranchResult", "branch_jumps", "hysteresis_band",
+__all__ = ["continuation_sweep", "BRANCH_STATS", "branch_jumps", "hysteresis_band",
            "forces_differ", "DIRECTIONS", "JUMP_THRESHOLD"]
 
 DIRECTIONS = ("up", "down")
 JUMP_THRESHOLD = 0.2  # relative change of the max mesh force between neighbours (see above)
 
 
-class BranchResult(SweepResult):
-    """One branch followed by :func:`continuation_sweep`: the
-    :class:`~gearjax.dynamics.results.SweepResult` fields of the orbit followed at each
-    speed (caller's order; metrics measured over two periods from ``y0``, as
-    :func:`gearjax.dynamics.steady.steady_state`), plus
+BRANCH_STATS = ("stable", "restarted", "newton_iterations", "y0",
+                "unstable_max_mesh_force_N", "unstable_dte_ptp_m", "unstable_spectral_radius",
+                "unstable_y0")
+"""The ``stats`` of a :func:`continuation_sweep` result (one branch), per speed:
 
-    Attributes
-    ----------
-    direction : ``"up"`` or ``"down"`` (the order the speeds were visited).
-    spectral_radius : max |Floquet multiplier| of the followed orbit (< 1: stable).
-    stable : ``spectral_radius < 1`` and the Newton shooting converged.
-    restarted : the Newton from the neighbour's orbit found no stable orbit, so a transient
-        from it settled first (a jump, or the first speed without a quasi-static orbit).
-    newton_iterations : shooting steps of the last Newton solve.
-    y0 : (n_speeds, n) periodic start at theta = 0 (model's dimensionless state).
-    unstable_max_mesh_force_N, unstable_dte_ptp_m, unstable_spectral_radius : an unstable
-        periodic orbit the Newton from the neighbour converged onto before the restart
-        (NaN where none was found; only orbits met this way are found).
-    unstable_y0 : (n_speeds, n) its start (NaN where none).
-    """
-
-    stable: np.ndarray
-    restarted: np.ndarray
-    newton_iterations: np.ndarray
-    y0: np.ndarray
-    unstable_max_mesh_force_N: np.ndarray
-    unstable_dte_ptp_m: np.ndarray
-    unstable_spectral_radius: np.ndarray
-    unstable_y0: np.ndarray
-    direction: str = eqx.field(static=True)
+stable : ``spectral_radius < 1`` and the Newton shooting converged.
+restarted : the Newton from the neighbour's orbit found no stable orbit, so a transient
+    from it settled first (a jump, or the first speed without a quasi-static orbit).
+newton_iterations : shooting steps of the last Newton solve.
+y0 : (n_speeds, n) periodic start at theta = 0 (model's dimensionless state).
+unstable_max_mesh_force_N, unstable_dte_ptp_m, unstable_spectral_radius : an unstable
+    periodic orbit the Newton from the neighbour converged onto before the restart (NaN
+    where none was found; only orbits met this way are found).
+unstable_y0 : (n_speeds, n) its start (NaN where none).
+"""
 
 
 def _orbit(model, omega, y_start, options: CorrectorOptions, convergence_tol: float):
@@ -119,7 +103,7 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
                        newton_tol: float = 1e-10, convergence_tol: float = 1e-3,
                        transient_decay: float = 1e-6, min_transient_mesh_periods: int = 8,
                        max_transient_mesh_periods: int = 400,
-                       progress: AbstractProgressMeter = NoProgressMeter()) -> BranchResult:
+                       progress: AbstractProgressMeter = NoProgressMeter()) -> SweepResult:
     """Follow the periodic orbit over ``speeds_rad_s`` (rad/s) in ``direction`` (``"up"``:
     increasing speed, ``"down"``: decreasing), each speed's Newton shooting started from
     its neighbour's orbit (module docstring: restarts, stability, the unstable orbits).
@@ -142,7 +126,10 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
 
     Returns
     -------
-    BranchResult (caller's order).
+    The :class:`~gearjax.dynamics.results.SweepResult` of the orbit followed at each speed
+    (caller's order; metrics measured over two periods from ``y0``, as
+    :func:`gearjax.dynamics.steady.steady_state`; ``spectral_radius`` the followed orbit's
+    max |Floquet multiplier|), its ``stats`` :data:`BRANCH_STATS`.
     """
     if direction not in DIRECTIONS:
         raise SimulationError("direction", direction, f"must be one of {', '.join(DIRECTIONS)}")
@@ -200,11 +187,12 @@ def continuation_sweep(model, speeds_rad_s, direction: str = "up", *, max_newton
     out["converged"] = out["converged"] & stable
     out["n_steps"] = np.nan_to_num(out["n_steps"]).astype(np.int64)
     extra["newton_iterations"] = np.nan_to_num(extra["newton_iterations"]).astype(np.int64)
-    return BranchResult(**out, formulation=model.formulation, direction=direction,
-                        stable=stable, restarted=restarted, y0=y0s, unstable_y0=uy0s,
-                        solver=np.full(n, "continuation"),
-                        status=metric_status(out["solver_ok"], out["converged"],
-                                             extra["spectral_radius"]), **extra)
+    rho = extra.pop("spectral_radius")
+    return SweepResult(**out, formulation=model.formulation, solver=np.full(n, "continuation"),
+                       spectral_radius=rho,
+                       status=metric_status(out["solver_ok"], out["converged"], rho),
+                       stats=dict(stable=stable, restarted=restarted, y0=y0s, unstable_y0=uy0s,
+                                  **extra))
 
 
 def forces_differ(f_a, f_b, threshold: float = JUMP_THRESHOLD):
@@ -213,9 +201,10 @@ def forces_differ(f_a, f_b, threshold: float = JUMP_THRESHOLD):
     return np.abs(np.asarray(f_b) - np.asarray(f_a)) > threshold * np.minimum(f_a, f_b)
 
 
-def branch_jumps(branch: BranchResult, threshold: float = JUMP_THRESHOLD) -> list[dict]:
-    """Jumps of one branch, in the order the sweep met them: neighbouring speeds (in the
-    sweep's direction) where the max mesh force changes by more than ``threshold`` times
+def branch_jumps(branch: SweepResult, direction: str,
+                 threshold: float = JUMP_THRESHOLD) -> list[dict]:
+    """Jumps of one branch (a :func:`continuation_sweep` result), in the order the sweep in
+    ``direction`` met them: neighbouring speeds (in that direction) where the max mesh force changes by more than ``threshold`` times
     the smaller of the two (module docstring). Each jump: ``from_rad_s``, ``to_rad_s``,
     ``max_mesh_force_before_N``, ``max_mesh_force_after_N``, ``restarted``."""
     if not (math.isfinite(threshold) and threshold > 0):
@@ -223,7 +212,9 @@ def branch_jumps(branch: BranchResult, threshold: float = JUMP_THRESHOLD) -> lis
     w = np.asarray(branch.speed_rad_s, dtype=float)
     f = np.asarray(branch.max_mesh_force_N, dtype=float)
     order = np.argsort(w, kind="stable")
-    if branch.direction == "down":
+    if direction not in DIRECTIONS:
+        raise SimulationError("direction", direction, f"must be one of {', '.join(DIRECTIONS)}")
+    if direction == "down":
         order = order[::-1]
     jumps = []
     for a, b in zip(order[:-1], order[1:]):
@@ -234,11 +225,11 @@ def branch_jumps(branch: BranchResult, threshold: float = JUMP_THRESHOLD) -> lis
             jumps.append({"from_rad_s": float(w[a]), "to_rad_s": float(w[b]),
                           "max_mesh_force_before_N": float(fa),
                           "max_mesh_force_after_N": float(fb),
-                          "restarted": bool(branch.restarted[b])})
+                          "restarted": bool(branch.stats["restarted"][b])})
     return jumps
 
 
-def hysteresis_band(up: BranchResult, down: BranchResult,
+def hysteresis_band(up: SweepResult, down: SweepResult,
                     threshold: float = JUMP_THRESHOLD) -> list[float] | None:
     """``[lowest, highest]`` speed (rad/s) at which the up and the down sweeps both hold a
     stable orbit and their max mesh forces differ by more than ``threshold`` times the
@@ -251,7 +242,7 @@ def hysteresis_band(up: BranchResult, down: BranchResult,
                               "the up and down sweeps must cover the same speeds")
     fu = np.asarray(up.max_mesh_force_N, float)[iu]
     fd = np.asarray(down.max_mesh_force_N, float)[idn]
-    both = np.asarray(up.stable, bool)[iu] & np.asarray(down.stable, bool)[idn]
+    both = np.asarray(up.stats["stable"], bool)[iu] & np.asarray(down.stats["stable"], bool)[idn]
     differ = both & forces_differ(fu, fd, threshold)
     if not differ.any():
         return None

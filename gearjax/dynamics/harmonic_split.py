@@ -1,5 +1,5 @@
 """The linear split of the te/perturbation equations that the frequency-domain solver
-(:mod:`gearjax.dynamics.harmonic`) solves, read once per model, sampled for the balance.
+(:mod:`gearjax.dynamics.harmonic`) solves, read once per model and sampled for it.
 
 While the mesh force stays compressive, Eq. (42) (sdof Eq. (20)) and Eq. (48a) (sdof
 Eq. (47a)) are, in the angle ``theta = Omega1 t`` (rad)::

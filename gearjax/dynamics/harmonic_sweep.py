@@ -4,8 +4,9 @@
 program with the number of harmonics that the model's top mode and the tolerance ask for
 (:func:`gearjax.dynamics.harmonic.harmonics_for`), then proves stability by the small-gain
 bound (:mod:`gearjax.dynamics.small_gain`) or the Floquet radius of the monodromy
-(:func:`gearjax.dynamics.stability.monodromy`); :class:`HarmonicSweepResult` is its
-:class:`gearjax.dynamics.results.SweepResult`. How the speeds of the program are batched:
+(:func:`gearjax.dynamics.stability.monodromy`); its
+:class:`gearjax.dynamics.results.SweepResult` carries the solver's diagnostics in ``stats``
+(:data:`HARMONIC_STATS`). How the speeds of the program are batched:
 :func:`gearjax.dynamics.batching.frequency_domain_sequential`."""
 
 from __future__ import annotations
@@ -31,39 +32,24 @@ from .solvers import AbstractPeriodicSolver, SweepRun
 from .small_gain import SMALL_GAIN_MARGIN
 from .stability import check_speeds, monodromy, spectral_radius_of
 
-__all__ = ["harmonic_sweep", "HarmonicSweepResult", "HarmonicBalance",
+__all__ = ["harmonic_sweep", "HARMONIC_STATS", "HarmonicBalance",
            "HARMONIC_FLOQUET_MAX_STATES"]
 
 
-class HarmonicSweepResult(SweepResult):
-    """:class:`gearjax.dynamics.results.SweepResult` of :func:`harmonic_sweep` (same
-    meaning per field; ``convergence`` is ``error_estimate``, ``contact_loss`` is ``not
-    contact_holds``, ``back_contact`` is False (where contact holds no back flank is
-    reached; the other speeds are not this solver's), ``n_steps`` and
-    ``transient_periods`` are 0: nothing is integrated),
-    with per speed:
+HARMONIC_STATS = ("n_harmonics", "error_estimate", "contact_holds", "stable",
+                  "stability_known", "small_gain", "y0")
+"""The ``stats`` of a :func:`harmonic_sweep` result, per speed:
 
-    n_harmonics : harmonics used (those of :func:`~gearjax.dynamics.harmonic.harmonics_for`,
-        or more where the estimate did not meet ``rtol``).
-    error_estimate : see :class:`HarmonicResult`.
-    contact_holds : the linear mesh force stays compressive over the period (else the
-        orbit is not the model's: fall back to shooting / transient).
-    small_gain : the small-gain bound (:mod:`gearjax.dynamics.small_gain`); below 0.95 the
-        orbit is proven stable without a monodromy.
-    spectral_radius : Floquet radius (NaN where not computed: proven by the bound, or
-        ``floquet=False``); a field of every sweep result.
-    stable, stability_known : proven stable (bound) or ``spectral_radius < 1``; whether
-        either was established (False only with ``floquet=False``).
-    y0 : (n_speeds, n) periodic state at theta = 0 (a start for ``simulate(y0=...)``).
-    """
-
-    n_harmonics: np.ndarray
-    error_estimate: np.ndarray
-    contact_holds: np.ndarray
-    stable: np.ndarray
-    stability_known: np.ndarray
-    small_gain: np.ndarray
-    y0: np.ndarray
+n_harmonics : harmonics used (those of :func:`~gearjax.dynamics.harmonic.harmonics_for`,
+    or more where the estimate did not meet ``rtol``).
+error_estimate : see :class:`~gearjax.dynamics.harmonic.HarmonicResult`.
+contact_holds : the linear mesh force stays compressive over the period (else the orbit is
+    not the model's: fall back to shooting / transient).
+stable, stability_known : proven stable (small-gain bound below 0.95, or ``spectral_radius
+    < 1``); whether either was established (False only with ``floquet=False``).
+small_gain : the small-gain bound (:mod:`gearjax.dynamics.small_gain`).
+y0 : (n_speeds, n) periodic state at theta = 0 (a start for ``simulate(y0=...)``).
+"""
 
 
 _FIELDS = ("max_mesh_force_N", "min_mesh_force_N", "dynamic_factor", "dte_ptp_m",
@@ -117,11 +103,16 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
                    floquet: bool = True, samples_per_mesh_period: int = 128,
                    n_refine: int = N_REFINE,
                    progress: AbstractProgressMeter = NoProgressMeter(),
-                   rank_one_tol: float | None = None, devices=None) -> HarmonicSweepResult:
+                   rank_one_tol: float | None = None, devices=None) -> SweepResult:
     """Steady state of a linear formulation (te, perturbation; sdof or 3D) over pinion
     speeds (rad/s) in the frequency domain (module docstring): one plan of the model
     (:func:`~gearjax.dynamics.harmonic_split.harmonic_plan`, at the median speed), one
-    compiled program for every speed.
+    compiled program for every speed. Returns a
+    :class:`~gearjax.dynamics.results.SweepResult` (``convergence`` is the error estimate,
+    ``contact_loss`` is ``not contact_holds``, ``back_contact`` False: where contact holds
+    no back flank is reached, ``n_steps`` and ``transient_periods`` 0: nothing is
+    integrated; ``spectral_radius`` NaN where the bound proved stability or ``floquet`` is
+    False) whose ``stats`` are :data:`HARMONIC_STATS`.
 
     ``harmonics``: the number ``H`` of harmonics (a power of two >= 8; None:
     :func:`~gearjax.dynamics.harmonic.harmonics_for` the speeds and ``rtol``). The speeds
@@ -225,7 +216,7 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
     holds = out["contact_holds"] > 0
     zero = np.zeros(speeds.size)
     conv = ok & (out["error_estimate"] <= rtol) & (stable | ~known)
-    return HarmonicSweepResult(
+    return SweepResult(
         speed_rad_s=speeds, max_mesh_force_N=out["max_mesh_force_N"],
         min_mesh_force_N=out["min_mesh_force_N"], dynamic_factor=out["dynamic_factor"],
         dte_ptp_m=out["dte_ptp_m"], accel_ptp_m_s2=out["accel_ptp_m_s2"],
@@ -233,10 +224,12 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
         convergence=out["error_estimate"],
         converged=conv, period_multiple=np.where(conv, 1, 0), solver_ok=ok,
         n_steps=zero.astype(np.int64), transient_periods=zero, formulation=model.formulation,
-        n_harmonics=n_used, error_estimate=out["error_estimate"], contact_holds=holds,
-        spectral_radius=rho, stable=stable, stability_known=known,
+        spectral_radius=rho,
         status=_status(ok, holds, known & ~stable, out["error_estimate"] <= rtol),
-        small_gain=out["small_gain"], y0=out["y0"], mesh_force_orders_N=out["mesh_orders"][:, 0],
+        stats=dict(n_harmonics=n_used, error_estimate=out["error_estimate"],
+                   contact_holds=holds, stable=stable, stability_known=known,
+                   small_gain=out["small_gain"], y0=out["y0"]),
+        mesh_force_orders_N=out["mesh_orders"][:, 0],
         dte_orders_m=out["mesh_orders"][:, 1], accel_orders_m_s2=out["mesh_orders"][:, 2],
         solver=np.full(speeds.size, "harmonic"))
 
@@ -276,10 +269,11 @@ class HarmonicBalance(AbstractPeriodicSolver):
     rank_one_tol: float | None = None
 
     def solved(self, result: SweepResult) -> np.ndarray:
-        return np.asarray(result.converged, dtype=bool) & np.asarray(result.contact_holds) \
-            & np.asarray(result.stable) & np.asarray(result.stability_known)
+        st = result.stats
+        return np.asarray(result.converged, dtype=bool) & np.asarray(st["contact_holds"]) \
+            & np.asarray(st["stable"]) & np.asarray(st["stability_known"])
 
-    def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> HarmonicSweepResult:
+    def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> SweepResult:
         if jax.process_count() > 1:
             raise SimulationError("devices", run.devices, "the frequency domain runs in one "
                                   "process; use Transient() to share speeds over hosts")

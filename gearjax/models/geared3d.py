@@ -46,7 +46,9 @@ GearedStructure.inertial_vector`) plus the eccentricity parts ``E~``, ``F~``, ``
 compiled; without NLTE terms (``nlte_terms=False``, or NLTE identically zero) E and F are
 not compiled and ``TE_S - NLTE`` becomes ``TE_S``; ``nlte_inertia=False`` (Section 6.3.2,
 "NLTE'' set at zero") drops the E and F terms alone, with no substitution (``u = q'``).
-Helpers: :mod:`gearjax.models.geared3d_inertial`.
+``E_0`` is projected once at build (``e_r = T^T E_0``); the eccentricity parts act at the
+12 element dofs; ``G~`` (the unbalance of eccentric bodies, no NLTE in it) stays whenever
+there is an eccentricity.
 
 NLTE'' without differentiating a kinked function: with ``u = q' + NLTE' e(theta)`` (``q``
 modal coordinates, ``M_r = I``, ``e = T^T E``) the equations are integrated as
@@ -98,7 +100,8 @@ from ..errors import ModelError
 from ..linalg import solve as dense_solve
 from ..excitation.events import NEWTON_STEPS
 from ..excitation.jumps import JumpSet
-from ..excitation.mesh3d import QuasiStaticMesh3D, tabulate
+from ..excitation.mesh3d import (QuasiStaticMesh3D, fourier_coefficients, harmonic_response,
+                                 tabulate)
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
@@ -112,8 +115,6 @@ from .base import (FORMULATIONS, LINEAR_FORMULATIONS, AbstractModalModel, ModelO
                    modal_periodic_estimate,
                    modal_transient_amplitudes, modal_transient_start)
 from .geared3d_build import EXCITATIONS, MESH_VECTORS, build_geared3d
-from .geared3d_inertial import inertial_vectors, nlte_derivatives
-from .geared3d_modal import damping_product, harmonic_modal_state, stiffness_product
 from .cutoff import (CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS,  # re-exported
                      default_max_frequency_hz)
 
@@ -154,8 +155,9 @@ class Geared3DModel(AbstractModalModel):
         (static; ``CELLS``: the table also holds the 12 element dofs of X_S).
 
     Static attributes: formulation, mesh_vectors, nlte_terms, nlte_inertia, n_modes, n_static,
-    diagonal_stiffness and damping_split (:func:`modal_structure`: ``kbar_r`` is applied as
-    its diagonal, ``c_r`` as its diagonal on the first ``damping_split`` coordinates and a
+    diagonal_stiffness and damping_split
+    (:func:`~gearjax.models.geared3d_build.modal_structure`: ``kbar_r`` is applied as its
+    diagonal, ``c_r`` as its diagonal on the first ``damping_split`` coordinates and a
     dense block on the rest),
     period_rad, decay_omega_rad_s (slowest mode with a mesh participation
     above ``participation_tol``), qs_max_iter, table_origin, table_cells,
@@ -400,11 +402,58 @@ class Geared3DModel(AbstractModalModel):
         """``NLTE'' E + NLTE' F`` are in the equations (``nlte_terms`` and ``nlte_inertia``)."""
         return self.nlte_terms and self.nlte_inertia
 
-    def _inertial(self, theta):  # (e, e', f, g) in modal coordinates, None when absent
-        return inertial_vectors(self, theta)
+    def _inertial(self, theta):
+        """``(e, e', f, g)`` (r,) in modal coordinates at the pinion angle ``theta`` (rad):
+        ``T^T E``, its theta-derivative, ``T^T F~`` and ``T^T G~``; None for the terms that
+        are absent (no eccentricity, or no NLTE inertial terms)."""
+        use_e = self.nlte_inertial_terms
+        if self.ecc is None:
+            return ((self.e_r, jnp.zeros_like(self.e_r)) if use_e else (None, None)) + (None, None)
+        tl = self.t_local.T
+        rb1, rb2 = self.mesh.pair.base_radii_m
+        _, f_loc, g_loc = self.ecc.local_vectors(theta, rb1, rb2)
+        if not use_e:
+            return None, None, None, tl @ g_loc
+        e, ep = jax.jvp(lambda t: self.e_r + tl @ self.ecc.local_vectors(t, rb1, rb2)[0],
+                        (theta,), (jnp.ones_like(theta),))
+        return e, ep, tl @ f_loc, tl @ g_loc
 
-    def _nlte_derivs(self, s, order: int = 1):  # NLTE and its theta-derivatives at s
-        return nlte_derivatives(self, s, order)
+    def _nlte_derivs(self, s, order: int = 1):
+        """NLTE (m) and its derivatives with respect to theta (``order`` 1 or 2) at the
+        simulation angle ``s`` (chain rule through the angle map: d/dtheta = (d/ds) /
+        phi'): from the excitation table (exact at the kinks, which are knots) or the exact
+        :func:`gearjax.gears.quasistatic.contact_gaps`."""
+        if self.table is not None:
+            f = lambda t: self.table(t)[0][2]  # noqa: E731
+        else:
+            f = lambda t: contact_gaps(self.mesh, self.mods, t)[2]  # noqa: E731
+
+        def d1(t):
+            n0, n1 = jax.jvp(f, (t,), (jnp.ones_like(t),))
+            dth = self.angle(t)[1]
+            return n0, (n1 if dth is None else n1 / dth)
+
+        if order == 1:
+            return d1(s)
+        (n0, n1), (_, n2) = jax.jvp(d1, (s,), (jnp.ones_like(s),))
+        dth = self.angle(s)[1]
+        return n0, n1, (n2 if dth is None else n2 / dth)
+
+    def _stiffness_product(self, z):
+        """``kbar_r @ z`` (modal coordinates), as the diagonal product where
+        :attr:`diagonal_stiffness` (the two dense products took most of a step)."""
+        if self.diagonal_stiffness:
+            return jnp.diagonal(self.kbar_r) * z
+        return self.kbar_r @ z
+
+    def _damping_product(self, qp):
+        """``c_r @ qp``: diagonal on the first :attr:`damping_split` (modal) coordinates,
+        dense on the static-correction block after them (0: dense everywhere)."""
+        p = self.damping_split
+        if p == 0:
+            return self.c_r @ qp
+        head = jnp.diagonal(self.c_r)[:p] * qp[:p]
+        return jnp.concatenate([head, self.c_r[p:, p:] @ qp[p:]])
 
     # ------------------------------------------------------------------ dynamics
     def _unscale(self, y, omega):
@@ -432,7 +481,7 @@ class Geared3DModel(AbstractModalModel):
                 b_loc, b_load = self._back_flanks(s, x_loc, nlte, qsm)
                 f_loc, f_d = f_loc + b_loc, f_d - b_load
             # K q - F0 = K_bar z - k_m V (V^T q) + k_m v_x0 V ... with K_bar q0 = F0
-            force = (stiffness_product(self, z) - self.k_m * self.v_r * (self.v_r @ q)
+            force = (self._stiffness_product(z) - self.k_m * self.v_r * (self.v_r @ q)
                      + self.t_local.T @ f_loc)
             return force, f_d
         d, k = self._excitation(s)
@@ -448,7 +497,7 @@ class Geared3DModel(AbstractModalModel):
         elif self.formulation == "perturbation":
             k_eq = self.k_m
         f_eq = k_eq * v_q - k_eq * self.cos_bb * d - (k_eq - self.k_m) * f_s / self.k_m
-        force = stiffness_product(self, z) + (f_eq - self.k_m * v_q) * self.v_r
+        force = self._stiffness_product(z) + (f_eq - self.k_m * v_q) * self.v_r
         if not contact:
             return force, f_d
         if self.cell_contact:  # each cell's quasi-static approach V(M_i)^T X_S - de_i
@@ -495,7 +544,7 @@ class Geared3DModel(AbstractModalModel):
         else:
             qp = u
         force, _ = self._elastic(s, q, contact)
-        up = -(force + omega * damping_product(self, qp)) / omega**2
+        up = -(force + omega * self._damping_product(qp)) / omega**2
         if e is not None:
             up = up + nl1 * ep
             if f is not None:
@@ -548,14 +597,23 @@ class Geared3DModel(AbstractModalModel):
         frequency domain while contact holds: without NLTE inertial and eccentricity terms Eq.
         (48a) has *constant* coefficients and the forcing ``k_m cos(b_b) d(theta) V``, ``d =
         TE_S - NLTE - w_x0`` (``TE_S - w_x0`` without NLTE), so each harmonic answers alone
-        (:func:`~gearjax.models.geared3d_modal.harmonic_modal_state`; ``n_harmonics``
-        kept, default 128 per mesh period: ``d_h = O(h^-2)``, ``z_h = O(h^-4)``)."""
+        by the modal receptance (:func:`~gearjax.excitation.mesh3d.harmonic_response`;
+        ``d`` sampled 8x finer than the table knots against the aliasing of a kinked signal,
+        ``n_harmonics`` kept, default 128 per mesh period: ``d_h = O(h^-2)``, ``z_h =
+        O(h^-4)``)."""
         if not self._constant_coefficients:
             raise ModelError("formulation", self.formulation,
                              "harmonic_state needs the perturbation formulation without NLTE "
                              "or eccentricity terms and with the excitation table")
-        return harmonic_modal_state(self, lambda t: self._excitation(t)[0], omega, theta0,
-                                    n_harmonics)
+        n_mesh = max(1, round(self.period_rad / self.mesh_period_rad))
+        n_h = 128 * n_mesh if n_harmonics is None else int(n_harmonics)
+        c = fourier_coefficients(lambda t: self._excitation(t)[0], self.table_origin,
+                                 self.period_rad, 8 * max(self.table_cells, 2 * n_h + 2), n_h,
+                                 theta0)
+        z, zp = harmonic_response(self.kbar_r, self.c_r, self.v_r, self.k_m * self.cos_bb * c,
+                                  self.period_rad, omega)
+        rr = self.omega_r / omega
+        return jnp.concatenate([z / self.scale_a, zp / (rr * self.scale_a)])
 
     def initial_state(self, omega, theta0=0.0):
         """Scaled state at ``theta0``: :meth:`harmonic_state` when :attr:`periodic_start`,

@@ -27,7 +27,30 @@ from ..structure.condensation import Condensation, quasi_static_3d
 from ..structure.geared import Eccentricity, disc_mass, geared_structure
 from .base import FORMULATIONS
 from .geared3d_excitation import file_mean_stiffness, own_table_fields, te_file_fields
-from .geared3d_modal import modal_structure
+
+
+def modal_structure(kbar_r, c_r, n_modes: int, tol: float = 1e-6) -> dict:
+    """How the vector field may apply the reduced matrices (static fields of
+    :class:`Geared3DModel`): ``diagonal_stiffness`` when every off-diagonal entry of
+    ``kbar_r`` is below ``tol`` of the geometric mean of its two diagonal entries (the modes
+    of ``(M, K_bar)``, static corrections orthogonalised: round-off, ~1e-8 for the slowest
+    mode of the Baud-Velex rig); ``damping_split = n_modes`` when ``c_r`` passes the same
+    test except on its trailing static-correction block (modal damping), else 0 (dense). A
+    step of the 3D rig (146 coordinates) spent most of its time in these two dense
+    products (``benchmarks/results/code_notes.md``, section gearjax.models.geared3d_modal,
+    and ``modal_products.md`` there)."""
+    k, c = np.asarray(kbar_r, dtype=float), np.asarray(c_r, dtype=float)
+
+    def diagonal(a):  # off-diagonal entries small against sqrt(a_ii a_jj)
+        d = np.sqrt(np.abs(np.diag(a)))
+        off = np.abs(a - np.diag(np.diag(a)))
+        return bool(np.all(off <= tol * np.outer(d, d)))
+
+    p = int(n_modes)
+    head = np.array(c, copy=True)
+    head[p:, p:] = np.diag(np.diag(c)[p:])  # the static-correction block may be dense
+    split = p if 0 < p <= c.shape[0] and diagonal(head) else 0
+    return {"diagonal_stiffness": diagonal(k), "damping_split": split}
 
 
 @eqx.filter_jit
