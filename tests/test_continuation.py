@@ -44,12 +44,17 @@ def model():
                        formulation="reference", damping_ratio=0.03)
 
 
-@eqx.filter_jit
 def _period_map(model, omega, y0):
-    """y(P) from y(0) = y0 by a plain diffrax solve (jumps of k(theta) as jump_ts)."""
+    """y(P) from y(0) = y0 by a plain diffrax solve (jumps of k(theta) as jump_ts); the
+    model's jump angles read on the host (its jump set is data in the program)."""
     p = float(model.period_rad)
     jumps = np.asarray(model.jump_thetas, dtype=float)
-    jumps = jumps[(jumps > 0) & (jumps < p)]
+    return _period_map_jit(model, omega, y0, jnp.asarray(jumps[(jumps > 0) & (jumps < p)]))
+
+
+@eqx.filter_jit
+def _period_map_jit(model, omega, y0, jumps):
+    p = float(model.period_rad)
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(lambda t, y, a: model.vector_field(t, y, a)), diffrax.Dopri5(),
         t0=0.0, t1=p, dt0=None, y0=jnp.asarray(y0), args=jnp.asarray(omega),
