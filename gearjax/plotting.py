@@ -384,14 +384,25 @@ _UNITS = {"peak-force": ("peak dynamic mesh force", 1e-3, "kN"),
 
 def plot_design_map(hmap: HarrisMap, path: str, results=(), marks: dict | None = None,
                     title: str = ""):
-    """Contour map of the exact objective over (extent, amplitude) with optimiser paths
-    (``results``: :class:`OptimisationResult` of a shared relief) and named points
-    (``marks``: ``{label: (amplitude_m, extent)}``)."""
+    """Contour map of the exact objective over (extent, amplitude), its refined patches
+    drawn over the grid (dashed outlines), with optimiser paths (``results``:
+    :class:`OptimisationResult` of a shared relief) and named points (``marks``:
+    ``{label: (amplitude_m, extent)}``)."""
     plt = _pyplot()
     label, f, unit = _UNITS.get(hmap.objective, (hmap.objective, 1.0, ""))
     fig, ax = plt.subplots(figsize=(7, 5.5), constrained_layout=True)
-    cs = ax.contourf(hmap.extents, hmap.amplitudes_m * 1e6, hmap.exact * f, levels=24,
+    # one colour scale for the grid and its refined patches (drawn over it, outlined)
+    allv = np.concatenate([np.ravel(hmap.exact)] + [np.ravel(q.exact) for q in hmap.patches])
+    allv = allv[np.isfinite(allv)] * f
+    levels = np.linspace(allv.min(), allv.max(), 25) if allv.size and np.ptp(allv) > 0 else 24
+    cs = ax.contourf(hmap.extents, hmap.amplitudes_m * 1e6, hmap.exact * f, levels=levels,
                      cmap="viridis")
+    for q in hmap.patches:
+        if q.extents.size > 1 and q.amplitudes_m.size > 1:
+            ax.contourf(q.extents, q.amplitudes_m * 1e6, q.exact * f, levels=levels,
+                        cmap="viridis")
+            e0, e1, a0, a1 = q.extents[0], q.extents[-1], q.amplitudes_m[0] * 1e6, q.amplitudes_m[-1] * 1e6
+            ax.plot([e0, e1, e1, e0, e0], [a0, a0, a1, a1, a0], "w--", lw=0.5)
     fig.colorbar(cs, ax=ax, label=f"{label} [{unit}]")
     pts = [(float(hmap.extents[0]), float(hmap.amplitudes_m[0]) * 1e6),
            (float(hmap.extents[-1]), float(hmap.amplitudes_m[-1]) * 1e6)]

@@ -9,6 +9,7 @@ import numpy as np
 import equinox as eqx
 import jax.numpy as jnp
 
+from gearjax.excitation.jumps import JumpSet
 from gearjax.models.base import AbstractGearModel, ModelOutputs
 from gearjax.models.formulations import AbstractFormulation, formulation_of
 
@@ -25,7 +26,7 @@ class HarmonicOscillator(AbstractGearModel):
     amplitude: float
     order: int = eqx.field(static=True)
     formulation: AbstractFormulation = eqx.field(static=True)
-    jump_thetas: tuple = eqx.field(static=True)
+    jumps: JumpSet
     forced: bool = eqx.field(static=True)
     structure_ok: bool = eqx.field(static=True)
     period_rad: float = eqx.field(static=True)
@@ -34,10 +35,10 @@ class HarmonicOscillator(AbstractGearModel):
                  formulation="perturbation", jump_thetas=(), forced=True):
         self.mass, self.stiffness = mass, stiffness
         self.damping_ratio, self.amplitude, self.order = damping_ratio, amplitude, order
-        self.formulation, self.jump_thetas = formulation_of(formulation), jump_thetas
-        self.forced = forced
+        self.formulation, self.forced = formulation_of(formulation), forced
         self.structure_ok = True
         self.period_rad = 2 * math.pi / order
+        self.jumps = JumpSet.from_angles(jump_thetas, self.period_rad)
 
     @property
     def mesh_period_rad(self):
@@ -344,20 +345,24 @@ def ks_gearjax_sweep(ks: KahramanSingh, model, ws, xv0, settle=2.0):
     return out
 
 
-@eqx.filter_jit
 def plain_period_map(model, omega, y0, rtol, atol, max_steps):
     """y(P) from y(0) = y0 over one excitation period by a plain diffrax Dopri5 solve under
-    a plain PID controller (the model's jump angles as ``jump_ts``): independent of
-    gearjax's integrator, step-size controller and variational equations."""
-    import diffrax
-
+    a plain PID controller (the model's jump angles, read on the host, as ``jump_ts``):
+    independent of gearjax's integrator, step-size controller and variational equations."""
     p = float(model.period_rad)
     jumps = np.asarray(model.jump_thetas, dtype=float)
-    jumps = jumps[(jumps > 0) & (jumps < p)]
+    return _plain_period_map(model, omega, y0, jnp.asarray(jumps[(jumps > 0) & (jumps < p)]),
+                             rtol, atol, max_steps)
+
+
+@eqx.filter_jit
+def _plain_period_map(model, omega, y0, jumps, rtol, atol, max_steps):
+    import diffrax
+
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(lambda t, y, a: model.vector_field(t, y, a)), diffrax.Dopri5(),
-        t0=0.0, t1=p, dt0=None, y0=jnp.asarray(y0), args=jnp.asarray(omega),
-        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol,
-                                                  jump_ts=jnp.asarray(jumps)),
+        t0=0.0, t1=float(model.period_rad), dt0=None, y0=jnp.asarray(y0),
+        args=jnp.asarray(omega),
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, jump_ts=jumps),
         max_steps=max_steps)
     return sol.ys[-1]

@@ -153,18 +153,23 @@ def test_jump_up_lands_on_the_high_branch(model, traced):
     assert up.max_mesh_force_N[k] > 1.5 * up.max_mesh_force_N[k - 1]
 
 
-@eqx.filter_jit
 def _transient_end(model, omega, y0, n_periods):
     """The state after ``n_periods`` excitation periods from ``y0`` (plain diffrax,
-    Dopri5 at rtol 1e-10, the jumps of k(theta) as jump_ts)."""
+    Dopri5 at rtol 1e-10, the jumps of k(theta) as jump_ts, read on the host)."""
     p = float(model.period_rad)
     jumps = np.asarray(model.jump_thetas, dtype=float) % p
     jumps = np.sort((jumps[None, :] + p * np.arange(n_periods)[:, None]).ravel())
+    return _transient_end_jit(model, omega, y0, n_periods, jnp.asarray(jumps[jumps > 0]))
+
+
+@eqx.filter_jit
+def _transient_end_jit(model, omega, y0, n_periods, jumps):
+    p = float(model.period_rad)
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(lambda t, y, a: model.vector_field(t, y, a)), diffrax.Dopri5(),
         t0=0.0, t1=n_periods * p, dt0=None, y0=jnp.asarray(y0), args=jnp.asarray(omega),
         stepsize_controller=diffrax.PIDController(rtol=1e-10, atol=1e-12,
-                                                  jump_ts=jnp.asarray(jumps[jumps > 0])),
+                                                  jump_ts=jumps),
         max_steps=2_000_000)
     return sol.ys[-1]
 

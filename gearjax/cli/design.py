@@ -17,6 +17,7 @@ import numpy as np
 from ..runtime import HostProgressMeter, watchdog
 from ..design.objectives import DynamicObjective
 from ..errors import DesignError
+from .design_options import add_map_refine, add_orbits, map_refine_of, orbits_of
 from .solvers import DESIGN_METHODS, design_solver
 from .scenario import (add_nlte_reaction, add_speeds, add_torque, linspace_option,
                        nlte_reaction_of, rig_notes, rig_of, speeds_of)
@@ -75,6 +76,8 @@ def _common(p, add_rig):
                    help="map grid of extents, default 0.1:E:7 with E the upper extent bound "
                         "(0.786 for a linear relief on the spur rig, 0.8 otherwise)")
     p.add_argument("--out", default="design_out", help="output directory (figures, JSON)")
+    add_orbits(p)
+    add_map_refine(p)
 
 
 def register(subparsers, add_rig, add_scenario):
@@ -134,7 +137,7 @@ def _setup(args, separate=False):
     kw = {}
     if args.objective in _DYNAMIC:
         kw = dict(formulation=args.formulation, damping_ratio=args.damping,
-                  model=args.model, solver=solver)
+                  model=args.model, solver=solver, orbits=orbits_of(args))
         if args.model == "3d":
             kw.update(rig=rig, max_frequency_hz=("auto" if args.max_frequency is None
                                                  else args.max_frequency or None))
@@ -208,17 +211,23 @@ def _cmd_harris_map(args) -> int:
         rig, obj, amps, exts = _setup(args)
     except DesignError as exc:
         return _fail(str(exc))
-    hmap = harris_map(obj, amps, exts)
+    try:
+        refine = map_refine_of(args)
+    except DesignError as exc:
+        return _fail(str(exc))
+    hmap = harris_map(obj, amps, exts, refine=refine)
     os.makedirs(args.out, exist_ok=True)
     fig = plot_design_map(hmap, os.path.join(args.out, "harris_map.png"),
                           marks={"short": (13.3e-6, 0.2), "long": (13.3e-6, 0.5)},
                           title=f"{rig.name}: {args.objective}")
-    i, j = np.unravel_index(np.nanargmin(hmap.exact), hmap.exact.shape)
+    (best_a, best_e), best_v = hmap.best()
     out = {**_case(args, rig), "amplitudes_m": amps.tolist(),
            "extents": exts.tolist(), "exact": hmap.exact.tolist(), "smooth": hmap.smooth.tolist(),
-           "best_amplitude_m": float(amps[i]), "best_extent": float(exts[j]),
-           "best_objective": float(hmap.exact[i, j]), "wall_time_s": hmap.wall_time_s,
-           "map_png": fig, **_solver(obj, args)}
+           "best_amplitude_m": float(best_a), "best_extent": float(best_e),
+           "best_objective": best_v, "refine_levels": refine,
+           "patches": [{"amplitudes_m": q.amplitudes_m.tolist(), "extents": q.extents.tolist(),
+                        "exact": q.exact.tolist(), "level": q.level} for q in hmap.patches],
+           "wall_time_s": hmap.wall_time_s, "map_png": fig, **_solver(obj, args)}
     with open(os.path.join(args.out, "harris_map.json"), "w") as fh:
         json.dump(out, fh, indent=2)
     if args.json:
@@ -226,8 +235,8 @@ def _cmd_harris_map(args) -> int:
     else:
         print(f"  {rig.name}: {args.objective} over {amps.size} x {exts.size} reliefs "
               f"({hmap.wall_time_s:.1f} s)")
-        print(f"  best grid point: amplitude_m {amps[i]:.3e}  extent {exts[j]:.3f}  "
-              f"objective {hmap.exact[i, j]:.6g}")
+        print(f"  best point ({'grid' if not refine else f'{refine} refinement level(s)'}): "
+              f"amplitude_m {best_a:.3e}  extent {best_e:.3f}  objective {best_v:.6g}")
         print(f"  wrote {fig}")
     return 0
 
@@ -240,6 +249,10 @@ def _cmd_optimise(args) -> int:
         return _fail(f"--starts={args.starts}: need at least 1 start per variable")
     if args.max_iter < 1:
         return _fail(f"--max-iter={args.max_iter}: need at least 1 step")
+    try:
+        refine = map_refine_of(args)
+    except DesignError as exc:
+        return _fail(str(exc))
     if not (0 < args.learning_rate <= 10):
         return _fail(f"--learning-rate={args.learning_rate}: must lie in (0, 10]")
     try:
@@ -256,7 +269,8 @@ def _cmd_optimise(args) -> int:
 
     def _step(record):  # one optimiser step done: tell the user
         steps.append(time.monotonic())
-        at["start"] += record["iteration"] == 0
+        at["start"] = (record["start"] + 1 if "start" in record  # lockstep starts
+                       else at["start"] + (record["iteration"] == 0))
         if args.json:  # stdout is the JSON; progress as sweep gives it: not with --json
             return
         builds = n_builds()
@@ -272,7 +286,7 @@ def _cmd_optimise(args) -> int:
                              progress=HostProgressMeter())  # watchdog, map cap
     # the value a forward sweep of the optimum gives: the objective's model was built at
     # a start and mapped to each design (gearjax.design.DynamicObjective.rebuilt)
-    rebuilt = obj.rebuilt(best.x).exact if isinstance(obj, DynamicObjective) else None
+    rebuilt = obj.rebuilt(best.x) if isinstance(obj, DynamicObjective) else None
     # the map is one vmapped call over the grid: allow it 3x the forward cost estimated
     # from the slowest optimiser step (value and gradient)
     slowest = max(np.diff(steps[1:]), default=steps[-1] - steps[0])
@@ -286,11 +300,17 @@ def _cmd_optimise(args) -> int:
         if why:
             out["check_command_note"] = why
     if rebuilt is not None:
-        out["objective_after_rebuilt"] = rebuilt
+        out["objective_after_rebuilt"] = rebuilt.exact
+        out["orbits"] = obj.orbits.label
+        if rebuilt.per_orbit is not None:
+            out["objective_per_orbit"] = [float(v) for v in rebuilt.per_orbit]
     out["runs"] = [r.as_dict(obj.space) for r in runs]
     out["history_png"] = plot_history(runs, os.path.join(args.out, "history.png"), args.objective)
     if not args.no_map and not args.separate:
-        hmap = harris_map(obj, amps, exts)
+        hmap = harris_map(obj, amps, exts, refine=refine, around=[r.x for r in runs])
+        out["map_value_at_optimum"] = hmap.value_at(best.x)
+        (out["map_best_amplitude_m"], out["map_best_extent"]), out["map_best_objective"] = (
+            tuple(float(v) for v in hmap.best()[0]), hmap.best()[1])
         out["map_png"] = plot_design_map(
             hmap, os.path.join(args.out, "map.png"), results=runs,
             marks={"short": (13.3e-6, 0.2), "long": (13.3e-6, 0.5)},
@@ -311,6 +331,14 @@ def _cmd_optimise(args) -> int:
     if "objective_after_rebuilt" in out:
         print(f"  on a model built at the optimum, as sweep builds it: "
               f"{out['objective_after_rebuilt']:.6g}")
+    if "orbits" in out:
+        per = out.get("objective_per_orbit")
+        print(f"  orbits: the largest over the starts {out['orbits']}"
+              + (f" ({', '.join(f'{v:.6g}' for v in per)} at the optimum)" if per else ""))
+    if "map_value_at_optimum" in out:
+        print(f"  Harris map at the optimum {out['map_value_at_optimum']:.6g}, its best point "
+              f"{out['map_best_objective']:.6g} at amplitude_m "
+              f"{out['map_best_amplitude_m']:.3e} extent {out['map_best_extent']:.3f}")
     print(f"  wrote {out['history_png']}" + (f", {out['map_png']}" if "map_png" in out else "")
           + f", {os.path.join(args.out, 'optimum.json')}")
     if "check_command" in out:
@@ -320,10 +348,11 @@ def _cmd_optimise(args) -> int:
 
 
 def _solver(obj, args) -> dict:
-    """The solver of a dynamic objective for the JSON outputs (``--method``, ``--rtol``)."""
+    """The solver of a dynamic objective for the JSON outputs (``--method``, ``--rtol``,
+    the orbit set)."""
     if not isinstance(obj, DynamicObjective):
         return {}
-    return {"method": args.method, "rtol": args.rtol}
+    return {"method": args.method, "rtol": args.rtol, "orbits": obj.orbits.label}
 
 
 

@@ -23,12 +23,12 @@ objective's unit (F_S, 1, or the mean static mesh deflection), so ``max v <= sma
 
 Gradients: forward mode (``jax.jacfwd``, ``diffrax.ForwardMode``) through mesh cells,
 quasi-static table, solve and metric; the switching angles follow the design through the
-models' angle map (:mod:`gearjax.excitation.events`, "Derivatives with respect to the
-design"), valid while the discrete quasi-static structure is the build one, which
-:class:`DynamicObjective` checks at every evaluation (rebuilding the model when it fails).
-With contact loss the objective is continuous with kinks (a contact-loss interval appearing
-at the maximum, a switch of the instant of the maximum, rebuilds); between them it is the
-orbit's derivative (the vector field is continuous across contact loss: no saltation).
+models' angle map (:mod:`gearjax.excitation.events`), valid while the quasi-static
+structure is the build one, which :class:`DynamicObjective` checks at every evaluation
+(rebuilding the model, which compiles nothing for the sdof model). Shooting orbits are
+differentiated implicitly (:mod:`gearjax.design.orbits`); an :class:`OrbitSet` of starts
+takes the largest value over the orbits they reach. With contact loss the objective is
+continuous with kinks; between them it is the orbit's derivative (no saltation).
 
 Inertias (:data:`DESIGN_INERTIAS`): the sdof model uses the gear bodies (solid cylinders at
 the pitch radii) and puts the NLTE'' reaction on the drive (``kappa = 1``), because the
@@ -42,6 +42,7 @@ Measurements behind these choices: ``benchmarks/results/code_notes.md``, gearjax
 
 from ..errors import DesignError as DesignError
 from .maps import HarrisMap as HarrisMap
+from .maps import MapPatch as MapPatch
 from .maps import harris_curves as harris_curves
 from .maps import harris_map as harris_map
 from .objectives import DEFAULT_SHARPNESS as DEFAULT_SHARPNESS
@@ -55,10 +56,14 @@ from .objectives import QuasiStaticObjective as QuasiStaticObjective
 from .objectives import design_inertias as design_inertias
 from .objectives import make_objective as make_objective
 from .objectives import smooth_max as smooth_max
+from .orbits import ORBIT_STARTS as ORBIT_STARTS
+from .orbits import OrbitSet as OrbitSet
+from .orbits import implicit_steady_metrics as implicit_steady_metrics
 from .optimise import OptimisationResult as OptimisationResult
 from .optimise import coarse_starts as coarse_starts
 from .optimise import multi_start as multi_start
 from .optimise import optimise as optimise
+from .optimise import optimise_lockstep as optimise_lockstep
 from .spaces import ReliefSpace as ReliefSpace
 
 __all__ = [
@@ -76,9 +81,14 @@ __all__ = [
     "make_objective",
     "OptimisationResult",
     "optimise",
+    "optimise_lockstep",
     "multi_start",
     "coarse_starts",
     "harris_map",
     "HarrisMap",
+    "MapPatch",
+    "ORBIT_STARTS",
+    "OrbitSet",
+    "implicit_steady_metrics",
     "harris_curves",
 ]

@@ -19,6 +19,7 @@ from ..dynamics.sweep import Transient
 from ..errors import DesignError
 from ..gears.mesh import Mesh
 from ..gears.quasistatic import quasi_static, static_mesh_force
+from .orbits import OrbitSet
 from .spaces import ReliefSpace
 
 __all__ = ["OBJECTIVES", "DYNAMIC_OBJECTIVES", "DESIGN_MODELS", "DEFAULT_SHARPNESS", "DESIGN_INERTIAS", "design_inertias", "smooth_max", "Evaluation", "QuasiStaticObjective", "DynamicObjective", "make_objective", "default_torque_Nm"]
@@ -29,6 +30,7 @@ DYNAMIC_OBJECTIVES = ("peak-force", "dynamic-factor", "dte-ptp")
 DESIGN_MODELS = ("torsional", "3d")
 DEFAULT_SHARPNESS = 200.0
 MODELS_KEPT = 8  # earlier models of other structures a DynamicObjective may return to
+DEFAULT_ROWS = 4  # rows of a batch before any (a map's chunks; the CLI's 4 starts)
 DESIGN_INERTIAS = "bodies"  # solid cylinders at the pitch radii (:mod:`gearjax.design`)
 
 
@@ -89,6 +91,8 @@ class Evaluation(eqx.Module):
     grad : d smooth / d x (same units over those of x), or None.
     per_case : the per-speed (dynamic) or per-load (quasi-static) values.
     structure_ok : the model's discrete structure matched (dynamic objectives), else True.
+    per_orbit : dynamic objectives over several orbit starts (:class:`OrbitSet`): the
+        exact maximum over the speeds from each start, in the set's order; else None.
     """
 
     x: np.ndarray
@@ -97,6 +101,7 @@ class Evaluation(eqx.Module):
     grad: np.ndarray | None
     per_case: np.ndarray
     structure_ok: bool = True
+    per_orbit: np.ndarray | None = None
 
 
 def _value_and_jac(f, jac=jax.jacfwd):
@@ -262,6 +267,13 @@ class DynamicObjective:
         :class:`~gearjax.Shooting` (the periodic orbit by Newton; forward mode only). The
         transient is the default because it is far cheaper for equal values (see
         ``benchmarks/results/code_notes.md``, section gearjax.design.objectives).
+    orbits : the starts of the steady state at every speed, an :class:`OrbitSet` or the
+        tuple of its start names (default the quasi-static state alone, as a forward
+        ``sweep``); several: the objective is the largest value over the orbits they reach
+        (robust to a switch of the orbit a start lands on, :mod:`gearjax.design.orbits`).
+    implicit : with :class:`~gearjax.Shooting`, differentiate the periodic orbit by the
+        implicit function theorem (default; :func:`gearjax.design.orbits.
+        implicit_steady_metrics`) rather than through the Newton iterations.
     sharpness : beta of the smooth maximum over speeds (:mod:`gearjax.design`).
     n_table : table knots per mesh period of the model.
     adjoint : diffrax adjoint for the gradient (default ``diffrax.ForwardMode()`` with
@@ -280,7 +292,7 @@ class DynamicObjective:
                  inertias_kg_m2=DESIGN_INERTIAS, damping_ratio: float = 0.03,
                  nlte_reaction: str = "drive", max_frequency_hz: float | str | None = "auto",
                  solver=None, sharpness: float = DEFAULT_SHARPNESS, n_table: int = 256,
-                 adjoint=None):
+                 adjoint=None, orbits=("quasi-static",), implicit: bool = True):
         if kind not in DYNAMIC_OBJECTIVES:
             raise DesignError("objective", kind, f"dynamic objectives are {DYNAMIC_OBJECTIVES}")
         if model not in DESIGN_MODELS:
@@ -326,12 +338,14 @@ class DynamicObjective:
         cos_bb = math.cos(mesh.pair.base_helix_angle_rad)
         self._x_ref_m = self.static_force_N / (float(mesh.mean_stiffness()) * cos_bb)
         self.scale = self._scales()[DYNAMIC_OBJECTIVES.index(kind)]
+        self.orbits = orbits if isinstance(orbits, OrbitSet) else OrbitSet(tuple(orbits))
         self.model = None
         self._earlier: list = []  # models of other structures, newest first (_model_for)
+        self._rows: list = []  # each row's current model (batch)
         self.n_builds = 0
         self.build_time_s = 0.0
         self._static = (space, tuple(float(v) for v in self._scales()), self.sharpness,
-                        solver)
+                        solver, self.orbits, bool(implicit))
 
     # model management
     def build(self, x, frozen: bool = False):
@@ -344,10 +358,8 @@ class DynamicObjective:
         if self.model_type == "torsional":
             from ..models.torsional import TorsionalModel
 
-            m = TorsionalModel.build(self.mesh, mods, **self.model_kwargs)
-            if frozen:
-                m = dataclasses.replace(m, jump_kinds=(0,) * len(m.jump_kinds))
-                m = m.with_modifications(m.mods)  # re-assembled without the angle map
+            m = TorsionalModel.build(self.mesh, mods, moving_events=not frozen,
+                                     **self.model_kwargs)
         else:
             from ..rigs.factory import build_model
 
@@ -386,7 +398,10 @@ class DynamicObjective:
             if bool(ok) or attempt == 1:
                 break
             self.model = None  # a failed integration: once more on a model built at x
-        return Evaluation(x, float(sm[k]), float(ex[k]), g, np.asarray(per)[k], bool(ok))
+        per = np.asarray(per)[k]
+        per_orbit = per.max(axis=0) if per.ndim == 2 else None  # (speeds, starts)
+        per = per.max(axis=1) if per.ndim == 2 else per
+        return Evaluation(x, float(sm[k]), float(ex[k]), g, per, bool(ok), per_orbit)
 
     def _model_for(self, x, fresh: bool = False):
         """The current model if its discrete structure holds at ``x`` (switching events
@@ -422,9 +437,15 @@ class DynamicObjective:
         3D te objective (spur, 2 speeds, modes < 8.9 kHz) after 5 optimiser steps from
         (20 um, 0.40) to (17 um, 0.39): 3.1e-4 relative, the rebuilt value equal to
         ``gearjax sweep``'s to 1e-9."""
+        x = self.space.check(x)
+        if self._rows:  # the lockstep program, one row per start (no other compilation)
+            m = self.build(x)
+            xs = np.repeat(x[None], len(self._rows), axis=0)
+            return _evaluations(xs, self._rows_call([m] * len(self._rows), xs), self._index,
+                                False)[0]
         kept = self.model
         try:
-            self.model = self.build(self.space.check(x))
+            self.model = self.build(x)
             return self(x, grad=False)
         finally:
             self.model = kept
@@ -443,27 +464,113 @@ class DynamicObjective:
         return np.asarray(sm), np.asarray(ex), None
 
     def grid(self, xs, reference_x=None) -> tuple[np.ndarray, np.ndarray]:
-        """(smooth, exact) at every row of ``xs`` in one compiled call, with a *frozen*
-        model built at ``reference_x`` (default: the middle row): switching angles of other
-        designs are resolved to the table spacing (1/n_table of a mesh period), which is
-        what a forward map needs (no derivatives)."""
+        """(smooth, exact) at every row of ``xs``. The torsional objective evaluates the
+        rows by :meth:`batch`, in calls of its row count (the optimiser's program: the
+        objective itself at every design, no other compilation); the 3D objective, whose
+        builds are slow, in one compiled call on a *frozen* model built at
+        ``reference_x`` (default: the middle row): switching angles of other designs
+        resolved to the table spacing (1/n_table of a mesh period). Rows whose
+        integration failed are NaN."""
         xs = np.asarray(xs, dtype=float)
+        k = self._index
+        if self.model_type == "torsional":
+            size = len(self._rows) or DEFAULT_ROWS
+            pad = -(-xs.shape[0] // size) * size - xs.shape[0]
+            rows = np.concatenate([xs, np.repeat(xs[-1:], pad, axis=0)])
+            evs = []
+            for i in range(0, rows.shape[0], size):
+                evs += self.batch(rows[i:i + size], grad=False)
+            evs = evs[:xs.shape[0]]
+            bad = np.array([not e.structure_ok for e in evs])
+            sm = np.array([e.smooth for e in evs])
+            ex = np.array([e.exact for e in evs])
+            return np.where(bad, np.nan, sm), np.where(bad, np.nan, ex)
         ref = xs[len(xs) // 2] if reference_x is None else reference_x
         model = self.build(ref, frozen=True)
-        sm, (ex, _, _) = _dyn_grid(model, jnp.asarray(xs), jnp.asarray(self.speeds), self._static)
-        return np.asarray(sm)[:, self._index], np.asarray(ex)[:, self._index]
+        sm, (ex, _, ok) = _dyn_grid(model, jnp.asarray(xs), jnp.asarray(self.speeds),
+                                    self._static)
+        bad = ~np.asarray(ok, dtype=bool)
+        return (np.where(bad, np.nan, np.asarray(sm)[:, k]),
+                np.where(bad, np.nan, np.asarray(ex)[:, k]))
+
+    # lockstep evaluation of several designs (multi-start optimisation, maps)
+    def batch(self, xs, grad: bool = True) -> list:
+        """:class:`Evaluation` of every row of ``xs`` (n, size) from one compiled call:
+        the rows' models (each row's current model while its structure holds, else one
+        of the same structure built before, else one built at the row) stacked and the
+        objective and its gradient vmapped over them (the same program for every call of
+        ``n`` rows: an optimiser's starts in lockstep, a map's grid in chunks). A row whose
+        integration failed is evaluated once more on a model built at it."""
+        xs = np.stack([self.space.check(x) for x in np.asarray(xs, dtype=float)])
+        n = xs.shape[0]
+        if len(self._rows) != n:
+            self._rows = [None] * n
+        fresh = np.zeros(n, bool)
+        for attempt in range(2):
+            models = [self._row_model(i, xs[i], bool(fresh[i])) for i in range(n)]
+            out = self._rows_call(models, xs)
+            ok = np.asarray(out[1][1][2], dtype=bool)
+            if ok.all() or attempt == 1:
+                break
+            fresh = ~ok
+            for i in np.nonzero(fresh)[0]:
+                self._rows[i] = None
+        return _evaluations(xs, out, self._index, grad)
+
+    def _rows_call(self, models, xs):
+        dyn = [eqx.partition(m, eqx.is_array) for m in models]
+        static = dyn[0][1]
+        stacked = jax.tree.map(lambda *a: jnp.stack(a), *[d for d, _ in dyn])
+        return _dyn_rows(stacked, static, jnp.asarray(xs), jnp.asarray(self.speeds),
+                         self._static, self.adjoint)
+
+    def _row_model(self, i: int, x, fresh: bool):
+        """Row ``i``'s model for the design ``x`` (:meth:`batch`; the pool of earlier
+        models is shared with :meth:`_model_for`)."""
+        xj = jnp.asarray(x)
+        m = self._rows[i]
+        if m is not None and not bool(_structure_holds(m, xj, self.space)):
+            if not any(m is e for e in self._earlier):
+                self._earlier = [m] + self._earlier[:MODELS_KEPT - 1]
+            m = None
+        if m is None and not fresh:
+            m = next((e for e in self._earlier if bool(_structure_holds(e, xj, self.space))),
+                     None)
+        if m is None:
+            m = self.build(x)
+            self._earlier = [m] + self._earlier[:MODELS_KEPT - 1]
+        self._rows[i] = m
+        return m
+
+
+def _evaluations(xs, out, k: int, grad: bool) -> list:
+    """The :class:`Evaluation` of each row of a :func:`_dyn_rows` call."""
+    g, (sm, (ex, per, ok)) = jax.device_get(out)
+    evs = []
+    for i in range(xs.shape[0]):
+        p = np.asarray(per[i])[k]  # (speeds, starts)
+        evs.append(Evaluation(xs[i], float(sm[i][k]), float(ex[i][k]),
+                              np.asarray(g[i])[k] if grad else None, p.max(axis=1),
+                              bool(ok[i]), p.max(axis=0)))
+    return evs
+
+
+def _model_values(m, speeds, static, adjoint=None):
+    """Smooth and exact maxima over ``speeds`` (and the orbit set's starts) of (max F_D,
+    max F_D / F_S, DTE ptp) of the model ``m``, the values per speed and start, and
+    whether every solve succeeded on a model of the right structure."""
+    _, scales, sharpness, solver, orbits, implicit = static
+    res = over_speeds(lambda w: orbits.metrics(solver, m, w, adjoint, implicit), speeds,
+                      sequential=sequential_for(m))
+    per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])  # (3, w, s)
+    sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
+    ok = m.structure_ok & jnp.all(res.solver_ok)
+    return sm, (jnp.max(per, axis=(1, 2)), per, ok)
 
 
 def _dyn_values_impl(model, x, speeds, static, adjoint=None):
-    """Smooth and exact maxima over ``speeds`` of (max F_D, max F_D / F_S, DTE ptp)."""
-    space, scales, sharpness, solver = static
-    m = model.with_modifications(space.mods(x))
-    res = over_speeds(lambda w: solver.orbit_metrics(m, w, adjoint), speeds,
-                      sequential=sequential_for(m))
-    per = jnp.stack([res.max_mesh_force_N, res.dynamic_factor, res.dte_ptp_m])
-    sm = jnp.stack([smooth_max(per[i], sharpness, scales[i]) for i in range(3)])
-    ok = m.structure_ok & jnp.all(res.solver_ok)
-    return sm, (jnp.max(per, axis=1), per, ok)
+    """:func:`_model_values` of ``model`` mapped to the design ``x``."""
+    return _model_values(model.with_modifications(static[0].mods(x)), speeds, static, adjoint)
 
 
 _dyn_values = eqx.filter_jit(_dyn_values_impl)
@@ -486,6 +593,18 @@ def _dyn_vjac(model, x, speeds, static, adjoint):
 def _dyn_grid(model, xs, speeds, static):
     return over_speeds(lambda x: _dyn_values_impl(model, x, speeds, static), xs,
                        sequential=sequential_for(model))
+
+
+@eqx.filter_jit
+def _dyn_rows(stacked, static_model, xs, speeds, static, adjoint):
+    """Value and forward-mode Jacobian of :func:`_dyn_values_impl` for every row: the
+    stacked array parts of the rows' models (``static_model`` the static part they share)
+    and designs ``xs``, vmapped."""
+    def one(dyn, x):
+        model = eqx.combine(dyn, static_model)
+        return _value_and_jac(lambda y: _dyn_values_impl(model, y, speeds, static, adjoint))(x)
+
+    return jax.vmap(one)(stacked, xs)
 
 
 def make_objective(kind: str, mesh: Mesh, space: ReliefSpace, *, speeds_rad_s=None,

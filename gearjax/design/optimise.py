@@ -14,7 +14,7 @@ import optax
 from ..dynamics.progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .spaces import ReliefSpace
 
-__all__ = ["OptimisationResult", "optimise", "coarse_starts", "multi_start"]
+__all__ = ["OptimisationResult", "optimise", "optimise_lockstep", "coarse_starts", "multi_start"]
 
 
 @dataclasses.dataclass
@@ -133,6 +133,87 @@ def coarse_starts(space: ReliefSpace, n_per_axis: int = 2) -> np.ndarray:
 
 
 def multi_start(objective, starts, **kwargs) -> tuple[OptimisationResult, list]:
-    """:func:`optimise` from every row of ``starts``; returns (best by exact value, all)."""
-    results = [optimise(objective, x0, **kwargs) for x0 in np.asarray(starts, dtype=float)]
+    """:func:`optimise` from every row of ``starts``; returns (best by exact value, all).
+
+    A :class:`~gearjax.design.DynamicObjective` runs the starts in lockstep
+    (:func:`optimise_lockstep`: every step evaluates all starts in one compiled call);
+    each start's path is the one :func:`optimise` takes from it alone."""
+    from .objectives import DynamicObjective
+
+    starts = np.asarray(starts, dtype=float)
+    if isinstance(objective, DynamicObjective) and starts.shape[0] > 1:
+        results = optimise_lockstep(objective, starts, **kwargs)
+    else:
+        results = [optimise(objective, x0, **kwargs) for x0 in starts]
     return min(results, key=lambda r: r.exact), results
+
+
+def optimise_lockstep(objective, starts, *, learning_rate: float = 0.15, max_iter: int = 60,
+                      rtol: float = 1e-4, patience: int = 8, step_tol: float = 1e-4,
+                      callback=None,
+                      progress: AbstractProgressMeter = NoProgressMeter()) -> list:
+    """:func:`optimise` from every row of ``starts`` at once: each step evaluates the
+    current designs of all starts by ``objective.batch`` (one compiled call) and updates
+    each start's Adam state; a start that has stopped (its stopping rule, as
+    :func:`optimise`'s) keeps its last design until every start has. The records given
+    to ``callback`` carry their start's index (``"start"``). Returns one
+    :class:`OptimisationResult` per start."""
+    space = objective.space
+    x0s = [space.check(x0, "x0") for x0 in np.asarray(starts, dtype=float)]
+    n = len(x0s)
+    t0 = time.perf_counter()
+    sched = optax.cosine_decay_schedule(learning_rate, max(1, max_iter), alpha=0.05)
+    opt = optax.adam(sched)
+    us = [jnp.asarray(space.to_unconstrained(x0)) for x0 in x0s]
+    states = [opt.init(u) for u in us]
+    hists = [[] for _ in range(n)]
+    best, first = [None] * n, [None] * n
+    since, its = [0] * n, [0] * n
+    reason = ["max-iter"] * n
+    done = [False] * n
+    jac = jax.vmap(jax.grad(lambda v, i: space.from_unconstrained(v)[i], argnums=0),
+                   in_axes=(None, 0))
+    check_meter(progress).start("optimise", max_iter + 1, f"{n} starts in lockstep")
+    for it in range(max_iter + 1):
+        xs = [np.clip(np.asarray(space.from_unconstrained(u)), space.lower, space.upper)
+              for u in us]
+        evs = objective.batch(np.stack(xs), grad=True)
+        for i, ev in enumerate(evs):
+            if done[i]:
+                continue
+            first[i] = first[i] or ev
+            its[i] = it
+            g_u = ev.grad * np.asarray(jac(us[i], jnp.arange(space.size))).diagonal()
+            rec = {"iteration": it, "x": ev.x.tolist(), "smooth": ev.smooth,
+                   "exact": ev.exact, "grad_norm_u": float(np.linalg.norm(g_u)),
+                   "structure_ok": ev.structure_ok, "start": i}
+            hists[i].append(rec)
+            if callback is not None:
+                callback(rec)
+            if best[i] is None or ev.smooth < best[i].smooth * (1 - rtol) - 1e-300:
+                since[i] = 0
+            else:
+                since[i] += 1
+            if best[i] is None or ev.smooth < best[i].smooth:
+                best[i] = ev
+            if since[i] >= patience:
+                reason[i], done[i] = "tolerance", True
+                continue
+            if it == max_iter:
+                done[i] = True
+                continue
+            upd, states[i] = opt.update(jnp.asarray(g_u), states[i], us[i])
+            if float(jnp.max(jnp.abs(upd))) < step_tol:
+                reason[i], done[i] = "small-step", True
+                continue
+            us[i] = optax.apply_updates(us[i], upd)
+        progress.update("optimise", it + 1, max_iter + 1,
+                        f"best objective {min(b.exact for b in best):.6g}",
+                        elapsed_s=time.perf_counter() - t0)
+        if all(done):
+            break
+    wall = time.perf_counter() - t0
+    return [OptimisationResult(x=best[i].x, smooth=best[i].smooth, exact=best[i].exact,
+                               x0=x0s[i], smooth0=first[i].smooth, exact0=first[i].exact,
+                               history=hists[i], iterations=its[i], stop_reason=reason[i],
+                               wall_time_s=wall) for i in range(n)]

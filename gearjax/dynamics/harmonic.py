@@ -14,7 +14,7 @@ pair, the state being real), with ``g_h`` the receptance ``sum_k (w^T Q)_k (Q^-1
 
 (``*`` the convolution of the coefficient sequences, applied by FFT: Hill's equation of
 the scalar, solved by GMRES, :mod:`gearjax.dynamics.krylov`). ``k(theta)`` jumps (cell
-engagement, active-set changes: ``model.jump_thetas``), so ``b`` and ``c`` have Fourier
+engagement, active-set changes: ``model.jumps``), so ``b`` and ``c`` have Fourier
 coefficients ``O(1/h)`` and a plain truncated series has Gibbs errors ``O(1)`` at the jumps
 in the velocity and ``O(1/H)`` between them. Both are removed exactly: every function
 that jumps is split into its jumps and kinks at the known angles times the periodic
@@ -438,7 +438,7 @@ def harmonic_steady_state(model, omega, n_harmonics: int = 256, *,
     read = [_series(eta[i], zeta0[i], fpoly[i], lam[i], split.rqw, thj, n_h, period)
             for i in (0, 1)]
     mg = measure_grid(model, 2, samples_per_mesh_period, n_refine)
-    t1 = jnp.asarray(mg.grid.offsets[: mg.grid.per_period])
+    t1 = mg.grid.offsets
     f_h, f_half = read[0](t1), read[1](t1)
     y0, y0_half = (_state_at_zero(eta[i], read[i], split.qw) for i in (0, 1))
     big = lambda a: jnp.maximum(jnp.max(jnp.abs(a)), 1e-300)  # noqa: E731

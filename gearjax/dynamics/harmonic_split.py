@@ -49,7 +49,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..excitation.events import distinct_angles
 from .measure import observer
 from .small_gain import small_gain_bound
 
@@ -121,7 +120,8 @@ class Excitation(eqx.Module):
     speed powers ``p`` of ``powers`` of ``Omega^p`` times the stored data (one power, 0,
     for the samples of one speed).
 
-    thj : (J,) distinct jump angles (rad) in [0, P).
+    thj : (J,) the sorted jump angles (rad) in [0, P) of the model's padded jump set
+        (padding and merged entries jump by nothing: zero-length segments).
     sides : (P, 4, J, k + 1) the one-sided values (lo, hi) and slopes (dlo, dhi) there.
     coeffs : (P, 4H + 1, k + 1) the jump-corrected Fourier coefficients at -2H..2H.
     c_samples : (P, N) ``c`` on the samples (its range: the small-gain bound).
@@ -184,7 +184,7 @@ def _row_basis(a, cap: int, xp):
 def _split_samples(model):
     period = float(model.period_rad)
     th = (jnp.arange(_SPLIT_SAMPLES) + 0.5) * (period / _SPLIT_SAMPLES)
-    thj = jnp.asarray(distinct_angles(model.jump_thetas, period))
+    thj = model.jumps.thetas  # padding repeats an angle: the same samples again
     d = JUMP_SIDE * period
     return jnp.concatenate([th, thj - d, thj + d])
 
@@ -342,18 +342,23 @@ def saw_coeffs(h, period):
 
 
 def _angles(model, n_h: int):
-    """(mid-cell samples (4H,), jump angles (J,), all sample angles, step, delta)."""
+    """(mid-cell samples (4H,), jump angles (J,) of the model's padded jump set, which of
+    them count (:meth:`~gearjax.excitation.jumps.JumpSet.distinct`: the others jump by
+    nothing), all sample angles, step, delta)."""
     period = float(model.period_rad)
     n_s = 4 * n_h
     th = (jnp.arange(n_s) + 0.5) * (period / n_s)
-    thj_np = distinct_angles(model.jump_thetas, period)
+    thj, use = model.jumps.thetas, model.jumps.distinct()
     d = JUMP_SIDE * period
     # one-sided slopes by differences over ``step`` (< a quarter of the closest jumps)
-    gaps = np.diff(np.concatenate([thj_np, thj_np[:1] + period])) if thj_np.size else [period]
-    step = min(1e-6 * period, 0.25 * float(np.min(gaps)))
-    thj = jnp.asarray(thj_np)
+    step = jnp.asarray(1e-6 * period)
+    if thj.shape[0]:
+        u = jnp.sort(jnp.where(use, thj, jnp.inf))  # the angles that count, then inf
+        i, n_use = jnp.arange(u.shape[0]), jnp.sum(use)
+        gaps = jnp.where(i + 1 < n_use, jnp.roll(u, -1) - u, u[0] + period - u)
+        step = jnp.minimum(step, 0.25 * jnp.min(jnp.where(i < n_use, gaps, period)))
     t_all = jnp.concatenate([th, thj - d - step, thj - d, thj + d, thj + d + step])
-    return th, thj, t_all, step, d
+    return th, (thj, use), t_all, step, d
 
 
 def _sample(model, omega, split: HarmonicSplit, t_all, n_s: int):
@@ -389,17 +394,20 @@ def _sample(model, omega, split: HarmonicSplit, t_all, n_s: int):
     return v, jnp.maximum(jnp.maximum(err, b_err), o_err)
 
 
-def _fourier(v, th, thj, step: float, d: float, period: float, n_h: int):
+def _fourier(v, th, jumps, step: float, d: float, period: float, n_h: int):
     """One-sided values and slopes at the jumps (4, J, k + 1) and the jump-corrected
     Fourier coefficients at -2H..2H (4H + 1, k + 1) of the samples ``v`` (the layout of
     :func:`_angles`): the jumps and kinks removed exactly (sawtooth ``S0`` and its
     antiderivative ``S1``, whose coefficients are known), the ``C^1`` remainder by DFT.
     Linear in ``v``."""
     nu = 2.0 * math.pi / period
+    thj, use = jumps  # (angles, which count) of :func:`_angles`
     n_s, n_j = th.shape[0], thj.shape[0]
     vl2, vl1, vr1, vr2 = (v[n_s + i * n_j: n_s + (i + 1) * n_j] for i in range(4))
     dl, dr = (vl1 - vl2) / step, (vr2 - vr1) / step
     lo, hi = vl1 + d * dl, vr1 - d * dr  # one-sided limits at theta_j
+    # padding and merged entries of the jump set jump by nothing
+    hi, dr = jnp.where(use[:, None], hi, lo), jnp.where(use[:, None], dr, dl)
     j0, j1 = hi - lo, dr - dl
     s0, s1 = saw(th[:, None] - thj[None, :], period)  # (N, J)
     smooth = v[:n_s] - s0 @ j0 - s1 @ j1  # C^1 remainder
@@ -419,7 +427,7 @@ def speed_samples(model, omega, split: HarmonicSplit, n_h: int) -> Excitation:
     th, thj, t_all, step, d = _angles(model, n_h)
     v, err = _sample(model, omega, split, t_all, th.shape[0])
     sides, coeffs = _fourier(v, th, thj, step, d, period, n_h)
-    return Excitation(thj=thj, sides=sides[None], coeffs=coeffs[None],
+    return Excitation(thj=thj[0], sides=sides[None], coeffs=coeffs[None],
                       c_samples=v[None, :, -1], omega_unit=jnp.asarray(omega, dtype=float),
                       split_error=jnp.maximum(err, split.error), powers=(0,))
 
@@ -444,7 +452,7 @@ def _plan_excitation(model, split: HarmonicSplit, n_h: int) -> Excitation:
         big[-1:], jnp.max(jnp.abs(split.a0w)) / min(_FIT_SPEEDS))])
     fit_err = jnp.max(jnp.max(jnp.abs(pred - vs[3]), axis=0) / jnp.maximum(scale, 1e-300))
     sides, coeffs = jax.vmap(lambda v: _fourier(v, th, thj, step, d, period, n_h))(vp)
-    return Excitation(thj=thj, sides=sides, coeffs=coeffs, c_samples=vp[:, :, -1],
+    return Excitation(thj=thj[0], sides=sides, coeffs=coeffs, c_samples=vp[:, :, -1],
                       omega_unit=split.omega_ref,
                       split_error=jnp.maximum(jnp.max(errs), jnp.maximum(fit_err, split.error)),
                       powers=SPEED_POWERS)

@@ -3,7 +3,8 @@ window, shooting period, monodromy and continuation restart is a call of :func:`
 under the model's jump-aware step-size controller (:func:`jump_controller`).
 
 The right-hand side of a gear model jumps or kinks at speed-independent angles (cell
-engagement, quasi-static active-set changes, NLTE kinks: ``model.jump_thetas``);
+engagement, quasi-static active-set changes, NLTE kinks: ``model.jumps``, padded to a
+static bound by repeating the last angle, which changes no step);
 :class:`PeriodicJumpController` ends every step just before such an angle and restarts just
 after it, in O(1) per step, so an explicit Runge-Kutta step never straddles a jump.
 """
@@ -15,7 +16,6 @@ import equinox as eqx
 import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 __all__ = ["integrate", "jump_controller", "PeriodicJumpController"]
 
@@ -37,10 +37,10 @@ def jump_controller(model, rtol, atol):
     continuation): integral-only PID at ``rtol``/``atol``, whose steps end at the model's
     speed-independent jump angles (:class:`PeriodicJumpController`) where it has any."""
     pid = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.0, icoeff=1.0)
-    jumps = np.asarray(model.jump_thetas, dtype=float)
-    if jumps.size == 0:
+    jumps = model.jumps
+    if jumps.bound == 0:
         return pid
-    return PeriodicJumpController(pid, jnp.asarray(np.sort(jumps)), float(model.period_rad))
+    return PeriodicJumpController(pid, jumps.thetas, float(model.period_rad))
 
 
 
@@ -59,7 +59,7 @@ class PeriodicJumpController(diffrax.AbstractAdaptiveStepSizeController):
     Attributes
     ----------
     controller : the wrapped adaptive controller (``diffrax.PIDController``).
-    jumps : (n,) sorted jump positions in ``[0, period)``.
+    jumps : (n,) sorted jump positions in ``[0, period)`` (repeated entries allowed).
     period : the period (same time unit as the solve).
     """
 

@@ -4,8 +4,11 @@ output grid and in the refinement windows.
 
 The rules are those of :mod:`gearjax.dynamics.metrics` (read on both sides of every jump,
 refined around the grid's extremes, and after the jumps where the grid does not resolve
-the ringing) and the order amplitudes those of :mod:`gearjax.dynamics.orders`; this module
-only composes them, so that every solver measures an orbit the same way:
+the ringing) and the order amplitudes those of :mod:`gearjax.dynamics.orders`, built in the
+program from the model's jump set (:class:`~gearjax.excitation.jumps.JumpSet`, padded to a
+static bound) by :mod:`gearjax.dynamics.grid`, so that a design that moves its jumps is
+measured by the same program. This module only composes them, so that every solver
+measures an orbit the same way:
 
 * the transient and the shooting (:func:`gearjax.dynamics.simulate.simulate`) integrate the
   measured periods and re-integrate the windows (:mod:`gearjax.dynamics.legs`), then call
@@ -13,6 +16,10 @@ only composes them, so that every solver measures an orbit the same way:
 * a solver whose periodic orbit is a function of the angle (the frequency domain,
   :mod:`gearjax.dynamics.harmonic`) hands it to :func:`measure_orbit`, which reads it on the
   same grid and windows instead of integrating.
+
+The grid of ``n_periods`` periods holds per period the valid points first and the padding
+(the one-sided points of padding jumps) after them; the windows read the valid points of
+all periods side by side (:func:`gearjax.dynamics.grid.compact_index`).
 
 The observed quantities (:func:`observer`): the dynamic mesh force F_D (N, Eqs. (22)/(24)),
 the DTE (m) and, where the model has one, an acceleration (m/s^2).
@@ -24,12 +31,12 @@ from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from .metrics import (JumpClusters, OutputGrid, jump_clusters, jump_window_extrema,
-                      jump_windows, n_jump_windows, output_grid, refine_windows,
-                      ringing_length, ringing_resolved, window_extrema)
-from .orders import mesh_order_amplitudes, order_matrix
+from ..excitation.jumps import JumpSet
+from . import grid as grids
+from .metrics import (MAX_JUMP_WINDOWS, NEAR_EXTREME_WINDOWS, jump_window_extrema,
+                      refine_windows, ringing_length, ringing_resolved, window_extrema)
+from .orders import N_MESH_ORDERS
 
 __all__ = ["N_REFINE", "MeasureGrid", "measure_grid", "observer", "n_outputs", "ringing",
            "Windows", "windows", "n_windows", "extrema", "mesh_orders", "OrbitMeasure",
@@ -39,33 +46,68 @@ N_REFINE = 64  # refined points per grid interval of the extremum windows (metri
 
 
 class MeasureGrid(NamedTuple):
-    """Where a response is read (NumPy, build time).
+    """Where a response is read (traced where the model's jump set is).
 
-    grid : the output grid (:func:`gearjax.dynamics.metrics.output_grid`) over
-        ``n_periods`` excitation periods from 0.
-    n_samples : uniform mid-cell samples per excitation period.
-    n_periods : measured excitation periods.
-    clusters : the jump clusters of one period (:func:`gearjax.dynamics.metrics.jump_clusters`).
+    grid : one period of the output grid (:func:`gearjax.dynamics.grid.period_grid`).
+    n_samples : uniform mid-cell samples per excitation period (static).
+    n_periods : measured excitation periods (static).
+    clusters : the jump clusters of one period (:func:`gearjax.dynamics.grid.jump_clusters`).
     n_refine : refined points per grid interval of a window (``2 n_refine`` per window).
+    jumps : the model's :class:`~gearjax.excitation.jumps.JumpSet`.
+    period, mesh_period : the excitation and mesh periods (rad, static).
     """
 
-    grid: OutputGrid
+    grid: grids.PeriodGrid
     n_samples: int
     n_periods: int
-    clusters: JumpClusters
+    clusters: grids.Clusters
     n_refine: int
+    jumps: JumpSet
+    period: float
+    mesh_period: float
+
+    @property
+    def per_period(self) -> int:
+        """Grid points per period, padding included (static)."""
+        return self.grid.per_period
+
+    def offsets(self):
+        """(n_periods * per_period,) the grid angles (rad) from the start of the first
+        measured period (each period's padding after its valid points)."""
+        return (self.grid.offsets[None, :]
+                + self.period * jnp.arange(self.n_periods)[:, None]).ravel()
+
+    def compact(self):
+        """``(index, n_valid)``: :func:`gearjax.dynamics.grid.compact_index` of the
+        measured periods (the valid points side by side, in time order)."""
+        return grids.compact_index(self.grid, self.n_periods)
+
+    def sample_index(self):
+        """(n_periods * n_samples,) positions of the uniform mid-cell samples in
+        :meth:`offsets` (the uniformly sampled signals)."""
+        return (self.grid.mid[None, :]
+                + self.per_period * jnp.arange(self.n_periods)[:, None]).ravel()
+
+    def valued(self, vals):
+        """The grid values ``vals`` (n_periods * per_period, q) with each padding point
+        holding its period's first value (the padding is never read as a point of the
+        response)."""
+        valid = grids.valid_points(self.grid, self.n_periods)
+        first = (jnp.arange(vals.shape[0]) // self.per_period) * self.per_period
+        return jnp.where(valid[:, None], vals, vals[first])
 
 
 def measure_grid(model, n_periods: int, samples_per_mesh_period: int,
                  n_refine: int = N_REFINE) -> MeasureGrid:
-    """The :class:`MeasureGrid` of ``model`` (its excitation period and jump angles) over
+    """The :class:`MeasureGrid` of ``model`` (its excitation period and jump set) over
     ``n_periods`` periods with ``samples_per_mesh_period`` samples per mesh period."""
     period = float(model.period_rad)
     n_samples = int(samples_per_mesh_period) * int(round(period / model.mesh_period_rad))
-    jumps = np.asarray(model.jump_thetas, dtype=float)
-    grid = output_grid(period, n_samples, jumps, int(n_periods))
-    return MeasureGrid(grid, n_samples, int(n_periods), jump_clusters(grid, period, jumps),
-                       int(n_refine))
+    jumps = model.jumps
+    pg = grids.period_grid(period, n_samples, jumps)
+    return MeasureGrid(pg, n_samples, int(n_periods),
+                       grids.jump_clusters(pg, period, n_samples, jumps), int(n_refine),
+                       jumps, period, float(model.mesh_period_rad))
 
 
 def observer(model, omega, contact: bool = True) -> Callable:
@@ -91,7 +133,7 @@ def ringing(model, omega, mg: MeasureGrid):
     so that they are not needed) at pinion speed ``omega`` (rad/s), from the model's
     dominant mesh mode (:func:`gearjax.dynamics.metrics.ringing_length`, ``ringing_resolved``)."""
     omega_n = model.natural_frequency_rad_s()
-    interval = float(model.period_rad) / mg.n_samples
+    interval = mg.period / mg.n_samples
     return (ringing_length(omega, omega_n, interval),
             ringing_resolved(omega, omega_n, interval))
 
@@ -99,17 +141,21 @@ def ringing(model, omega, mg: MeasureGrid):
 class Windows(NamedTuple):
     """The refinement windows of one measurement (traced).
 
-    j0, tf : (2q,) first grid point and (2q, 2 n_refine) angles of the windows around the
-        grid's extremes (:func:`gearjax.dynamics.metrics.refine_windows`; window k refines
-        output k // 2, its max for even k).
-    jj, tj : (K,) the grid point after each windowed jump and (K, 2 n_refine) the angles
-        after it (:func:`gearjax.dynamics.metrics.jump_windows`).
+    j0, tf : (2q,) first point in the compacted grid (:meth:`MeasureGrid.compact`) and
+        (2q, 2 n_refine) angles of the windows around the grid's extremes
+        (:func:`gearjax.dynamics.metrics.refine_windows`; window k refines output k // 2,
+        its max for even k).
+    jj, tj : (K,) the compacted grid point after each windowed jump and (K, 2 n_refine)
+        the angles after it (:func:`gearjax.dynamics.grid.jump_windows`).
+    first : (2q + K,) the grid point (in :meth:`MeasureGrid.offsets`) each window starts
+        from, in the order of :meth:`angles`.
     """
 
     j0: jax.Array
     tf: jax.Array
     jj: jax.Array
     tj: jax.Array
+    first: jax.Array
 
     def angles(self):
         """(2q + K, 2 n_refine) the angles of every window, extremum windows first."""
@@ -117,38 +163,48 @@ class Windows(NamedTuple):
 
 
 def n_windows(mg: MeasureGrid, q: int) -> tuple[int, int]:
-    """(extremum windows ``2 q``, windows after the jumps) for ``q`` outputs (static)."""
-    return 2 * q, n_jump_windows(mg.clusters, q)
+    """(extremum windows ``2 q``, windows after the jumps) for ``q`` outputs (static): the
+    ``MAX_JUMP_WINDOWS`` after the largest jumps and ``NEAR_EXTREME_WINDOWS`` per
+    extremum of each output, every cluster where the jump set's bound is smaller."""
+    return 2 * q, min(MAX_JUMP_WINDOWS + 2 * q * NEAR_EXTREME_WINDOWS, mg.jumps.bound)
 
 
 def windows(mg: MeasureGrid, vals, ts, ring) -> Windows:
-    """The windows of the grid values ``vals`` (N, q) at the grid angles ``ts`` (N,):
-    around each output's grid extremes and after the jumps (``ring``: their length, rad)."""
-    j0, tf = refine_windows(vals, ts, mg.n_refine)
-    jj, tj = jump_windows(vals, ts, mg.clusters, mg.grid.per_period, ring, 2 * mg.n_refine)
-    return Windows(j0, tf, jj, tj)
+    """The windows of the grid values ``vals`` (N, q) at the grid angles ``ts`` (N,) (of
+    :meth:`MeasureGrid.offsets`): around each output's grid extremes and after the jumps
+    (``ring``: their length, rad)."""
+    cidx, n_valid = mg.compact()
+    vals_c, ts_c = vals[cidx], ts[cidx]
+    j0, tf = refine_windows(vals_c, ts_c, mg.n_refine, n_valid)
+    n_jw = n_windows(mg, vals.shape[1])[1]
+    jj, tj = grids.jump_windows(vals_c, ts_c, mg.clusters, mg.grid.n_valid, mg.n_periods,
+                                n_jw, ring, 2 * mg.n_refine)
+    return Windows(j0, tf, jj, tj, cidx[jnp.concatenate([j0, jj])])
 
 
-def extrema(vals, ts, win: Windows, wvals, resolved):
-    """Max and min (q,) of each output: the grid values ``vals`` (N, q), the values
-    ``wvals`` (2q + K, 2 n_refine, q) of every output in the windows ``win`` (in the order
-    of :meth:`Windows.angles`), the windows after the jumps used unless ``resolved``."""
+def extrema(mg: MeasureGrid, vals, ts, win: Windows, wvals, resolved):
+    """Max and min (q,) of each output: the grid values ``vals`` (N, q) at ``ts``, the
+    values ``wvals`` (2q + K, 2 n_refine, q) of every output in the windows ``win`` (in the
+    order of :meth:`Windows.angles`), the windows after the jumps used unless ``resolved``."""
+    cidx, n_valid = mg.compact()
+    vals_c, ts_c = vals[cidx], ts[cidx]
     q = vals.shape[1]
     n_ref = 2 * q
     cols = jnp.repeat(jnp.arange(q), 2)  # window k refines output k // 2
-    v_max, v_min = window_extrema(vals, ts, win.j0, wvals[jnp.arange(n_ref), :, cols])
-    j_max, j_min = jump_window_extrema(vals, ts, win.jj, win.tj, wvals[n_ref:])
+    v_max, v_min = window_extrema(vals_c, ts_c, win.j0, wvals[jnp.arange(n_ref), :, cols],
+                                  n_valid)
+    j_max, j_min = jump_window_extrema(vals_c, ts_c, win.jj, win.tj, wvals[n_ref:])
     return (jnp.where(resolved, v_max, jnp.maximum(v_max, j_max)),
             jnp.where(resolved, v_min, jnp.minimum(v_min, j_min)))
 
 
 def mesh_orders(model, mg: MeasureGrid, vals):
     """(q, 5) single-sided amplitudes of mesh orders 1..5 of each output over the measured
-    periods (:mod:`gearjax.dynamics.orders`), from the grid values ``vals`` (N, q)."""
+    periods (:mod:`gearjax.dynamics.orders`' jump-corrected rule,
+    :func:`gearjax.dynamics.grid.order_amplitudes`), from the grid values ``vals`` (N, q)."""
     per = vals.reshape(mg.n_periods, -1, vals.shape[-1])
-    return mesh_order_amplitudes(order_matrix(
-        float(model.period_rad), model.mesh_period_rad, mg.n_samples,
-        np.asarray(model.jump_thetas, dtype=float)), per)
+    return grids.order_amplitudes(mg.grid, mg.jumps, mg.period, mg.mesh_period,
+                                  mg.n_samples, per, N_MESH_ORDERS)
 
 
 class OrbitMeasure(NamedTuple):
@@ -176,10 +232,10 @@ def measure_orbit(model, omega, states: Callable, mg: MeasureGrid,
     resolve the ringing (a ``lax.cond``: skipped for real where the speeds are mapped).
     ``contact``: as :func:`observer`."""
     observed = observer(model, omega, contact)
-    per = mg.grid.per_period
-    ts = jnp.asarray(mg.grid.offsets)
-    one = jax.vmap(observed)(ts[:per], states(ts[:per]))
-    vals = jnp.tile(one, (mg.n_periods, 1))
+    ts = mg.offsets()
+    t1 = mg.grid.offsets
+    one = jax.vmap(observed)(t1, states(t1))
+    vals = mg.valued(jnp.tile(one, (mg.n_periods, 1)))
     ring, resolved = ringing(model, omega, mg)
     win = windows(mg, vals, ts, ring)
 
@@ -190,5 +246,5 @@ def measure_orbit(model, omega, states: Callable, mg: MeasureGrid,
     w_ref = read(win.tf)
     w_jump = jax.lax.cond(resolved, lambda: jnp.zeros(win.tj.shape + (vals.shape[1],),
                                                       vals.dtype), lambda: read(win.tj))
-    v_max, v_min = extrema(vals, ts, win, jnp.concatenate([w_ref, w_jump]), resolved)
+    v_max, v_min = extrema(mg, vals, ts, win, jnp.concatenate([w_ref, w_jump]), resolved)
     return OrbitMeasure(ts, vals, v_max, v_min, mesh_orders(model, mg, vals))

@@ -178,20 +178,25 @@ def refined_extrema(outputs, flow, ts, ys, n_refine: int = 64, jumps=None):
     return vals, v_max, v_min
 
 
-def refine_windows(vals, ts, n_refine: int = 64):
+def refine_windows(vals, ts, n_refine: int = 64, n_valid=None):
     """The refinement windows of :func:`refined_extrema`: for each output ``c`` (in the
     order max of 0, min of 0, max of 1, ...), the index ``j0`` of the window's first grid
     point (the window is ``[ts[j0], ts[j0 + 2]]`` around the interior grid extreme
-    ``j0 + 1``) and its ``2 n_refine`` interior angles ``tf`` (sorted). Returns
+    ``j0 + 1``) and its ``2 n_refine`` interior angles ``tf`` (sorted). ``n_valid``: only
+    the first ``n_valid`` grid points count (traced; the rest is padding). Returns
     ``(j0 (2q,), tf (2q, 2 n_refine))``."""
     n, q = vals.shape
     # windows [t_j-1, t_j+1] around the interior grid extreme j: an extreme at the first or
     # last grid point may lie outside the measured span, where no window reaches; its
     # periodic copy one period on is interior (two measured periods or more)
     inner = vals[1:-1]
+    hi = lo = inner
+    if n_valid is not None:
+        inside = (jnp.arange(n - 2) < n_valid - 2)[:, None]
+        hi, lo = jnp.where(inside, inner, -jnp.inf), jnp.where(inside, inner, jnp.inf)
     starts = []
     for c in range(q):
-        starts += [jnp.argmax(inner[:, c]), jnp.argmin(inner[:, c])]
+        starts += [jnp.argmax(hi[:, c]), jnp.argmin(lo[:, c])]
     j0 = jnp.stack(starts)  # window [t_j0, t_j0+2] around each interior extreme j0 + 1
     u = (jnp.arange(n_refine) + 1.0) / (n_refine + 1.0)
 
@@ -204,15 +209,19 @@ def refine_windows(vals, ts, n_refine: int = 64):
 
 
 @jax.jit  # as jump_window_extrema
-def window_extrema(vals, ts, j0, wvals):
+def window_extrema(vals, ts, j0, wvals, n_valid=None):
     """Max and min of each output over the grid values ``vals`` (N, q) and the refined
     window values ``wvals`` (2q, 2 n_refine) read at the angles of :func:`refine_windows`
-    (window k refines output k // 2, its max for even k, its min for odd k). Returns
+    (window k refines output k // 2, its max for even k, its min for odd k); ``n_valid``:
+    the grid's first ``n_valid`` points (the rest padding holding grid values). Returns
     ``(maxima (q,), minima (q,))``."""
     n, q = vals.shape
     n_refine = wvals.shape[1] // 2
     u = (jnp.arange(n_refine) + 1.0) / (n_refine + 1.0)
-    short = 1e-6 * (ts[-1] - ts[0]) / n  # intervals this short straddle a jump
+    if n_valid is None:
+        short = 1e-6 * (ts[-1] - ts[0]) / n  # intervals this short straddle a jump
+    else:
+        short = 1e-6 * (ts[n_valid - 1] - ts[0]) / n_valid
 
     def window(j, c, out):
         """Times and values of output c on [t_j, t_j+2]: grid points and refined ones."""

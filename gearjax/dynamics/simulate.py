@@ -22,7 +22,7 @@ by period within ``max_transient_mesh_periods`` (contact loss decays more slowly
 linear model). Measurements: ``benchmarks/results/code_notes.md``, gearjax.dynamics.simulate.
 
 Jumps: the right-hand side jumps or kinks at speed-independent angles
-(``model.jump_thetas``); :class:`~gearjax.dynamics.integrate.PeriodicJumpController` ends a step just before each and
+(``model.jumps``); :class:`~gearjax.dynamics.integrate.PeriodicJumpController` ends a step just before each and
 restarts just after it. The contact laws' state-dependent kinks (contact loss, back-flank
 impacts) are left to the error control. Solvers and tolerances: :func:`default_solver`.
 
@@ -94,14 +94,11 @@ _MANY_JUMPS = 20  # jumps per mesh period above which steps are forced short
 
 
 def jump_density(model) -> float:
-    """Separated jump angles per mesh period: jumps closer than 1e-3 of a mesh period count
-    once (the cells of one 3D contact line engaging one after the other cost a few tiny
-    steps together, not a cut of every step as the 240 spread-out helical jumps do)."""
-    j = np.sort(np.asarray(model.jump_thetas, dtype=float))
-    if j.size == 0:
-        return 0.0
-    n = 1 + int(np.sum(np.diff(j) > 1e-3 * model.mesh_period_rad))
-    return n * model.mesh_period_rad / model.period_rad
+    """Separated jump angles per mesh period of ``model`` (its jump set's static
+    ``density``: jumps closer than 1e-3 of a mesh period count once, so the cells of one 3D
+    contact line engaging one after the other cost a few tiny steps together, not a cut of
+    every step as the 240 spread-out helical jumps do)."""
+    return float(model.jumps.density)
 
 
 def default_solver(formulation, jumps_per_mesh_period: float = 0.0):
@@ -219,13 +216,16 @@ DEFAULT_MEASURED_PERIODS = 2
 DEFAULT_SAMPLES_PER_MESH_PERIOD = 128  # and its output grid density
 
 
-def measured_grid(model, n_measured_periods: int, samples_per_mesh_period: int):
-    """(output grid of the measured periods (:func:`gearjax.dynamics.metrics.output_grid`),
-    samples per excitation period, length of each leg of :func:`simulate`'s solve
-    (:mod:`gearjax.dynamics.legs`): one period's grid and its end, or the ``2 N_REFINE``
-    points of a refinement window if longer)."""
-    mg = measure_grid(model, n_measured_periods, samples_per_mesh_period)
-    return mg.grid, mg.n_samples, max(mg.grid.per_period + 1, 2 * N_REFINE)
+def grid_size(model, n_measured_periods: int, samples_per_mesh_period: int):
+    """(samples per excitation period, output grid points per period (the samples and
+    both sides of every jump of the model's jump set, padding included:
+    :func:`gearjax.dynamics.grid.period_grid`), length of each leg of :func:`simulate`'s
+    solve (:mod:`gearjax.dynamics.legs`): one period's grid and its end, or the
+    ``2 N_REFINE`` points of a refinement window if longer)."""
+    period = float(model.period_rad)
+    n_samples = samples_per_mesh_period * int(round(period / model.mesh_period_rad))
+    per_period = n_samples + 2 * model.jumps.bound
+    return n_samples, per_period, max(per_period + 1, 2 * N_REFINE)
 
 
 def simulate(
@@ -347,9 +347,10 @@ def simulate(
     t_tr = 0.0 if accelerated else n_tr * period
     # output grid: mid-cell samples (never on an engagement angle) plus both sides of
     # every jump, per measured period (gearjax.dynamics.metrics)
+    # (gearjax.dynamics.measure, from the model's jump set in the program)
     mg = measure_grid(model, n_measured_periods, samples_per_mesh_period)
-    grid, n_out = mg.grid, max(mg.grid.per_period + 1, 2 * N_REFINE)
-    ts = t_tr + jnp.asarray(grid.offsets)
+    n_out = max(mg.per_period + 1, 2 * N_REFINE)
+    ts = t_tr + mg.offsets()
     observed = observer(model, omega)  # the one measure (gearjax.dynamics.measure)
 
     n_grid = ts.shape[0]
@@ -359,10 +360,9 @@ def simulate(
     f_s = model.static_force_N
 
     def windows_of(g, memo):  # the measured states on the grid -> the windows' legs,
-        vals = jax.vmap(observed)(ts, g)  # the convergence, what a slide keeps
+        vals = mg.valued(jax.vmap(observed)(ts, g))  # the convergence, what a slide keeps
         win = windows(mg, vals, ts, ring)
-        j0 = jnp.concatenate([win.j0, win.jj])
-        return ((ts[j0], g[j0], win.angles()),) + convergence_measure(
+        return ((ts[win.first], g[win.first], win.angles()),) + convergence_measure(
             model, omega, vals, g, memo, n_periods=n_measured_periods,
             extrapolate=extrapolate, slide=slide, convergence_tol=convergence_tol)
 
@@ -394,10 +394,10 @@ def simulate(
     ys = grid_ys.reshape((n_grid,) + y0.shape)
     ok = ok_tr & jnp.all(success[:n_meas]) & jnp.all(jnp.isfinite(ys))
     steps = steps_tr + jnp.sum(n_steps[:n_meas])
-    vals = jax.vmap(observed)(ts, ys)
+    vals = mg.valued(jax.vmap(observed)(ts, ys))
     win = windows(mg, vals, ts, ring)
     wvals = jax.vmap(jax.vmap(observed))(win.angles(), win_ys)  # (n_win, k, q)
-    v_max, v_min = extrema(vals, ts, win, wvals, resolved)
+    v_max, v_min = extrema(mg, vals, ts, win, wvals, resolved)
     # a sub-harmonic orbit of more periods than measured: its other periods' extrema
     v_max, v_min = with_periods_slid_past(v_max, v_min, memo, multiple, n_measured_periods)
     f_max, f_min = v_max[0], v_min[0]
@@ -410,7 +410,7 @@ def simulate(
     bad = lambda v: jnp.where(ok, v, nan)
     signals = None
     if save_signals:  # the uniform mid-cell samples only (one-sided jump points left out)
-        mid = np.nonzero(grid.samples)[0]
+        mid = mg.sample_index()
         signals = Signals(
             theta_rad=ts[mid], mesh_force_N=vals[mid, 0], dte_m=vals[mid, 1],
             accel_m_s2=vals[mid, 2] if has_acc else None,

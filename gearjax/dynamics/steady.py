@@ -63,6 +63,8 @@ from .stability import check_speeds, spectral_radius_of  # noqa: F401 (re-export
 
 __all__ = [
     "periodic_state",
+    "period_and_monodromy",
+    "period_end",
     "PeriodicState",
     "steady_state",
     "SteadyStateResult",
@@ -253,8 +255,33 @@ def orbit_of(model, omega, ps: PeriodicState, newton_tol: float) -> Orbit:
                  floquet_radius=ps.spectral_radius, status=status, n_steps=ps.n_steps)
 
 
+def period_and_monodromy(model, omega, y_start, *, solver=None, rtol: float | None = None,
+                         atol: float | None = None, max_steps: int = 1_000_000):
+    """``(y(P), Phi(P), ok, steps)``: the state after one excitation period from
+    ``y_start`` and the monodromy matrix of the linearised flow there (the shooting's
+    augmented period, one diffeqsolve; solver options as :func:`periodic_state`'s)."""
+    solver, rtol, atol = shooting_solver(solver, rtol, atol)
+    return _one_period(model, jnp.asarray(omega, dtype=float), y_start, solver, rtol, atol,
+                       max_steps)
+
+
+def period_end(model, omega, y_start, *, solver=None, rtol: float | None = None,
+               atol: float | None = None, max_steps: int = 1_000_000):
+    """``(y(P), ok)``: the state after one excitation period from ``y_start``, integrated
+    as the shooting integrates its period (solver options as :func:`periodic_state`'s)
+    without the monodromy: forward-mode derivatives of ``y(P)`` at the cost of the state
+    alone."""
+    solver, rtol, atol = shooting_solver(solver, rtol, atol)
+    sol = integrate(model.vector_field, solver, jump_controller(model, rtol, atol), 0.0,
+                    float(model.period_rad), y_start, jnp.asarray(omega, dtype=float),
+                    saveat=diffrax.SaveAt(t1=True), max_steps=max_steps,
+                    adjoint=diffrax.ForwardMode())
+    y_p = sol.ys[-1]
+    return y_p, (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y_p))
+
+
 def steady_state(model, omega, shooting: "Shooting | None" = None, *,
-                 y_start=None) -> SteadyStateResult:
+                 y_start=None, periodic: PeriodicState | None = None) -> SteadyStateResult:
     """Steady-state metrics at one speed from the periodic orbit (no transient, no
     continuation: see :func:`steady_sweep` for that). Jit/vmap-compatible.
 
@@ -264,9 +291,13 @@ def steady_state(model, omega, shooting: "Shooting | None" = None, *,
     started on it. ``converged`` = the measured periods are periodic to
     ``convergence_tol`` and the orbit's status is ``successful`` (found, Newton converged,
     Floquet radius < 1); where a period integration failed the metrics are NaN.
+    ``periodic``: the orbit's :class:`PeriodicState` where the caller has it already (e.g.
+    with its own derivative rule, :mod:`gearjax.design.orbits`; its status read by
+    :func:`orbit_of`), else the shooting's.
     """
     shooting = Shooting() if shooting is None else shooting
-    orbit = shooting.orbit(model, omega, y_start=y_start)
+    orbit = (shooting.orbit(model, omega, y_start=y_start) if periodic is None
+             else orbit_of(model, omega, periodic, shooting.newton_tol))
     res = measure(model, orbit, shooting.measured())
     good = (orbit.status != RESULTS.integration_failed) & res.solver_ok
     nan = jnp.asarray(jnp.nan)

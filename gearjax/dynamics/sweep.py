@@ -477,13 +477,13 @@ def memory_chunk(model, simulate_kwargs: dict | None = None,
     16 MB per speed; the helical rig with pitch errors (a pinion revolution of 26 mesh
     periods, 240 jumps per mesh period): 0.8 GB."""
     from .simulate import (DEFAULT_MEASURED_PERIODS, DEFAULT_SAMPLES_PER_MESH_PERIOD,
-                           measured_grid)
+                           grid_size)
 
     kw = dict(simulate_kwargs or {})
-    grid, _, _ = measured_grid(
-        model, int(kw.get("n_measured_periods", DEFAULT_MEASURED_PERIODS)),
-        int(kw.get("samples_per_mesh_period", DEFAULT_SAMPLES_PER_MESH_PERIOD)))
-    per_speed = float(_BYTES_PER_ENTRY) * grid.offsets.size * int(model.state_size)
+    n_meas = int(kw.get("n_measured_periods", DEFAULT_MEASURED_PERIODS))
+    _, per_period, _ = grid_size(
+        model, n_meas, int(kw.get("samples_per_mesh_period", DEFAULT_SAMPLES_PER_MESH_PERIOD)))
+    per_speed = float(_BYTES_PER_ENTRY) * n_meas * per_period * int(model.state_size)
     if budget_bytes is None:
         try:
             total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")

@@ -148,7 +148,9 @@ def classify_events(angles, lo, hi, c_lo, c_hi, n_cells, period, rtol: float = 1
 
     Returns
     -------
-    (kinds, cells) : tuples of int and of (int, int), one per angle.
+    (kinds, cells) : tuples of int and of (int, int), one per angle (concrete inputs; a
+    build inside a program uses :func:`gearjax.excitation.layout.classify_events`, the
+    same rule).
     """
     angles = np.asarray(angles, dtype=float).reshape(-1)
     at = np.mod(np.asarray(hi, dtype=float), period)

@@ -17,6 +17,8 @@ import numpy as np
 
 __all__ = ["PeriodicHermiteTable", "AngleMap", "hermite_segment"]
 
+_COMPARE_ALL_NODES = 64  # AngleMap nodes up to which its segment is found by comparisons
+
 
 def hermite_segment(v0, v1, d0, d1, u, w):
     """(value, d/dtheta) of the cubic Hermite segment of width ``w`` (rad) with end values
@@ -45,14 +47,16 @@ class PeriodicHermiteTable(eqx.Module):
     knots : (K,) sorted angles (rad), ``knots[0] = origin``, ``knots[-1] = origin + period``.
     values, slopes : (K, q) signal values and d/dtheta at the knots.
     cell_first : (n_cells,) index of the uniform knot opening each cell.
-    origin, period, n_cells, max_extra : static layout.
+    origin : () the first knot (rad), data (it moves with the design's jumps).
+    period, n_cells, max_extra : static layout (``max_extra`` a bound: knots beyond the
+        last real one repeat it, zero-width segments that no lookup selects).
     """
 
     knots: jax.Array
     values: jax.Array
     slopes: jax.Array
     cell_first: jax.Array
-    origin: float = eqx.field(static=True)
+    origin: jax.Array = eqx.field(converter=jnp.asarray)
     period: float = eqx.field(static=True)
     n_cells: int = eqx.field(static=True)
     max_extra: int = eqx.field(static=True)
@@ -127,7 +131,11 @@ class AngleMap(eqx.Module):
         """(theta, dtheta/ds) at the simulation angle ``s``."""
         k = jnp.floor(s / self.period)
         sm = s - k * self.period
-        i = jnp.clip(jnp.searchsorted(self.nodes, sm, side="right") - 1, 0, self.nodes.shape[0] - 2)
+        # the segment by one vectorised comparison (a binary search's loop costs more than
+        # the few dozen nodes of a spur mesh; helical meshes have hundreds)
+        method = "compare_all" if self.nodes.shape[0] <= _COMPARE_ALL_NODES else "scan"
+        i = jnp.clip(jnp.searchsorted(self.nodes, sm, side="right", method=method) - 1, 0,
+                     self.nodes.shape[0] - 2)
         s0, s1 = self.nodes[i], self.nodes[i + 1]
         w = s1 - s0
         u = (sm - s0) / w

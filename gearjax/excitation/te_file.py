@@ -49,7 +49,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import GearjaxError, ModelError
-from .events import EV_FIXED, quiet_origin
+from .events import quiet_origin
+from .jumps import JumpSet
 from .tables import PeriodicHermiteTable, hermite_segment
 
 __all__ = ["TETable", "read_te_csv", "excitation_table", "te_model_fields", "with_jump_rows",
@@ -425,7 +426,7 @@ def excitation_table(te: TETable, law: PeriodicHermiteTable | None = None, law_s
     table = PeriodicHermiteTable(knots=jnp.asarray(knots), values=jnp.asarray(vals),
                                  slopes=jnp.asarray(slopes),
                                  cell_first=jnp.asarray(cell_first, dtype=jnp.int32),
-                                 origin=float(origin), period=float(period),
+                                 origin=origin, period=float(period),
                                  n_cells=n_cells,
                                  max_extra=max_extra)
     jumps = np.sort(jumps)
@@ -443,10 +444,11 @@ def te_model_fields(te: TETable, law: PeriodicHermiteTable, law_side, law_jumps,
     if nlte_terms is None:
         nlte_terms = bool(np.any(te.values[:, 1] != 0.0))
     return dict(te_input=table, table_knots=table.knots, table_cell_first=table.cell_first,
-                table_side=jnp.asarray(side), table_origin=table.origin,
-                period_rad=table.period, table_max_extra=table.max_extra, jump_thetas=jumps,
-                jump_kinds=(EV_FIXED,) * len(jumps), jump_cells=((0, 0),) * len(jumps),
-                table_codes=None, nlte_terms=bool(nlte_terms))
+                table_side=jnp.asarray(side), table_origin=jnp.asarray(table.origin),
+                period_rad=table.period, table_max_extra=table.max_extra,
+                jumps=JumpSet.from_angles(jumps, table.period,
+                                          mesh_period=te.mesh_period_rad),
+                table_codes=None, nlte_weight=jnp.asarray(float(bool(nlte_terms))))
 
 
 def _fold(kn, sd, origin, period):

@@ -72,7 +72,9 @@ class ToothModifications(eqx.Module):
     pitch_errors_m: tuple[jax.Array, jax.Array] | None = None
     eccentricity_m: jax.Array | None = None
     eccentricity_phase_rad: jax.Array | None = None
-    crowning_m: jax.Array = eqx.field(default_factory=lambda: jnp.asarray(0.0))
+    # a NumPy zero by default: built inside a traced function it stays a known constant,
+    # so the sdof build can still merge the cells of uncrowned spur contact lines
+    crowning_m: jax.Array = eqx.field(default_factory=lambda: np.asarray(0.0))
 
     def __check_init__(self):
         if self.relief_shape not in ("linear", "parabolic"):

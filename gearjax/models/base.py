@@ -24,6 +24,7 @@ import jax.numpy as jnp
 
 from ..errors import ModelError
 from .formulations import FORMULATION_NAMES, AbstractFormulation, Reference, formulation_of
+from ..excitation.jumps import JumpSet
 
 __all__ = ["AbstractGearModel", "AbstractModalModel", "ModelOutputs", "FORMULATIONS",
            "LINEAR_FORMULATIONS", "AbstractWithoutContactLaw", "WithoutContactLaw",
@@ -67,8 +68,11 @@ class AbstractGearModel(eqx.Module):
         affine with the mean stiffness ``k_m``); ``.name`` is its word in results.
     period_rad : excitation period in theta (rad): one mesh period ``2 pi / z1`` or a
         multiple (pitch errors, eccentricity).
-    jump_thetas : sorted simulation angles in ``[0, period_rad)`` where the right-hand side
-        jumps or kinks independently of speed (passed to the step-size controller).
+    jumps : :class:`~gearjax.excitation.jumps.JumpSet`, the sorted simulation angles in
+        ``[0, period_rad)`` where the right-hand side jumps or kinks independently of
+        speed (passed to the step-size controller), padded to a static bound: data, so
+        that a design that moves them (or changes their count within the bound) is not a
+        new program.
     damping_ratio : modal / mesh viscous damping ratio zeta (dimensionless).
     structure_ok : traced bool, the discrete structure of the quasi-static solution
         (active sets, NLTE cell, relief zones at every table knot) is the build one, so
@@ -77,11 +81,16 @@ class AbstractGearModel(eqx.Module):
 
     formulation: eqx.AbstractVar[AbstractFormulation]
     period_rad: eqx.AbstractVar[float]
-    jump_thetas: eqx.AbstractVar[tuple]
+    jumps: eqx.AbstractVar[JumpSet]
     damping_ratio: eqx.AbstractVar[jax.Array]
     structure_ok: eqx.AbstractVar[jax.Array]
 
     # ------------------------------------------------------------------ constants
+    @property
+    def jump_thetas(self) -> tuple:
+        """The valid angles of :attr:`jumps` (rad), a tuple (concrete models only)."""
+        return self.jumps.angles()
+
     @property
     @abc.abstractmethod
     def mesh_period_rad(self) -> float:
@@ -163,6 +172,18 @@ class AbstractGearModel(eqx.Module):
         state :meth:`initial_state`; modal models start their slow modes on the period
         mean (:func:`modal_transient_start`)."""
         return self.initial_state(omega)
+
+    def deflected_start(self, omega, factor):
+        """The quasi-static state at theta = 0 (:meth:`initial_state`) with its
+        displacements scaled by ``factor`` and its velocities kept: ``factor = -1`` mirrors
+        the static deflection of the mesh about zero (teeth apart by the static approach), a
+        start from which a transient can reach a contact-losing orbit that coexists with
+        the one reached from the quasi-static state (:class:`gearjax.design.OrbitSet`).
+        Default: a state ``(displacements, velocities)`` in two halves, zero at zero
+        deflection (the sdof model's ``(z / x_ref, z' / (r x_ref))``)."""
+        y = self.initial_state(omega)
+        half = y.shape[0] // 2
+        return y.at[:half].multiply(factor)
 
     @property
     def periodic_start(self) -> bool:
@@ -248,7 +269,7 @@ class AbstractWithoutContactLaw(AbstractGearModel):
     model: AbstractGearModel
     formulation: AbstractFormulation
     period_rad: float
-    jump_thetas: tuple
+    jumps: JumpSet
     damping_ratio: jax.Array
     structure_ok: jax.Array
 
@@ -258,7 +279,7 @@ class AbstractWithoutContactLaw(AbstractGearModel):
                              "is per cell and always on; WithoutContactLaw is for te/perturbation")
         self.model = model
         self.formulation, self.period_rad = model.formulation, model.period_rad
-        self.jump_thetas, self.damping_ratio = model.jump_thetas, model.damping_ratio
+        self.jumps, self.damping_ratio = model.jumps, model.damping_ratio
         self.structure_ok = model.structure_ok
 
     @property
@@ -310,6 +331,9 @@ class AbstractWithoutContactLaw(AbstractGearModel):
 
     def transient_start(self, omega):
         return self.model.transient_start(omega)
+
+    def deflected_start(self, omega, factor):
+        return self.model.deflected_start(omega, factor)
 
     def harmonic_state(self, omega, theta0=0.0):
         return self.model.harmonic_state(omega, theta0)

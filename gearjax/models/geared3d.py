@@ -99,6 +99,7 @@ import jax.numpy as jnp
 from ..errors import ModelError
 from ..linalg import solve as dense_solve
 from ..excitation.events import NEWTON_STEPS
+from ..excitation.jumps import JumpSet
 from ..excitation.mesh3d import (QuasiStaticMesh3D, fourier_coefficients, harmonic_response,
                                  tabulate)
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
@@ -159,7 +160,7 @@ class Geared3DModel(AbstractModalModel):
     (:func:`~gearjax.models.geared3d_build.modal_structure`: ``kbar_r`` is applied as its
     diagonal, ``c_r`` as its diagonal on the first ``damping_split`` coordinates and a
     dense block on the rest),
-    period_rad, jump_thetas, decay_omega_rad_s (slowest mode with a mesh participation
+    period_rad, decay_omega_rad_s (slowest mode with a mesh participation
     above ``participation_tol``), qs_max_iter, table_origin, table_cells,
     table_max_extra, excitation, harmonic_start, event_thetas, event_kinds, event_cells,
     te_source (the TE file driving the excitation, or None).
@@ -193,13 +194,13 @@ class Geared3DModel(AbstractModalModel):
     table: PeriodicHermiteTable | None
     angle_map: AngleMap | None
     structure_ok: jax.Array
+    jumps: JumpSet
     formulation: AbstractFormulation = eqx.field(static=True)
     mesh_vectors: str = eqx.field(static=True)
     nlte_terms: bool = eqx.field(static=True)
     n_modes: int = eqx.field(static=True)
     n_static: int = eqx.field(static=True)
     period_rad: float = eqx.field(static=True)
-    jump_thetas: tuple = eqx.field(static=True)
     decay_omega_rad_s: float = eqx.field(static=True)
     qs_max_iter: int = eqx.field(static=True)
     table_origin: float = eqx.field(static=True)
@@ -635,6 +636,15 @@ class Geared3DModel(AbstractModalModel):
             u = u + self._nlte_derivs(theta0)[1] * e
         r = self.omega_r / omega
         return jnp.concatenate([(qs - self.q0) / self.scale_a, u / (r * self.scale_a)])
+
+    def deflected_start(self, omega, factor):
+        """The quasi-static state with its modal displacements ``q_S`` scaled by ``factor``
+        (``q = factor q_S``, so ``factor = -1`` mirrors the static deflection of the mesh
+        and of the shafts), velocities kept (the state measures ``q`` from ``q_0``)."""
+        y = self.initial_state(omega)
+        r = self.n_reduced
+        q_s = y[:r] * self.scale_a + self.q0
+        return y.at[:r].set((factor * q_s - self.q0) / self.scale_a)
 
     def outputs(self, theta, y, omega, contact: bool = True) -> ModelOutputs:
         """Mesh force F_D (N), DTE = W^T X + NLTE (m) and the pinion-centre acceleration

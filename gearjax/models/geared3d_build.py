@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..excitation.events import distinct_angles, engagement_angles
+from ..excitation.jumps import JumpSet
 from ..excitation.mesh3d import QuasiStaticMesh3D
 from ..excitation.te_file import TETable
 from ..gears.backlash import back_flank_angle_rad, check_backlash, check_backlash_mods
@@ -276,7 +277,8 @@ def build_geared3d(
         damping_ratio=jnp.asarray(zeta), scale_a=jnp.asarray(scale_a), ecc=ecc,
         formulation=formulation, mesh_vectors=mesh_vectors, nlte_terms=bool(nlte_terms),
         n_modes=int(red.n_modes), n_static=int(red.n_static), period_rad=float(period),
-        jump_thetas=tuple(float(t) for t in jumps), decay_omega_rad_s=decay_omega,
+        jumps=JumpSet.from_angles(jumps, period, mesh_period=pair.mesh_period_rad),
+        decay_omega_rad_s=decay_omega,
         qs_max_iter=int(qs_max_iter), excitation=excitation,
         harmonic_start=bool(harmonic_start),
         te_source=None if te_table is None else te_table.source,

@@ -112,31 +112,28 @@ import math
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from ..gears.geometry import STEEL_DENSITY_KG_M3, GearPair, solid_cylinder_inertias  # re-exported
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
-from ..gears.backlash import cell_backlash_force, check_backlash, check_backlash_mods
+from ..gears.backlash import cell_backlash_force
 from ..gears.contact import (TEContactLaw, solve_unilateral, te_backlash_contact,
                              te_cell_contact, te_contact, unilateral_solve_pairwise)
 from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..excitation.mesh3d import fourier_coefficients
 from ..excitation.events import EV_FIXED, NEWTON_STEPS, code_jnp, moved_event_angles
+from ..excitation.jumps import JumpSet
 from ..excitation.sdof import sdof_signature, sdof_switch
 from ..excitation.tables import AngleMap, PeriodicHermiteTable
 from ..excitation.te_file import te_model_fields
 from .base import AbstractGearModel, ModelOutputs
-from .formulations import (AbstractFormulation, Perturbation, Reference, TransmissionError,
-                           formulation_of)
-from .torsional_layout import sdof_table_layout, with_back_flank_jumps
+from .formulations import AbstractFormulation, Perturbation, Reference, TransmissionError
+from .torsional_build import EXCITATIONS, NLTE_METHODS, NLTE_REACTIONS, build_torsional
 from ..errors import ModelError
 
-__all__ = ["TorsionalModel", "ModelOutputs", "ModelError", "solid_cylinder_inertias"]
+__all__ = ["TorsionalModel", "ModelOutputs", "ModelError", "solid_cylinder_inertias",
+           "EXCITATIONS", "NLTE_METHODS", "NLTE_REACTIONS"]
 
-NLTE_METHODS = ("substitution", "spectral")
-EXCITATIONS = ("table", "inline")
-NLTE_REACTIONS = ("drive", "pinion")  # default first
 _X_S, _K_S, _NLTE = 0, 1, 2
 
 
@@ -152,24 +149,38 @@ class _TorsionalInputs(eqx.Module):
     table_knots: jax.Array
     table_cell_first: jax.Array
     table_side: jax.Array
+    table_origin: jax.Array
+    jumps: JumpSet
+    nlte_weight: jax.Array
     formulation: AbstractFormulation = eqx.field(static=True)
-    nlte_terms: bool = eqx.field(static=True)
     nlte_method: str = eqx.field(static=True)
     nlte_harmonics: int = eqx.field(static=True)
     excitation: str = eqx.field(static=True)
     period_rad: float = eqx.field(static=True)
-    jump_thetas: tuple = eqx.field(static=True)
     n_table: int = eqx.field(static=True)
-    table_origin: float = eqx.field(static=True)
     table_max_extra: int = eqx.field(static=True)
-    jump_kinds: tuple = eqx.field(static=True, default=())
-    jump_cells: tuple = eqx.field(static=True, default=())
     nlte_reaction: str = eqx.field(static=True, default="drive")
     nlte_inertia: bool = eqx.field(static=True, default=True)
+    moving_events: bool = eqx.field(static=True, default=True)
     table_codes: jax.Array | None = None
     te_input: PeriodicHermiteTable | None = None  # from a TE file (with_te): the table itself
     backlash_m: jax.Array | None = None  # clearance of the back flanks (m); None: none
     contact_law: TEContactLaw = eqx.field(static=True, default=TEContactLaw.MESH)
+
+    @property
+    def nlte_terms(self) -> bool:
+        """NLTE is kept in the equations (host-level reading of :attr:`nlte_weight`)."""
+        return bool(self.nlte_weight)
+
+    @property
+    def jump_kinds(self) -> tuple:
+        """The kinds of the valid events of :attr:`jumps` (concrete models only)."""
+        return self.jumps.kind_tuple()
+
+    @property
+    def jump_cells(self) -> tuple:
+        """The cell pairs of the valid events of :attr:`jumps` (concrete models only)."""
+        return self.jumps.cell_tuple()
 
     @property
     def pair(self) -> GearPair:
@@ -222,31 +233,42 @@ class _TorsionalInputs(eqx.Module):
         return jax.jvp(self._qs, (jnp.asarray(theta, dtype=float),), (jnp.ones((), dtype=float),))
 
     @property
-    def moving_jumps(self) -> bool:
-        """Some switching angles depend on the design (module docstring)."""
-        return any(k != EV_FIXED for k in self.jump_kinds)
+    def moving_jumps(self):
+        """Some switching angles depend on the design (module docstring); traced bool."""
+        return jnp.any(self.jumps.valid & (self.jumps.kinds != EV_FIXED))
 
     def _switch_function(self, kind, a, b, theta):
         """g(theta) (m) whose root is the switching angle of an event of ``kind`` (cells
         a, b): :func:`gearjax.excitation.sdof.sdof_switch`."""
         return sdof_switch(self.mesh, self.mods, self.static_force_N, kind, a, b, theta)
 
+    def _moved_jumps(self, newton_steps: int = NEWTON_STEPS):
+        """The switching angles of the current design for every entry of :attr:`jumps`
+        (padding included), by :func:`gearjax.excitation.events.moved_event_angles`."""
+        j = self.jumps
+        return moved_event_angles(self._switch_function, j.thetas, j.kinds, j.cells,
+                                  newton_steps)
+
     def jump_angles_rad(self, newton_steps: int = NEWTON_STEPS):
         """The switching angles ``theta_j`` (rad) of the current design, one per entry of
         :attr:`jump_thetas`: Newton iterations on :meth:`_switch_function` from the
         build-time angle (geometric ones stay fixed). Differentiable in the modifications:
         at the root, ``d theta_j = -(dg/d design) / (dg/d theta)`` (implicit function
-        theorem) is what the unrolled iterations return."""
-        return moved_event_angles(self._switch_function, self.jump_thetas, self.jump_kinds,
-                                  self.jump_cells, newton_steps)
+        theorem) is what the unrolled iterations return. Where the jump set itself is
+        traced (a model built inside ``jit``), every padded entry of :attr:`jumps`."""
+        moved = self._moved_jumps(newton_steps)
+        if isinstance(self.jumps.count, jax.core.Tracer):
+            return moved
+        return moved[: int(self.jumps.count)]
 
     def _angle_map(self) -> AngleMap:
-        return AngleMap.through(self.jump_thetas, self.jump_angles_rad(), self.period_rad)
+        return AngleMap.through(self.jumps.thetas, self._moved_jumps(), self.period_rad)
 
     @property
     def nlte_inertial_terms(self) -> bool:
-        """The NLTE'' inertial term is in the equations (``nlte_terms`` and ``nlte_inertia``)."""
-        return self.nlte_terms and self.nlte_inertia
+        """The NLTE'' inertial term can be in the equations (``nlte_inertia``; its weight
+        is :attr:`nlte_weight`)."""
+        return self.nlte_inertia
 
     @property
     def _substitution(self) -> bool:
@@ -259,15 +281,15 @@ class _TorsionalInputs(eqx.Module):
         ``kappa``, the angle map of the moving switching angles and its validity flag,
         and the spectral NLTE'' coefficients."""
         delta = 1e-9 * self.period_rad
-        amap = self._angle_map() if self.moving_jumps else None
         n_mesh = int(round(self.period_rad / self.mesh_period_rad))
         layout = dict(knots=self.table_knots, cell_first=self.table_cell_first,
                       origin=self.table_origin, period=self.period_rad,
                       n_cells=self.n_table * n_mesh, max_extra=self.table_max_extra)
+        amap = None
         if self.te_input is not None:
             structure_ok, table = jnp.asarray(True), self.te_input
             k_m = table.mean()[_K_S]
-        elif amap is None:
+        elif not self.moving_events:  # switching angles fixed at the build's: no map
             structure_ok = jnp.asarray(True)
             at = self.table_knots + self.table_side * delta
             vals, slopes = jax.vmap(self._qs_with_slope)(at)
@@ -275,7 +297,10 @@ class _TorsionalInputs(eqx.Module):
             table = PeriodicHermiteTable(values=vals, slopes=slopes, **layout)
             k_m = table.mean()[_K_S]
         else:
-            # tabulate q(phi(s)) and, for the mean over theta, (sum k)^S(phi(s)) phi'(s)
+            # tabulate q(phi(s)) and, for the mean over theta, (sum k)^S(phi(s)) phi'(s);
+            # phi is the identity at the build design (every design: no program of its own)
+            amap = self._angle_map()
+
             def one(s, side):
                 def f(s):
                     th, dth = amap(s)
@@ -294,7 +319,8 @@ class _TorsionalInputs(eqx.Module):
         m_eq = self.equivalent_mass_kg
         omega_n = jnp.sqrt(k_m * self.cos_bb**2 / m_eq)
         x_ref = self.static_force_N / (k_m * self.cos_bb)
-        kappa = self.nlte_inertia_ratio if self._substitution else jnp.zeros(())
+        kappa = (self.nlte_weight * self.nlte_inertia_ratio if self._substitution
+                 else jnp.zeros(()))
         coeffs = None
         if self.nlte_method == "spectral" and self.nlte_inertial_terms:
             n_keep = self.nlte_harmonics * n_mesh
@@ -302,7 +328,7 @@ class _TorsionalInputs(eqx.Module):
                                      self.period_rad, self.n_table * n_mesh, n_keep)
             h = jnp.arange(n_keep + 1)
             w = 2.0 * jnp.pi * h / self.period_rad
-            coeffs = jnp.where(h > 0, -(w**2) * 2.0 * c[: n_keep + 1], 0.0)
+            coeffs = self.nlte_weight * jnp.where(h > 0, -(w**2) * 2.0 * c[: n_keep + 1], 0.0)
         return dict(angle_map=amap, structure_ok=structure_ok, table=table, k_m=k_m,
                     x_ref=x_ref, omega_n=omega_n, kappa=kappa, nlte_dd_coeffs=coeffs)
 
@@ -337,7 +363,8 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
     damping_ratio : zeta in [0, 1), ``c = 2 zeta sqrt(k_m cos^2 b_b m_eq)``.
     formulation : :class:`~gearjax.models.formulations.AbstractFormulation`: Reference
         (Eq. (16)), TransmissionError (Eq. (20)) or Perturbation (Eq. (47a)).
-    nlte_terms : keep the NLTE terms (see module docstring).
+    nlte_weight : () 1.0 to keep the NLTE terms, 0.0 for NLTE = 0 (module docstring;
+        data, so both are one program); ``nlte_terms`` reads it on the host.
     nlte_inertia : keep the NLTE'' inertial term (False: Section 6.3.2, NLTE'' = 0 only).
     nlte_method : ``"substitution"`` (exact, default) or ``"spectral"``.
     nlte_harmonics : harmonics of the mesh frequency kept by the spectral method.
@@ -345,9 +372,11 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
     period_rad : period of the excitation in theta (rad): one mesh period ``2 pi / z1``
         without pitch errors or eccentricity, else the common period of the rotations
         that carry them (one pinion revolution for pinion errors only).
-    jump_thetas : angles in ``[0, period_rad)`` where the right-hand side jumps or kinks
-        independently of speed (cell engagement/exit, quasi-static active-set changes,
-        NLTE kinks); passed to the step-size controller as ``jump_ts``.
+    jumps : :class:`~gearjax.excitation.jumps.JumpSet` of the angles in ``[0, period_rad)``
+        where the right-hand side jumps or kinks independently of speed (cell
+        engagement/exit, quasi-static active-set changes, NLTE kinks, back-flank
+        engagement), padded to a static bound; ``jump_thetas`` its valid angles.
+    moving_events : the switching angles move with the design through the angle map.
     table_knots, table_cell_first : layout of the excitation table (see
         :class:`PeriodicHermiteTable`).
     table_side : (K,) -1 / +1 for the knots just left / right of a jump, 0 elsewhere: their
@@ -417,121 +446,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         inputs.update(te_model_fields(te, self.table, self.table_side, self.jump_thetas, nlte_terms))
         return TorsionalModel._complete(**inputs)
 
-    @classmethod
-    def build(
-        cls,
-        mesh: Mesh,
-        mods: ToothModifications | None = None,
-        *,
-        pinion_torque_Nm: float = 254.8,
-        inertias_kg_m2=None,
-        damping_ratio: float = 0.03,
-        formulation: AbstractFormulation | str = "reference",
-        nlte_terms: bool | None = None,
-        nlte_method: str = "substitution",
-        nlte_harmonics: int = 64,
-        excitation: str = "table",
-        n_table: int = 256,
-        merge_spur_lines: bool = True,
-        nlte_reaction: str = "drive",
-        nlte_inertia: bool = True,
-        backlash_m: float | None = None,
-        contact_law: TEContactLaw = TEContactLaw.MESH,
-    ) -> "TorsionalModel":
-        """Build a torsional model (outside ``jit``: inputs are checked, jump angles found).
-
-        Parameters
-        ----------
-        mesh : the mesh model.
-        mods : tooth modifications (default: none).
-        pinion_torque_Nm : C_m0 (N m), default 254.8 (paper Section 6.1).
-        inertias_kg_m2 : (J1, J2) (kg m^2); default :func:`solid_cylinder_inertias`.
-        damping_ratio : zeta in [0, 1), default 0.03 (paper Section 6.1).
-        formulation : a formulation object or its name: ``"reference"``, ``"te"`` or
-            ``"perturbation"``.
-        nlte_terms : keep NLTE in the equations; None (default) keeps them unless NLTE is
-            identically zero for these modifications. False: NLTE = 0 everywhere.
-        nlte_inertia : keep the NLTE'' inertial term (default); False drops it alone
-            (Section 6.3.2, "NLTE'' set at zero"), ``TE_S - NLTE`` and the DTE kept.
-        nlte_method : ``"substitution"`` or ``"spectral"`` (see module docstring).
-        nlte_harmonics : mesh harmonics kept by the spectral method.
-        excitation : ``"table"`` or ``"inline"`` (see module docstring).
-        n_table : uniform table knots per mesh period (also the scan used to find jumps).
-        nlte_reaction : where the torque ``J2 Rb1 / Rb2^2 Omega^2 NLTE''`` that keeps the
-            pinion speed (Eq. (5)) acts: ``"drive"`` (default, as in the 3D model: kappa =
-            1) or ``"pinion"`` (Eqs. (15)-(16)); see the module docstring.
-        merge_spur_lines : for a spur pair without crowning every cell of a contact line
-            has the same position on the profile, stiffness per length and gap, so the
-            line is merged into one cell (``cells_per_line=1``, same total stiffness):
-            identical results up to round-off, 10-30x cheaper reference right-hand sides.
-            The stored ``mesh`` is then the merged one.
-        backlash_m : clearance between the back flanks (m, normal backlash along the line
-            of action, in ``[0, m_n]``); None (default): no back flanks, the model of the
-            paper (module docstring, "Backlash").
-        contact_law : te/perturbation contact law (:class:`gearjax.gears.contact.TEContactLaw`,
-            module docstring): ``MESH`` (default) or ``CELLS``; the reference ignores it.
-
-        Raises
-        ------
-        ModelError
-            for an unknown option, a non-positive torque or inertia, zeta outside [0, 1),
-            inconsistent sizes, or a backlash that is not finite, negative or above a
-            module (or, reference formulation, with pitch errors or eccentricity).
-        """
-        formulation = formulation_of(formulation)
-        for name, value, allowed in (("nlte_method", nlte_method, NLTE_METHODS),
-                                     ("excitation", excitation, EXCITATIONS),
-                                     ("nlte_reaction", nlte_reaction, NLTE_REACTIONS)):
-            if value not in allowed:
-                raise ModelError(name, value, f"must be one of {allowed}")
-        if mods is None:
-            mods = ToothModifications.none()
-        mods.check_against(mesh.pair)
-        backlash = check_backlash("backlash_m", backlash_m, mesh.pair)
-        if backlash is not None and contact_law is TEContactLaw.CELLS:
-            raise ModelError("contact_law", contact_law.value, "the per-cell te/perturbation "
-                             "contact law has no back flanks; with backlash_m use the mesh-level "
-                             "law (TEContactLaw.MESH)")
-        if backlash is not None and isinstance(formulation, Reference):
-            check_backlash_mods(backlash, mods, mesh.pair)
-        torque = float(pinion_torque_Nm)
-        if not (math.isfinite(torque) and torque > 0):
-            raise ModelError("pinion_torque_Nm", pinion_torque_Nm,
-                             "must be finite and > 0 (the contact model loads the drive flanks)")
-        zeta = float(damping_ratio)
-        if not (math.isfinite(zeta) and 0.0 <= zeta < 1.0):
-            raise ModelError("damping_ratio", damping_ratio, "must lie in [0, 1)")
-        if inertias_kg_m2 is None:
-            inertias_kg_m2 = solid_cylinder_inertias(mesh.pair)
-        inert = np.asarray(inertias_kg_m2, dtype=float)
-        if inert.shape != (2,) or not np.all(np.isfinite(inert)) or np.any(inert <= 0):
-            raise ModelError("inertias_kg_m2", inertias_kg_m2,
-                             "must be two finite positive values (J1, J2)")
-        n_table = int(n_table)
-        if n_table < 16:
-            raise ModelError("n_table", n_table, "must be >= 16 knots per mesh period")
-        if nlte_method == "spectral" and not (1 <= int(nlte_harmonics) < n_table // 2):
-            raise ModelError("nlte_harmonics", nlte_harmonics,
-                             f"must lie in [1, n_table/2) = [1, {n_table // 2})")
-        if (merge_spur_lines and mesh.pair.spur and mesh.cells_per_line > 1
-                and not np.any(np.asarray(mods.crowning_m) != 0.0)):
-            mesh = dataclasses.replace(mesh, cells_per_line=1)
-        force = static_mesh_force(mesh.pair, torque)
-        layout = sdof_table_layout(mesh, mods, force, n_table)
-        if backlash is not None and isinstance(formulation, Reference):
-            layout = with_back_flank_jumps(layout, mesh)
-        period, nlte_max = layout.pop("period"), layout.pop("nlte_max")
-        if nlte_terms is None:
-            nlte_terms = nlte_max > 0.0
-        return cls._complete(
-            mesh=mesh, mods=mods, inertias_kg_m2=jnp.asarray(inert),
-            pinion_torque_Nm=jnp.asarray(torque), damping_ratio=jnp.asarray(zeta),
-            formulation=formulation, nlte_terms=bool(nlte_terms), nlte_method=nlte_method,
-            nlte_reaction=nlte_reaction, nlte_inertia=bool(nlte_inertia),
-            nlte_harmonics=int(nlte_harmonics), contact_law=contact_law,
-            excitation=excitation, period_rad=period, n_table=n_table, **layout,
-            backlash_m=None if backlash is None else jnp.asarray(backlash),
-        )
+    build = classmethod(build_torsional)
 
     @property
     def mesh_level_contact(self) -> bool:
@@ -594,7 +509,7 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
             q = self._qs(theta)
         else:
             q = exc[0]
-        x_static = q[_X_S] if self.nlte_terms else q[_X_S] + q[_NLTE]
+        x_static = q[_X_S] + (1.0 - self.nlte_weight) * q[_NLTE]
         return x_static, q[_K_S], q[_X_S]
 
     def _mesh_terms(self, theta, x, exc, contact=True):
@@ -656,8 +571,9 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         r = self.omega_n / omega
         val, der = self._table(jnp.asarray(theta0, dtype=float))
         x_s, x_s_p = val[_X_S], der[_X_S]
-        if not isinstance(self.formulation, Reference) and not self.nlte_terms:
-            x_s, x_s_p = x_s + val[_NLTE], x_s_p + der[_NLTE]
+        if not isinstance(self.formulation, Reference):  # TE_S without NLTE terms (weight 0)
+            w = 1.0 - self.nlte_weight
+            x_s, x_s_p = x_s + w * val[_NLTE], x_s_p + w * der[_NLTE]
         if self._substitution:
             x_s = x_s + self.kappa * val[_NLTE]
             x_s_p = x_s_p + self.kappa * der[_NLTE]
@@ -669,10 +585,9 @@ class TorsionalModel(_TorsionalInputs, AbstractGearModel):
         theta, _ = self.angle(theta)  # pinion angle of the simulation angle
         x, _ = self._x_and_slope(theta, y, omega, exc)
         _, f_d = self._mesh_terms(theta, x, exc, contact)
-        if not isinstance(self.formulation, Reference) and not self.nlte_terms:
-            dte = x  # NLTE = 0 in this model (paper Fig. 10)
-        else:
-            dte = x + exc[0][_NLTE]
+        # DTE = x + NLTE; x alone where NLTE = 0 in the model (weight 0, paper Fig. 10)
+        w = 1.0 if isinstance(self.formulation, Reference) else self.nlte_weight
+        dte = x + w * exc[0][_NLTE]
         return ModelOutputs(mesh_force_N=f_d, dte_m=dte, accel_m_s2=None)
 
     @property

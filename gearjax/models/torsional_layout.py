@@ -1,124 +1,172 @@
-"""Build-time layout of the sdof torsional model's excitation table
-(:class:`gearjax.models.torsional.TorsionalModel`): one NumPy scan of the exact quasi-static
-solution over the excitation period finds the table origin, every change of the discrete
-quasi-static state (bracketed by adjacent floats), the geometric engagement angles, the
-knots of the :class:`~gearjax.excitation.tables.PeriodicHermiteTable` and the kind of each
-switching event (fixed or moving with the design, :mod:`gearjax.excitation.events`).
+"""The excitation layout of the sdof torsional model
+(:class:`gearjax.models.torsional.TorsionalModel`), computed in the program: one scan of
+the exact quasi-static solution over the excitation period finds the table origin, every
+change of the discrete quasi-static state (bracketed by adjacent floats), the knots of the
+:class:`~gearjax.excitation.tables.PeriodicHermiteTable` and the kind of each switching
+event (fixed, or moving with the design: :mod:`gearjax.excitation.events`), with the
+geometric engagement angles added to the jumps (and, for the reference formulation with
+backlash, the angles where back-flank cells enter or leave the path of contact: the
+engagement angles mirrored through :func:`gearjax.gears.backlash.back_flank_angle_rad`,
+fixed events where the back-flank force jumps while the back flanks are in contact).
 
-Static structure only: the values at the knots are assembled (traceably) by the model.
+Traced (:mod:`gearjax.excitation.layout`): arrays of static bounds
+(:func:`sdof_bounds`, a function of the mesh and the excitation period only), so the
+model of every design of a rig is one program. The values at the knots are assembled by
+the model.
 """
 
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..errors import ModelError
-from ..excitation.events import (EV_FIXED, check_event_roots, classify_events, code,
-                                 engagement_angles, find_brackets, quiet_origin)
-from ..excitation.sdof import sdof_signature_fn, sdof_switch
-from ..excitation.tables import PeriodicHermiteTable
+from ..excitation.events import code_jnp, engagement_angles
+from ..excitation.jumps import JumpSet, round_up, separated_density
+from ..excitation.events import classify_events
+from ..excitation.layout import (LayoutBounds, distinct_jumps, find_changes, fix_unlocated,
+                                 knot_sides, quiet_origin, table_knots)
+from ..excitation.layout import classify_events as classify_traced
+from ..excitation.sdof import sdof_signature, sdof_switch
 from ..gears.backlash import back_flank_angle_rad
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 
-__all__ = ["sdof_table_layout", "with_back_flank_jumps"]
+__all__ = ["sdof_scan_layout", "sdof_classify_host", "sdof_classify_traced",
+           "sdof_events_layout", "sdof_bounds", "geometric_jumps", "classify_events"]
 
 
-def sdof_table_layout(mesh: Mesh, mods: ToothModifications, force: float, n_table: int) -> dict:
-    """The static table layout of the sdof model over one excitation period.
+def geometric_jumps(mesh: Mesh, period: float, back_flanks: bool = False) -> np.ndarray:
+    """The engagement angles (rad) of ``mesh`` in ``[0, period)``: where cells enter or
+    leave the path of contact (design-independent; NumPy); with ``back_flanks`` also where
+    back-flank cells do (the engagement angles mirrored through
+    :func:`gearjax.gears.backlash.back_flank_angle_rad`)."""
+    geo = np.asarray(engagement_angles(mesh, period), dtype=float)
+    if not back_flanks:
+        return geo
+    back = np.mod(back_flank_angle_rad(mesh.pair) - geo, period)
+    return np.concatenate([geo, np.unique(back)])
+
+
+def sdof_bounds(mesh: Mesh, period: float, back_flanks: bool = False) -> LayoutBounds:
+    """Static bounds of the sdof layout for every design of ``mesh`` over ``period``:
+    the distinct engagement angles, plus per mesh period and cell of a contact line two
+    relief-zone starts and two changes of the loaded set, plus two changes of the cell
+    realising NLTE (rounded up to multiples of 8); brackets an eighth more; 4 extra knots
+    per table cell (16 where there are more than 16 jumps per mesh period); ``back_flanks``:
+    the back-flank engagement angles too (:func:`geometric_jumps`)."""
+    n_mesh = int(round(period / mesh.pair.mesh_period_rad))
+    geo = np.unique(np.round(np.mod(geometric_jumps(mesh, period, back_flanks), period)
+                             / period, 12))
+    jumps = round_up(geo.size + (4 * mesh.cells_per_line + 2) * n_mesh)
+    extra = 8 if jumps <= 16 * n_mesh else 16
+    return LayoutBounds(jumps=jumps, brackets=round_up(1.125 * jumps + 4), max_extra=extra)
+
+
+def sdof_scan_layout(mesh: Mesh, mods: ToothModifications, force, n_table: int,
+                     period: float, bounds: LayoutBounds, back_flanks: bool = False) -> dict:
+    """The layout of the sdof model over one excitation period up to the classification
+    of its events (traced; ``mesh``, ``n_table``, ``period`` and ``bounds`` static in
+    effect): the table origin, the brackets of every state change, the jump angles and
+    the table knots.
 
     Parameters
     ----------
     mesh, mods : the (possibly merged) mesh and the tooth modifications.
     force : static mesh force F_S (N).
     n_table : uniform knots per mesh period (also the scan used to find the jumps).
+    period : the excitation period (rad).
+    bounds : the static sizes (:func:`sdof_bounds`).
+    back_flanks : the back-flank engagement angles join the jumps (:func:`geometric_jumps`).
 
     Returns
     -------
-    dict with ``period`` (rad), ``nlte_max`` (max |NLTE| over the scan, m), and the model
-    fields ``table_knots``, ``table_side``, ``table_cell_first``, ``table_origin``,
-    ``table_max_extra``, ``jump_thetas``, ``jump_kinds``, ``jump_cells``, ``table_codes``.
-
-    Raises
-    ------
-    ModelError
-        when the quasi-static solve finds no contact at some angle.
+    dict with the model fields ``table_knots``, ``table_side``, ``table_cell_first``,
+    ``table_origin``, ``table_codes``; ``thetas`` (bounds.jumps,) the jump angles sorted
+    and ``n_jumps``; the brackets ``lo``, ``hi``, ``c_lo``, ``c_hi``
+    (:class:`~gearjax.excitation.layout.Changes`); and the diagnostics ``nlte_max`` (max
+    |NLTE| over the scan, m), ``contact`` (the quasi-static solve has contact at every
+    scan angle), ``need`` (the bounds this design needs, a :class:`LayoutBounds` of traced
+    ints, the events' count as found here).
     """
-    period = mods.excitation_period_rad(mesh.pair)
     n_mesh = int(round(period / mesh.pair.mesh_period_rad))
-    sig = sdof_signature_fn(mesh, mods, force)
-    theta = np.arange(n_table * n_mesh) * (period / (n_table * n_mesh))
-    scan = {k: np.asarray(v) for k, v in sig(jnp.asarray(theta)).items()}
-    if not np.all(np.isfinite(scan["x_s"])):
-        raise ModelError("mods", "...", "the quasi-static solve has no contact at some angle "
-                         "(modifications larger than the static deflection everywhere?)")
+    n = n_table * n_mesh
+    force = jnp.asarray(force, dtype=float)
+
+    def signature(t):
+        return sdof_signature(mesh, mods, force, t)
+
+    def code_fn(t):
+        return jax.vmap(lambda tt: code_jnp(signature(tt)))(t)
+
+    theta = jnp.arange(n) * (period / n)
+    scan = jax.vmap(signature)(theta)
+    c0 = jax.vmap(code_jnp)(scan)
+    changed0 = jnp.any(c0 != jnp.roll(c0, -1, axis=0), axis=1)
     # table origin far from every change of the discrete quasi-static state, then the
     # changes bracketed by adjacent floats *in table coordinates* [origin, origin + P)
-    c0 = code(scan)
-    coarse = theta[np.any(c0 != np.roll(c0, -1, axis=0), axis=1)]
-    origin = quiet_origin(coarse, period)
-    grid = origin + theta
-    scan_u = {k: np.asarray(v) for k, v in sig(jnp.asarray(grid)).items()}
-    lo, hi = find_brackets(lambda t: code(sig(jnp.asarray(t))), grid, code(scan_u), period)
-    geo = engagement_angles(mesh, period)
-    jumps = np.unique(np.mod(np.concatenate([geo, hi]), period))
-    jumps = jumps[np.concatenate([[True], np.diff(jumps) > 1e-12 * period])]
-    if jumps.size > 1 and jumps[-1] > period * (1 - 1e-12) and jumps[0] < 1e-12 * period:
-        jumps = jumps[:-1]
-    knots, cell_first, max_extra = PeriodicHermiteTable.layout(
-        origin, period, n_table * n_mesh, np.concatenate([lo, hi])
-    )
-    side = np.zeros(knots.shape)
-    side[np.isin(knots, lo)] = -1.0
-    side[np.isin(knots, hi)] = 1.0
-    # design-dependent switching angles: kind and cells of the event at every jump, so
-    # that the assembly can move them with the modifications (torsional module docstring,
-    # "Derivatives with respect to the design")
-    kinds, cells_ab = [EV_FIXED] * jumps.size, [(0, 0)] * jumps.size
-    if lo.size:
-        kinds, cells_ab = classify_events(jumps, lo, hi, code(sig(jnp.asarray(lo))),
-                                          code(sig(jnp.asarray(hi))), mesh.n_cells, period)
-    kinds, cells_ab = check_event_roots(
-        eqx.Partial(sdof_switch, mesh, mods, jnp.asarray(force)),
-        jumps, kinds, cells_ab, mesh.pair.mesh_period_rad)
-    codes = None
-    if any(k != EV_FIXED for k in kinds):
-        delta = 1e-9 * period
-        codes = jnp.asarray(code(sig(jnp.asarray(knots + side * delta))), dtype=jnp.int32)
+    origin = quiet_origin(theta, changed0, period)
+    ch = find_changes(code_fn, origin + theta, period, bounds.brackets)
+    geo = geometric_jumps(mesh, period, back_flanks)
+    cand = jnp.concatenate([jnp.asarray(geo), ch.hi])
+    ok = jnp.concatenate([jnp.ones(geo.size, bool), jnp.isfinite(ch.hi)])
+    thetas, n_jumps = distinct_jumps(cand, ok, period, bounds.jumps)
+    extra = jnp.concatenate([ch.lo, ch.hi])
+    knots, cell_first, _, max_extra = table_knots(
+        origin, period, n, extra, jnp.isfinite(extra), 2 * bounds.brackets)
+    side = knot_sides(knots, ch.lo, ch.hi)
+    codes = code_fn(knots + side * (1e-9 * period))
+    need = LayoutBounds(jumps=n_jumps, brackets=ch.count, max_extra=jnp.maximum(1, max_extra))
     return dict(
-        period=float(period), nlte_max=float(np.max(np.abs(scan["nlte"]))),
-        table_knots=jnp.asarray(knots), table_side=jnp.asarray(side),
-        table_cell_first=jnp.asarray(cell_first, dtype=jnp.int32),
-        table_origin=float(origin), table_max_extra=max_extra,
-        jump_thetas=tuple(float(t) for t in jumps),
-        jump_kinds=tuple(int(k) for k in kinds),
-        jump_cells=tuple((int(a), int(b)) for a, b in cells_ab), table_codes=codes,
+        table_knots=knots, table_side=side, table_cell_first=cell_first,
+        table_origin=jnp.asarray(origin), table_codes=codes, thetas=thetas, n_jumps=n_jumps,
+        lo=ch.lo, hi=ch.hi, c_lo=ch.c_lo, c_hi=ch.c_hi,
+        nlte_max=jnp.max(jnp.abs(scan["nlte"])), contact=jnp.all(jnp.isfinite(scan["x_s"])),
+        need=need,
     )
 
 
-def with_back_flank_jumps(layout: dict, mesh: Mesh) -> dict:
-    """``layout`` (of :func:`sdof_table_layout`) with the angles where back-flank cells
-    enter or leave the path of contact (the engagement angles mirrored through
-    :func:`gearjax.gears.backlash.back_flank_angle_rad`) added to the integrator's jumps as
-    fixed events: the reference formulation with backlash, whose back-flank force jumps
-    there while the back flanks are in contact. Angles within ``1e-12`` periods of a jump
-    already there are not repeated; the jumps stay sorted with their kinds and cells."""
-    period = float(layout["period"])
-    phi0 = back_flank_angle_rad(mesh.pair)
-    back = np.mod(phi0 - engagement_angles(mesh, period), period)
-    old = np.asarray(layout["jump_thetas"], dtype=float)
-    tol = 1e-12 * period
-    new = []
-    for t in np.unique(back):
-        d = np.abs(np.mod(np.concatenate([old, new]) - t + period / 2, period) - period / 2)
-        if not np.any(d <= tol):
-            new.append(float(t))
-    thetas = np.concatenate([old, new])
-    kinds = list(layout["jump_kinds"]) + [EV_FIXED] * len(new)
-    cells = list(layout["jump_cells"]) + [(0, 0)] * len(new)
-    order = np.argsort(thetas, kind="stable")
-    return dict(layout, jump_thetas=tuple(float(thetas[i]) for i in order),
-                jump_kinds=tuple(kinds[i] for i in order),
-                jump_cells=tuple(cells[i] for i in order))
+def sdof_classify_host(scan: dict, n_cells: int, period: float, classify) -> tuple:
+    """Kind and cells of every jump of the concrete ``scan`` (:func:`sdof_scan_layout`'s
+    output) by the NumPy rule ``classify`` (:func:`gearjax.excitation.events.
+    classify_events`): (kinds (bound,), cells (bound, 2)) int32 arrays, the unused
+    entries fixed."""
+    n = int(scan["n_jumps"])
+    b = int(scan["thetas"].shape[0])
+    valid = np.isfinite(np.asarray(scan["hi"]))
+    kinds = np.zeros(b, np.int32)
+    cells = np.zeros((b, 2), np.int32)
+    if valid.any() and n:
+        k, c = classify(np.asarray(scan["thetas"])[:min(n, b)], np.asarray(scan["lo"])[valid],
+                        np.asarray(scan["hi"])[valid], np.asarray(scan["c_lo"])[valid],
+                        np.asarray(scan["c_hi"])[valid], n_cells, period)
+        kinds[:len(k)] = np.asarray(k, np.int32)
+        cells[:len(c)] = np.asarray(c, np.int32).reshape(-1, 2)
+    return jnp.asarray(kinds), jnp.asarray(cells)
+
+
+def sdof_classify_traced(scan: dict, n_cells: int, period: float) -> tuple:
+    """:func:`sdof_classify_host`'s kinds and cells in the program
+    (:func:`gearjax.excitation.layout.classify_events`, the same rule)."""
+    return classify_traced(scan["thetas"], scan["lo"], scan["hi"], scan["c_lo"],
+                           scan["c_hi"], n_cells, period)
+
+
+def sdof_events_layout(mesh: Mesh, mods: ToothModifications, force, period: float,
+                       bounds: LayoutBounds, scan: dict, kinds, cells,
+                       back_flanks: bool = False) -> tuple:
+    """The :class:`~gearjax.excitation.jumps.JumpSet` of the classified jumps, after the
+    build-time check of their switching functions (:func:`gearjax.excitation.layout.
+    fix_unlocated`: a moving event its Newton iterations do not hold at its angle is kept
+    fixed). Returns ``(jumps, unlocated)``."""
+    valid = jnp.arange(bounds.jumps) < scan["n_jumps"]
+    switch = eqx.Partial(sdof_switch, mesh, mods, jnp.asarray(force, dtype=float))
+    kinds, cells, unlocated = fix_unlocated(switch, scan["thetas"], kinds, cells, valid,
+                                            mesh.pair.mesh_period_rad)
+    geo = geometric_jumps(mesh, period, back_flanks)
+    density = separated_density(np.unique(np.mod(geo, period)), mesh.pair.mesh_period_rad,
+                                period)
+    jumps = JumpSet.padded(scan["thetas"], kinds, cells, scan["n_jumps"], period,
+                           bounds.jumps, density)
+    return jumps, unlocated

@@ -7,6 +7,8 @@ motor node, encoder positions, structure) are applied in one place.
 
 from __future__ import annotations
 
+import jax
+
 from ..errors import ModelError
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
@@ -37,6 +39,11 @@ def build_model(
     **kwargs,
 ) -> TorsionalModel | Geared3DModel:
     """The dynamic model of ``rig`` with tooth modifications ``mods`` (default none).
+
+    The torsional build is traceable in ``mods`` and its array options (``jit``, ``vmap``,
+    ``jax.jacfwd`` of "build, simulate, take a metric"); the 3D build is not
+    (:class:`ModelError` for traced ``mods``: differentiate
+    ``model.with_modifications(mods)`` of a model built at a concrete design instead).
 
     Parameters
     ----------
@@ -80,6 +87,11 @@ def build_model(
                              "the torsional model has no modal cut-off")
         sdof = TorsionalModel.build(mesh, mods, nlte_reaction=nlte_reaction, **kwargs)
         return sdof if te_table is None else sdof.with_te(te_table, kwargs.get("nlte_terms"))
+    if mods is not None and any(isinstance(a, jax.core.Tracer) for a in jax.tree_util.tree_leaves(mods)):
+        raise ModelError("mods", "traced", "the 3D build is not traceable (its modal basis "
+                         "is computed in NumPy): build at a concrete design and differentiate "
+                         "model.with_modifications(mods), as gearjax.design.DynamicObjective "
+                         "does (the torsional build is traceable)")
     if nlte_reaction not in NLTE_REACTIONS:
         raise ModelError("nlte_reaction", nlte_reaction, f"must be one of {NLTE_REACTIONS}")
     if nlte_reaction != "drive":
