@@ -49,7 +49,7 @@ from .mesh import Mesh
 from .modifications import ToothModifications
 from .quasistatic import contact_gaps
 
-__all__ = ["MAX_BACKLASH_MODULES", "backlash_problem", "check_backlash", "back_flank_angle_rad",
+__all__ = ["MAX_BACKLASH_MODULES", "backlash_problem", "check_backlash", "check_model_backlash", "back_flank_angle_rad",
            "back_flank_gaps", "check_backlash_mods", "cell_backlash_force"]
 
 MAX_BACKLASH_MODULES = 1.0  # a larger clearance is almost surely a unit slip (mm for m)
@@ -94,6 +94,22 @@ def check_backlash_mods(backlash_m: float, mods: ToothModifications, pair: GearP
         raise ModelError("backlash_m", backlash_m, "not with pitch errors or eccentricity in "
                          "the reference formulation (the back-flank gaps of tooth position "
                          "errors are not modelled); use the te or perturbation formulation")
+
+
+def check_model_backlash(backlash_m, mods: ToothModifications, pair: GearPair, *,
+                         reference: bool, cell_contact: bool) -> float | None:
+    """The backlash (m) a model builder takes, None for none: :func:`check_backlash`, then
+    refused (:class:`~gearjax.errors.ModelError`) with the per-cell te/perturbation contact
+    law (``cell_contact``: it has no back flanks) and, for the ``reference`` formulation,
+    with tooth position errors (:func:`check_backlash_mods`)."""
+    backlash = check_backlash("backlash_m", backlash_m, pair)
+    if backlash is not None and cell_contact:
+        raise ModelError("contact_law", "cells", "the per-cell te/perturbation contact law has "
+                         "no back flanks; with backlash_m use the mesh-level law "
+                         "(TEContactLaw.MESH)")
+    if backlash is not None and reference:
+        check_backlash_mods(backlash, mods, pair)
+    return backlash
 
 
 def back_flank_angle_rad(pair: GearPair) -> float:

@@ -17,7 +17,7 @@ from ..excitation.events import distinct_angles, engagement_angles
 from ..excitation.jumps import JumpSet
 from ..excitation.mesh3d import QuasiStaticMesh3D
 from ..excitation.te_file import TETable
-from ..gears.backlash import back_flank_angle_rad, check_backlash, check_backlash_mods
+from ..gears.backlash import back_flank_angle_rad, check_model_backlash
 from ..gears.contact import TEContactLaw
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
@@ -174,13 +174,9 @@ def build_geared3d(
     if mods is None:
         mods = ToothModifications.none()
     mods.check_against(mesh.pair)
-    backlash = check_backlash("backlash_m", backlash_m, mesh.pair)
-    if backlash is not None and contact_law is TEContactLaw.CELLS:
-        raise ModelError("contact_law", contact_law.value, "the per-cell te/perturbation "
-                         "contact law has no back flanks; with backlash_m use the mesh-level "
-                         "law (TEContactLaw.MESH)")
-    if backlash is not None and isinstance(formulation, Reference):
-        check_backlash_mods(backlash, mods, mesh.pair)
+    backlash = check_model_backlash(backlash_m, mods, mesh.pair,
+                                    reference=isinstance(formulation, Reference),
+                                    cell_contact=contact_law is TEContactLaw.CELLS)
     torque = float(pinion_torque_Nm)
     if not (math.isfinite(torque) and torque > 0):
         raise ModelError("pinion_torque_Nm", pinion_torque_Nm, "must be finite and > 0")

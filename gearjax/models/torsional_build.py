@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..excitation.layout import LayoutBounds
-from ..gears.backlash import check_backlash, check_backlash_mods
+from ..gears.backlash import check_model_backlash
 from ..gears.contact import TEContactLaw
 from ..gears.geometry import solid_cylinder_inertias
 from ..gears.mesh import Mesh
@@ -134,14 +134,10 @@ def build_torsional(
     if mods is None:
         mods = ToothModifications.none()
     mods.check_against(mesh.pair)
-    backlash = check_backlash("backlash_m", backlash_m, mesh.pair)
-    if backlash is not None and contact_law is TEContactLaw.CELLS:
-        raise ModelError("contact_law", contact_law.value, "the per-cell te/perturbation "
-                         "contact law has no back flanks; with backlash_m use the mesh-level "
-                         "law (TEContactLaw.MESH)")
+    backlash = check_model_backlash(backlash_m, mods, mesh.pair,
+                                    reference=isinstance(formulation, Reference),
+                                    cell_contact=contact_law is TEContactLaw.CELLS)
     back_flanks = backlash is not None and isinstance(formulation, Reference)
-    if back_flanks:
-        check_backlash_mods(backlash, mods, mesh.pair)
     if not _traced(pinion_torque_Nm):
         t = float(pinion_torque_Nm)
         _check_value("pinion_torque_Nm", pinion_torque_Nm, math.isfinite(t) and t > 0,
