@@ -22,7 +22,7 @@ import numpy as np
 from ..dynamics.refine import Refinement, refine_common
 from ..dynamics.orbit import metric_status
 from ..dynamics.results import SweepResult, empty_metrics
-from .results import read_rows
+from .results import read_rows, rewrite_rows
 
 __all__ = ["add_refine", "refinement_of", "result_of_rows", "sort_rows", "refine_runner",
            "refine_sweeps"]
@@ -98,12 +98,7 @@ def sort_rows(path: str) -> None:
     for r in rows:
         first.setdefault(r["formulation"], len(first))
     rows.sort(key=lambda r: (first[r["formulation"]], float(r["speed_rad_s"])))
-    tmp = path + ".tmp"
-    with open(tmp, "w", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=fields)
-        wr.writeheader()
-        wr.writerows(rows)
-    os.replace(tmp, path)
+    rewrite_rows(path, fields, rows)
 
 
 def refine_runner(sweep_fn, options_of, n_grid: int):

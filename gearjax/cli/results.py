@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import GearjaxError
 
 __all__ = ["RESULT_FILES", "CASE_FILE", "write_case", "check_resume", "read_rows",
-           "done_speeds", "summarise_rows", "method_counts", "print_summary"]
+           "rewrite_rows", "done_speeds", "summarise_rows", "method_counts", "print_summary"]
 
 CASE_FILE = "case.json"
 MAX_LISTED = 1000  # speeds listed by name in summary.json (counts are always whole)
@@ -91,13 +91,19 @@ def read_rows(csv_path: str, *, repair: bool = False) -> list[dict]:
             except (ValueError, KeyError, TypeError):
                 bad += 1
     if repair and (bad or not open(csv_path).read().endswith("\n")):
-        tmp = csv_path + ".tmp"
-        with open(tmp, "w", newline="") as fh:
-            wr = csv.DictWriter(fh, fieldnames=fields)
-            wr.writeheader()
-            wr.writerows(rows)
-        os.replace(tmp, csv_path)
+        rewrite_rows(csv_path, fields, rows)
     return rows
+
+
+def rewrite_rows(csv_path: str, fields, rows) -> None:
+    """Replace the CSV file ``csv_path`` by ``rows`` (dicts keyed by ``fields``), through a
+    temporary file and an atomic rename: an interrupted rewrite leaves the old file."""
+    tmp = csv_path + ".tmp"
+    with open(tmp, "w", newline="") as fh:
+        wr = csv.DictWriter(fh, fieldnames=fields)
+        wr.writeheader()
+        wr.writerows(rows)
+    os.replace(tmp, csv_path)
 
 
 def done_speeds(rows: list[dict]) -> dict[str, set[float]]:
