@@ -93,12 +93,14 @@ def test_fallback_hands_on_only_what_the_first_did_not_solve(sdof):
 
 
 def test_auto_is_a_rule_of_the_model():
-    """Auto reads what the model declares (benchmarks/results/auto.md): te and
-    perturbation, linear while contact holds, of a speed-scaled 3D-sized model go to the
-    frequency domain with the transient for the speeds it does not solve; the reference
-    formulation and the sdof model take the transient (measured cheapest), started on the
-    periodic orbit where the model's initial state already is one, without a transient."""
-    from gearjax.dynamics.sweep import FREQUENCY_DOMAIN_MIN_STATES
+    """Auto reads what the model declares and how many speeds it is asked for
+    (benchmarks/results/auto.md): te, linear while contact holds, of a speed-scaled
+    3D-sized model swept over enough speeds to repay the frequency domain's compilation
+    goes to the frequency domain with the transient for the speeds it does not solve; the
+    reference formulation, the sdof model, a short sweep and a model already started on its
+    periodic orbit (the 3D perturbation model) take the transient (measured cheapest),
+    started on the periodic orbit where the model's initial state already is one."""
+    from gearjax.dynamics.sweep import FREQUENCY_DOMAIN_MIN_SPEEDS, FREQUENCY_DOMAIN_MIN_STATES
 
     class Fake:  # the capabilities Auto reads
         def __init__(self, formulation="reference", periodic_start=False, scaled=True,
@@ -106,19 +108,21 @@ def test_auto_is_a_rule_of_the_model():
             self.formulation, self.periodic_start = formulation_of(formulation), periodic_start
             self.speed_scaled_state, self.state_size = scaled, state_size
 
-    assert Auto(rtol=1e-9).choose(Fake()) == Transient(**tolerance_options(1e-9))
-    assert Auto().choose(Fake()) == Transient()
-    chosen = Auto().choose(Fake(periodic_start=True))
+    many, few = FREQUENCY_DOMAIN_MIN_SPEEDS, FREQUENCY_DOMAIN_MIN_SPEEDS - 1
+    assert Auto(rtol=1e-9).choose(Fake(), many) == Transient(**tolerance_options(1e-9))
+    assert Auto().choose(Fake(), many) == Transient()
+    chosen = Auto().choose(Fake(periodic_start=True), many)
     assert chosen.n_transient_periods == 0 and chosen.start == "initial"
     for form in ("te", "perturbation"):
-        assert Auto(rtol=1e-9).choose(Fake(form)) == Fallback(
+        assert Auto(rtol=1e-9).choose(Fake(form), many) == Fallback(
             HarmonicBalance(rtol=1e-9), Transient(**tolerance_options(1e-9)))
-        periodic = Auto().choose(Fake(form, periodic_start=True))
-        assert periodic.then.n_transient_periods == 0 and periodic.then.start == "initial"
-        assert Auto().choose(Fake(form, scaled=False)) == Transient()
-        assert Auto().choose(Fake(form, state_size=2)) == Transient()  # the sdof model
-        assert isinstance(Auto().choose(Fake(form, state_size=FREQUENCY_DOMAIN_MIN_STATES)),
-                          Fallback)
+        assert Auto().choose(Fake(form), few) == Transient()  # compilation not repaid
+        periodic = Auto().choose(Fake(form, periodic_start=True), many)
+        assert periodic.n_transient_periods == 0 and periodic.start == "initial"
+        assert Auto().choose(Fake(form, scaled=False), many) == Transient()
+        assert Auto().choose(Fake(form, state_size=2), many) == Transient()  # the sdof model
+        assert isinstance(Auto().choose(
+            Fake(form, state_size=FREQUENCY_DOMAIN_MIN_STATES), many), Fallback)
 
 
 def test_sweep_refuses_a_string_solver_and_a_boolean_progress(sdof):

@@ -466,7 +466,7 @@ def test_method_harmonic_keeps_the_linear_orbit_only_where_it_is_the_models(tmp_
     assert np.all(np.isnan(h.accel_orders_m_s2))  # torsional model: no acceleration
     assert np.all(h.converged) and not np.any(h.contact_loss[~lost])
     assert len(out.read_text().strip().splitlines()) == speeds.size + 1
-    assert isinstance(Auto().choose(model), Transient)  # the sdof transient is cheaper
+    assert isinstance(Auto().choose(model, 10_000), Transient)  # the sdof transient is cheaper
     ref = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
                                formulation="reference")
     with pytest.raises(SimulationError, match="formulation"):

@@ -53,7 +53,7 @@ from .simulate import SimulationError, SimulationResult, simulate
 
 __all__ = ["sweep", "Transient", "Auto", "SweepResult", "CSV_COLUMNS", "tolerance_options",
            "lower_sweep", "default_chunk_size", "memory_chunk", "planned_chunk",
-           "FREQUENCY_DOMAIN_MIN_STATES"]
+           "FREQUENCY_DOMAIN_MIN_STATES", "FREQUENCY_DOMAIN_MIN_SPEEDS"]
 
 
 def _over_speeds(model, speeds, solver, sequential: bool):
@@ -228,24 +228,28 @@ class Transient(AbstractOrbitSolver):
 
 
 class Auto(AbstractPeriodicSolver):
-    """The cheapest exact solver for the model (:meth:`choose`), chosen from the model's
-    declared capabilities by measurement, at the relative accuracy ``rtol`` of the metrics
-    (:func:`tolerance_options`; None: every solver's defaults).
+    """The cheapest exact solver for the model and the number of speeds (:meth:`choose`),
+    chosen from the model's declared capabilities by measurement, at the relative accuracy
+    ``rtol`` of the metrics (:func:`tolerance_options`; None: every solver's defaults).
 
-    The rule (``benchmarks/bench_auto.py``, ``benchmarks/results/auto.md``: run time and
-    compilation of each solver against a tight reference, sdof and 3D, each formulation):
+    The rule (``benchmarks/bench_auto.py``, ``benchmarks/results/auto.md``: compilation and
+    run time of each solver against a tight reference, sdof and 3D, each formulation):
 
-    * the te and perturbation formulations (linear while the mesh force stays
-      compressive, ``model.formulation.linear``) of a model whose
-      state is speed-scaled (:attr:`~gearjax.models.base.AbstractGearModel.speed_scaled_state`:
-      the frequency domain decomposes it once for every speed) and large enough that a
-      speed of the transient costs more than one of the frequency domain
-      (``model.state_size >= FREQUENCY_DOMAIN_MIN_STATES``): the frequency domain, exact
-      there, its speeds with contact loss, not converged or not proven stable handed to
-      the transient (``Fallback(HarmonicBalance(), Transient())``);
-    * every other model and the reference formulation: the transient (the shooting
-      measured costlier), from the periodic start where the model has one
-      (:attr:`~gearjax.models.base.AbstractGearModel.periodic_start`)."""
+    * the te formulation (linear while the mesh force stays compressive,
+      ``model.formulation.linear``) of a model whose state is speed-scaled
+      (:attr:`~gearjax.models.base.AbstractGearModel.speed_scaled_state`: the frequency
+      domain decomposes it once for every speed), large enough that a speed of the
+      transient costs more than one of the frequency domain
+      (``model.state_size >= FREQUENCY_DOMAIN_MIN_STATES``), swept over enough speeds that
+      the frequency domain's cheaper speeds repay its compilation
+      (``n_speeds >= FREQUENCY_DOMAIN_MIN_SPEEDS``): the frequency domain, exact there, its
+      speeds with contact loss, not converged or not proven stable handed to the transient
+      (``Fallback(HarmonicBalance(), Transient())``);
+    * every other case: the transient (the shooting measured costlier), from the periodic
+      start where the model has one
+      (:attr:`~gearjax.models.base.AbstractGearModel.periodic_start`: the 3D perturbation
+      model starts on its frequency-domain orbit already, so its transient only verifies
+      and measures it)."""
 
     rtol: float | None = None
 
@@ -261,10 +265,13 @@ class Auto(AbstractPeriodicSolver):
         """The frequency-domain solver at ``rtol`` (its truncation tolerance)."""
         return HarmonicBalance() if self.rtol is None else HarmonicBalance(rtol=self.rtol)
 
-    def choose(self, model) -> AbstractPeriodicSolver:
-        """The solver :meth:`sweep` uses for ``model`` (class docstring)."""
-        if (model.formulation.linear and model.speed_scaled_state
-                and model.state_size >= FREQUENCY_DOMAIN_MIN_STATES):
+    def choose(self, model, n_speeds: int) -> AbstractPeriodicSolver:
+        """The solver :meth:`sweep` uses for ``n_speeds`` speeds of ``model`` (class
+        docstring)."""
+        if (model.formulation.linear and not model.periodic_start
+                and model.speed_scaled_state
+                and model.state_size >= FREQUENCY_DOMAIN_MIN_STATES
+                and n_speeds >= FREQUENCY_DOMAIN_MIN_SPEEDS):
             return Fallback(self.harmonic(), self.transient(model))
         return self.transient(model)
 
@@ -276,7 +283,7 @@ class Auto(AbstractPeriodicSolver):
         :class:`~gearjax.errors.SimulationError` on ``model``, e.g. a vector field the
         frequency-domain split does not fit) or the run (several devices or processes:
         ``devices``), every speed by the transient."""
-        chosen = self.choose(model)
+        chosen = self.choose(model, speeds.size)
         try:
             return chosen.sweep(model, speeds, run)
         except SimulationError as exc:
@@ -287,9 +294,10 @@ class Auto(AbstractPeriodicSolver):
             return self.transient(model).sweep(model, speeds, run)
 
 
-# smallest state from which Auto solves te/perturbation in the frequency domain (Auto):
-# measured, benchmarks/results/auto.md
+# smallest state, and fewest speeds, from which Auto solves te in the frequency domain
+# (Auto): measured, benchmarks/results/auto.md
 FREQUENCY_DOMAIN_MIN_STATES = 16
+FREQUENCY_DOMAIN_MIN_SPEEDS = 5000
 
 
 def sweep(
@@ -405,7 +413,7 @@ def planned_chunk(model, n_speeds: int, solver: AbstractPeriodicSolver = Auto(),
     given it as ``chunk_size`` runs the same compiled program (e.g. the added speeds of
     :mod:`gearjax.dynamics.refine`)."""
     if isinstance(solver, Auto):
-        solver = solver.choose(model)
+        solver = solver.choose(model, int(n_speeds))
     if not isinstance(solver, Transient):
         return None
     return _chunking(model, int(n_speeds), None, devices, solver)[3]
@@ -451,11 +459,11 @@ def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(
     command line's te program during the reference sweep). The executable reaches that
     later call through JAX's compilation caches (in memory, and the persistent cache where
     one is set). ``solver``: a :class:`Transient`, or :class:`Auto` (its choice)."""
+    speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     if isinstance(solver, Auto):
-        solver = solver.choose(model)
+        solver = solver.choose(model, speeds.size)
     if not isinstance(solver, Transient):
         raise SimulationError("solver", solver, "only the transient's program is lowered ahead")
-    speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     fn, compiled, devices, n_dev, chunk, _, padded_idx = _plan(
         model, speeds, chunk_size, devices, solver)
     sel = padded_idx[:chunk]
