@@ -18,7 +18,7 @@ from gearjax.design import (DynamicObjective, OrbitSet, ReliefSpace, harris_map,
                             optimise)
 from gearjax.dynamics import grid as grids
 from gearjax.dynamics.integrate import PeriodicJumpController
-from gearjax.dynamics.metrics import JUMP_SIDE, jump_clusters, output_grid
+from gearjax.dynamics.metrics import jump_clusters, output_grid
 from gearjax.dynamics.orders import mesh_order_amplitudes, order_matrix
 from gearjax.dynamics.simulate import simulate
 from gearjax.dynamics.steady import Shooting

@@ -305,7 +305,6 @@ def test_figures_say_micrometres_and_show_every_start(monkeypatch, tmp_path):
     """µm, not "um"; the Harris map's axes hold every start, path and end (one star was
     outside the map's grid, hence off the plot), its legend on a dark box (white paths);
     history.png names every start by its design, with the line styles explained."""
-    import dataclasses
 
     import matplotlib.figure
 

@@ -132,19 +132,25 @@ def coarse_starts(space: ReliefSpace, n_per_axis: int = 2) -> np.ndarray:
     return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, space.size)
 
 
-def multi_start(objective, starts, **kwargs) -> tuple[OptimisationResult, list]:
-    """:func:`optimise` from every row of ``starts``; returns (best by exact value, all).
+def multi_start(objective, starts, *, learning_rate: float = 0.15, max_iter: int = 60,
+                rtol: float = 1e-4, patience: int = 8, step_tol: float = 1e-4, callback=None,
+                progress: AbstractProgressMeter = NoProgressMeter(),
+                ) -> tuple[OptimisationResult, list]:
+    """:func:`optimise` from every row of ``starts`` with these options (its own);
+    returns (best by exact value, all).
 
     A :class:`~gearjax.design.DynamicObjective` runs the starts in lockstep
     (:func:`optimise_lockstep`: every step evaluates all starts in one compiled call);
     each start's path is the one :func:`optimise` takes from it alone."""
     from .objectives import DynamicObjective
 
+    options = dict(learning_rate=learning_rate, max_iter=max_iter, rtol=rtol,
+                   patience=patience, step_tol=step_tol, callback=callback, progress=progress)
     starts = np.asarray(starts, dtype=float)
     if isinstance(objective, DynamicObjective) and starts.shape[0] > 1:
-        results = optimise_lockstep(objective, starts, **kwargs)
+        results = optimise_lockstep(objective, starts, **options)
     else:
-        results = [optimise(objective, x0, **kwargs) for x0 in starts]
+        results = [optimise(objective, x0, **options) for x0 in starts]
     return min(results, key=lambda r: r.exact), results
 
 

@@ -96,11 +96,14 @@ def monodromy(model, omega, *, solver=None, rtol: float = 1e-10, atol: float = 1
     return jnp.where(ok, sol.ys[-1], jnp.nan)
 
 
-def floquet_multipliers(model, omega, **kwargs):
-    """Floquet multipliers (complex eigenvalues of :func:`monodromy`) at one speed,
-    sorted by decreasing modulus (NumPy, concrete ``omega``)."""
+def floquet_multipliers(model, omega, *, rtol: float = 1e-10, atol: float = 1e-12,
+                        max_steps: int = 1_000_000):
+    """Floquet multipliers (complex eigenvalues of :func:`monodromy`, integrated at
+    ``rtol``/``atol`` within ``max_steps``) at one speed, sorted by decreasing modulus
+    (NumPy, concrete ``omega``)."""
     check_speeds(np.atleast_1d(np.asarray(omega, dtype=float)))
-    phi = np.asarray(eqx.filter_jit(monodromy)(model, jnp.asarray(float(omega)), **kwargs))
+    phi = np.asarray(eqx.filter_jit(monodromy)(model, jnp.asarray(float(omega)), rtol=rtol,
+                                               atol=atol, max_steps=max_steps))
     if not np.all(np.isfinite(phi)):
         raise SimulationError("omega", float(omega), "monodromy integration failed (step limit)")
     mu = np.linalg.eigvals(phi)
@@ -108,26 +111,28 @@ def floquet_multipliers(model, omega, **kwargs):
 
 
 @eqx.filter_jit
-def _rho(model, speeds, kwargs):
+def _rho(model, speeds, rtol: float, atol: float, max_steps: int):
     def one(w):
-        phi = monodromy(model, w, **dict(kwargs))
+        phi = monodromy(model, w, rtol=rtol, atol=atol, max_steps=max_steps)
         return jnp.max(jnp.abs(jnp.linalg.eigvals(phi)))
 
     return over_speeds(one, speeds, sequential=sequential_for(model))
 
 
-def spectral_radius(model, speeds_rad_s, **kwargs) -> np.ndarray:
+def spectral_radius(model, speeds_rad_s, *, rtol: float = 1e-10, atol: float = 1e-12,
+                    max_steps: int = 1_000_000) -> np.ndarray:
     """Spectral radius ``max |mu|`` of the monodromy matrix at each speed (mapped or
     vmapped by :func:`gearjax.dynamics.batching.over_speeds`, one
     compilation per model structure and number of speeds).
 
     ``rho < 1``: asymptotically stable steady response; ``rho > 1``: parametric instability
     (the linear te response grows like ``rho`` per period). NaN where the integration
-    failed. ``kwargs`` go to :func:`monodromy`.
+    failed. ``rtol``, ``atol``, ``max_steps``: :func:`monodromy`'s integration.
     """
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)
-    return np.asarray(_rho(model, jnp.asarray(speeds), tuple(sorted(kwargs.items()))))
+    return np.asarray(_rho(model, jnp.asarray(speeds), float(rtol), float(atol),
+                           int(max_steps)))
 
 
 def check_speeds(speeds):

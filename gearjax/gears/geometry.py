@@ -21,7 +21,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import numpy as np
 from ..errors import GeometryError
 
 __all__ = ["GearPair", "GeometryError", "involute", "inverse_involute", "solid_cylinder_inertias",
