@@ -75,7 +75,12 @@ class AbstractOrbitSolver(AbstractPeriodicSolver):
 class Fallback(AbstractPeriodicSolver):
     """``first`` at every speed, then ``then`` at the speeds that ``first`` did not solve
     (:meth:`AbstractPeriodicSolver.solved`: contact lost by a linear orbit, stability not
-    proven, not converged). The result names per speed which solver gave it."""
+    proven, not converged). The result names per speed which solver gave it; where
+    ``then`` solved a speed, ``spectral_radius`` and ``status`` are its own, and why
+    ``first`` handed the speed on stays in ``stats``: ``first_status`` (its
+    :class:`~gearjax.dynamics.orbit.RESULTS` code, as a float) and
+    ``first_spectral_radius`` (the Floquet radius of its orbit, e.g. > 1 for an unstable
+    one) at every speed (the innermost ``Fallback``'s where they nest)."""
 
     first: AbstractPeriodicSolver
     then: AbstractPeriodicSolver
@@ -94,7 +99,10 @@ class Fallback(AbstractPeriodicSolver):
         run.progress.note(f"{type(self.first).__name__} {model.formulation}",
                           f"{n_rest} of {speeds.size} speed(s) to "
                           f"{type(self.then).__name__}")
-        return merge_results(res, self.then.sweep(model, speeds[rest], run_rest), rest)
+        merged = merge_results(res, self.then.sweep(model, speeds[rest], run_rest), rest)
+        first = {"first_status": np.asarray(res.status, dtype=float),
+                 "first_spectral_radius": np.asarray(res.spectral_radius, dtype=float)}
+        return dataclasses.replace(merged, stats={**first, **merged.stats})
 
     def solved(self, result: SweepResult) -> np.ndarray:
         return np.asarray(self.then.solved(result), dtype=bool)

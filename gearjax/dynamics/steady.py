@@ -56,9 +56,9 @@ from .batching import over_speeds, sequential_for
 from .results import FLAG_FIELDS, METRIC_FIELDS, SweepResult, empty_metrics
 from .integrate import integrate, jump_controller
 from .orbit import RESULTS, Orbit, measure, metric_status
-from .simulate import SimulationError, SimulationResult, simulate
-from .solvers import AbstractOrbitSolver, SweepRun
-from .sweep import Transient
+from .simulate import SimulationError, SimulationResult
+from .solvers import AbstractOrbitSolver, Fallback, SweepRun
+from .sweep import Transient, sweep
 from .stability import check_speeds, spectral_radius_of  # noqa: F401 (re-exported)
 
 __all__ = [
@@ -330,44 +330,36 @@ def _steady_batch(model, speeds, shooting):
     return over_speeds(one, speeds, sequential=sequential_for(model))
 
 
-@eqx.filter_jit
-def _continue_batch(model, speeds, y0s, transient):
-    def one(w, y0):
-        r = simulate(model, w, y0=y0, **transient.simulate_options())
-        return tuple(getattr(r, f) for f in METRIC_FIELDS)
-    return over_speeds(one, speeds, y0s, sequential=sequential_for(model))
-
-
 def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
                  chunk_size: int | None = None,
                  progress: AbstractProgressMeter = NoProgressMeter(),
                  continuation: Transient | None = Transient()) -> SweepResult:
-    """Steady state over pinion speeds by shooting (one compilation per chunk shape; the
-    speeds of a chunk mapped on a CPU, vmapped elsewhere: :mod:`gearjax.dynamics.batching`),
-    returning the :class:`~gearjax.dynamics.results.SweepResult` fields of
-    :func:`gearjax.dynamics.sweep.sweep` with the same meaning.
+    """Steady state over pinion speeds by shooting, the speeds it does not solve by the
+    transient: :func:`gearjax.dynamics.sweep.sweep` with
+    ``Fallback(shooting, continuation)`` (``shooting`` None: :class:`Shooting`'s defaults;
+    ``continuation`` None: the shooting alone), kept as the name earlier versions exported.
 
-    Every formulation: at every speed where the periodic orbit shows contact loss, is
-    unstable (``spectral_radius >= 1``) or was not found (Newton not converged, or the
-    one-step te/perturbation orbit not periodic because the contact law cut its force),
-    the metrics are replaced by a :func:`gearjax.dynamics.simulate.simulate` run from the
-    quasi-static start by ``continuation`` (a :class:`~gearjax.dynamics.sweep.Transient`;
-    None: no continuation), so that those speeds are exactly what ``sweep`` computes (after contact loss several
-    attractors can coexist; a continuation started on the unstable orbit reached another
-    one). Inside a parametric instability zone of the linear te equation the transient
-    grows until the teeth separate and the contact law bounds it.
-
-    ``chunk_size``: speeds per call; default such that a chunk holds about 80 000
-    monodromy entries (sdof: all speeds; the 3D rig with 182 states: 2 speeds), because
-    large batched monodromy solves are memory-bound (``benchmarks/results/code_notes.md``,
-    section gearjax.dynamics.steady); on a CPU, where the speeds are mapped, it sets how
-    often progress is printed.
-
-    ``shooting``: the :class:`Shooting` options (None: its defaults).
-    ``transient_periods`` is 0 for shooting speeds and the transient used for continued
-    ones; ``n_steps`` counts shooting and measuring steps.
-    """
+    A speed is handed on where the periodic orbit shows contact loss, is unstable
+    (``spectral_radius >= 1``) or was not found (:func:`orbit_solved`): the transient from
+    the quasi-static start then gives exactly what ``sweep`` computes there (after contact
+    loss several attractors can coexist; a continuation started on the unstable orbit
+    reached another one). ``chunk_size``: speeds per compiled call of the shooting
+    (:meth:`Shooting.sweep`)."""
     shooting = Shooting() if shooting is None else shooting
+    solver = shooting if continuation is None else Fallback(shooting, continuation)
+    return sweep(model, speeds_rad_s, solver, chunk_size=chunk_size, progress=progress)
+
+
+def _shooting_sweep(model, speeds_rad_s, shooting: "Shooting", chunk_size: int | None,
+                    progress: AbstractProgressMeter) -> SweepResult:
+    """:meth:`Shooting.sweep`: the periodic orbit and its metrics at every speed, chunk by
+    chunk (one compilation per chunk shape; the speeds of a chunk mapped on a CPU, vmapped
+    elsewhere: :mod:`gearjax.dynamics.batching`). ``chunk_size`` default: a chunk holds
+    about 80 000 monodromy entries (sdof: all speeds; the 3D rig with 182 states: 2
+    speeds), as large batched monodromy solves are memory-bound
+    (``benchmarks/results/code_notes.md``, section gearjax.dynamics.steady); on a CPU, where
+    the speeds are mapped, it sets how often progress is reported. ``transient_periods`` is
+    0; ``n_steps`` counts shooting and measuring steps."""
     speeds = np.asarray(speeds_rad_s, dtype=float).reshape(-1)
     check_speeds(speeds)  # and float64
     model.require_structure()
@@ -401,35 +393,15 @@ def steady_sweep(model, speeds_rad_s, shooting: "Shooting | None" = None, *,
                         f"chunk {c + 1}/{n_chunks}: {len(set(sel.tolist()))} speeds in "
                         f"{time.perf_counter() - t0:.2f} s", elapsed_s=time.perf_counter() - t_start)
     out["transient_periods"][:] = 0.0
-    continued = np.zeros(speeds.size, dtype=bool)
     formulation = model.formulation.name
-    if continuation is not None:  # te/perturbation too: with the contact law they are
-        # nonlinear there
-        need = ~orbit_solved(out["contact_loss"] > 0, rho, out["converged"] > 0)
-        idx = np.flatnonzero(need)
-        if idx.size:
-            # from the quasi-static start, as simulate/sweep: after contact loss several
-            # attractors can coexist (the orbit's own continuation may reach another
-            # branch), and the sweep must give sweep()'s answer
-            start = np.asarray(_initial_states(model, jnp.asarray(speeds[idx])))
-            t0 = time.perf_counter()
-            res = jax.device_get(_continue_batch(model, jnp.asarray(speeds[idx]),
-                                                 jnp.asarray(start), continuation))
-            for f, v in zip(METRIC_FIELDS, res):
-                out[f][idx] = np.asarray(v, dtype=float)
-            continued[idx] = True
-            progress.update(task, speeds.size, speeds.size,
-                            f"continued {idx.size} speed(s) with contact loss or without a "
-                            f"stable orbit by simulate in {time.perf_counter() - t0:.2f} s",
-                            elapsed_s=time.perf_counter() - t_start)
     for f in FLAG_FIELDS:
         out[f] = out[f] > 0
     out["n_steps"] = out["n_steps"].astype(np.int64)
     measured = metric_status(out["solver_ok"], out["converged"])
-    status = np.where(continued | (orbit_status == RESULTS.successful), measured, orbit_status)
+    status = np.where(orbit_status == RESULTS.successful, measured, orbit_status)
     return SweepResult(**out, formulation=formulation, spectral_radius=rho,
                        status=status.astype(np.int8),
-                       solver=np.where(continued, "transient", "steady"))
+                       solver=np.full(speeds.size, "steady"))
 
 
 def orbit_solved(contact_loss, spectral_radius, converged) -> np.ndarray:
@@ -521,13 +493,7 @@ class Shooting(AbstractOrbitSolver):
         if run.devices is not None or jax.process_count() > 1:
             raise SimulationError("devices", run.devices, "shooting runs on one device of one "
                                   "process; use Transient() to shard over devices or hosts")
-        res = steady_sweep(model, speeds, self, chunk_size=run.chunk_size,
-                           progress=run.progress, continuation=None)
+        res = _shooting_sweep(model, speeds, self, run.chunk_size, run.progress)
         if run.sink is not None:
             run.sink(res)
         return res
-
-
-@eqx.filter_jit
-def _initial_states(model, speeds):
-    return jax.vmap(model.transient_start)(speeds)

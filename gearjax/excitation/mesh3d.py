@@ -44,7 +44,7 @@ from .events import (
     quiet_origin,
     switch_value,
 )
-from .tables import AngleMap, PeriodicHermiteTable
+from .tables import AngleMap, PeriodicHermiteTable, keeps_structure, one_sided_samples
 
 __all__ = ["QuasiStaticMesh3D", "TableLayout", "scan_brackets", "jump_angles", "table_layout",
            "tabulate",
@@ -294,30 +294,15 @@ def table_values(qsm: QuasiStaticMesh3D, knots, side, *, period: float, event_th
     """:func:`tabulate` without the table's static layout: ``(values, slopes, angle_map,
     structure_ok)``. ``event_thetas`` may be an array (traced), so that a build compiles
     this once for every design of one event structure (:mod:`gearjax.models.geared3d_excitation`)."""
-    delta = 1e-9 * period
     amap = None
     if len(event_thetas):
         amap = AngleMap.through(event_thetas,
                                 qsm.event_angles(event_thetas, event_kinds, event_cells), period)
-
-    if amap is None:
-        def one(t, sd):
-            v, d = jax.jvp(qsm.excitation, (t + sd * delta,), (jnp.ones_like(t),))
-            return v - sd * delta * d, d  # back to the knot
-    else:
-        def one(t, sd):
-            def f(s):
-                return qsm.excitation(amap(s)[0] + sd * delta)
-
-            v, d = jax.jvp(f, (t,), (jnp.ones_like(t),))
-            return v - sd * delta * d / amap(t)[1], d
-
-    vals, slopes = jax.vmap(one)(knots, side)
+    vals, slopes = one_sided_samples(lambda t, _: qsm.excitation(t), knots, side, period, amap)
     ok = jnp.asarray(True)
     if table_codes is not None:
-        at = (jax.vmap(amap)(knots)[0] if amap is not None else knots) + side * delta
-        codes = jax.vmap(lambda t: qsm.state_code(t, True))(at)
-        ok = jnp.all(codes == table_codes)
+        ok = keeps_structure(lambda t: qsm.state_code(t, True), knots, side, period,
+                             table_codes, amap)
     return vals, slopes, amap, ok
 
 

@@ -6,6 +6,10 @@ excitation period as cubic Hermite data with extra knots on both sides of every 
 jumps and kinks are reproduced exactly. :class:`AngleMap` is the periodic C^1 change of the
 independent variable ``theta = phi(s)`` that pins the design-dependent switching angles at
 fixed simulation angles ``s_j`` (see :mod:`gearjax.excitation.events`). Angles in rad.
+
+Both gear models fill their tables the same way: :func:`one_sided_samples` (the values and
+slopes at the knots, each knot of a jump read on its own side) and :func:`keeps_structure`
+(whether a design keeps the build's discrete quasi-static state at every mapped knot).
 """
 
 from __future__ import annotations
@@ -15,7 +19,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["PeriodicHermiteTable", "AngleMap", "hermite_segment"]
+__all__ = ["PeriodicHermiteTable", "AngleMap", "hermite_segment", "one_sided_samples",
+           "keeps_structure"]
 
 _COMPARE_ALL_NODES = 64  # AngleMap nodes up to which its segment is found by comparisons
 
@@ -143,3 +148,41 @@ class AngleMap(eqx.Module):
         h = d0 + (d1 - d0) * (u * u * (3.0 - 2.0 * u))
         dh = (d1 - d0) * 6.0 * u * (1.0 - u) / w
         return s + h, 1.0 + dh
+
+
+def one_sided_samples(q, knots, side, period: float, angle_map: AngleMap | None = None):
+    """Values and slopes (d/ds) at the table ``knots`` of ``s -> q(phi(s) + side delta,
+    phi'(s))``, each taken back to its knot along its own slope (``delta = 1e-9 period``):
+    the two knots bracketing a jump (``side`` -1 and +1, 0 for a uniform knot) are read on
+    their own side of it, so the Hermite table reproduces the jump exactly between them.
+    Slopes by forward-mode AD (exact, the kinks included). ``q(theta, dtheta_ds)`` returns
+    the excitation vector at the pinion angle ``theta`` (rad); ``angle_map`` None: phi the
+    identity (``dtheta_ds`` 1). Traceable (differentiable in what ``q`` closes over).
+
+    Returns ``(values (n, m), slopes (n, m))``."""
+    delta = 1e-9 * period
+    if angle_map is None:
+        def one(t, sd):
+            v, d = jax.jvp(lambda th: q(th, 1.0), (t + sd * delta,), (jnp.ones_like(t),))
+            return v - sd * delta * d, d  # back to the knot
+    else:
+        def one(t, sd):
+            def f(s):
+                th, dth = angle_map(s)
+                return q(th + sd * delta, dth)
+
+            v, d = jax.jvp(f, (t,), (jnp.ones_like(t),))
+            return v - sd * delta * d / angle_map(t)[1], d  # back to the knot
+    return jax.vmap(one)(knots, side)
+
+
+def keeps_structure(code, knots, side, period: float, table_codes,
+                    angle_map: AngleMap | None = None):
+    """Whether the design keeps the build's discrete quasi-static state on each side of
+    every knot (traced bool): the codes ``code(theta)`` (an int vector at the pinion angle
+    ``theta``, :func:`gearjax.excitation.events.code`) at the mapped knots, read on their
+    side as :func:`one_sided_samples` reads them, equal the build's ``table_codes``. Where
+    they do not, the angle map is not valid for this design (the model must be rebuilt)."""
+    at = (jax.vmap(angle_map)(knots)[0] if angle_map is not None else knots) + side * (
+        1e-9 * period)
+    return jnp.all(jax.vmap(code)(at) == table_codes)

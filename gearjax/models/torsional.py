@@ -124,7 +124,8 @@ from ..excitation.mesh3d import fourier_coefficients
 from ..excitation.events import EV_FIXED, NEWTON_STEPS, code_jnp, moved_event_angles
 from ..excitation.jumps import JumpSet
 from ..excitation.sdof import sdof_signature, sdof_switch
-from ..excitation.tables import AngleMap, PeriodicHermiteTable
+from ..excitation.tables import (AngleMap, PeriodicHermiteTable, keeps_structure,
+                                 one_sided_samples)
 from ..excitation.te_file import te_model_fields
 from .base import AbstractGearModel, ModelOutputs
 from .formulations import AbstractFormulation, Perturbation, Reference, TransmissionError
@@ -229,9 +230,6 @@ class _TorsionalInputs(eqx.Module):
             k_s = jnp.sum(jnp.where((k > 0) & (delta_e < y), k, 0.0))
         return jnp.stack([y / self.cos_bb, k_s, nlte])
 
-    def _qs_with_slope(self, theta):
-        return jax.jvp(self._qs, (jnp.asarray(theta, dtype=float),), (jnp.ones((), dtype=float),))
-
     @property
     def moving_jumps(self):
         """Some switching angles depend on the design (module docstring); traced bool."""
@@ -280,7 +278,6 @@ class _TorsionalInputs(eqx.Module):
         of (x_S, (sum k)^S, NLTE) with exact slopes, ``k_m``, ``x_ref``, ``omega_n``,
         ``kappa``, the angle map of the moving switching angles and its validity flag,
         and the spectral NLTE'' coefficients."""
-        delta = 1e-9 * self.period_rad
         n_mesh = int(round(self.period_rad / self.mesh_period_rad))
         layout = dict(knots=self.table_knots, cell_first=self.table_cell_first,
                       origin=self.table_origin, period=self.period_rad,
@@ -291,9 +288,8 @@ class _TorsionalInputs(eqx.Module):
             k_m = table.mean()[_K_S]
         elif not self.moving_events:  # switching angles fixed at the build's: no map
             structure_ok = jnp.asarray(True)
-            at = self.table_knots + self.table_side * delta
-            vals, slopes = jax.vmap(self._qs_with_slope)(at)
-            vals = vals - (self.table_side * delta)[:, None] * slopes  # back to the knot
+            vals, slopes = one_sided_samples(lambda t, _: self._qs(t), self.table_knots,
+                                             self.table_side, self.period_rad)
             table = PeriodicHermiteTable(values=vals, slopes=slopes, **layout)
             k_m = table.mean()[_K_S]
         else:
@@ -301,21 +297,17 @@ class _TorsionalInputs(eqx.Module):
             # phi is the identity at the build design (every design: no program of its own)
             amap = self._angle_map()
 
-            def one(s, side):
-                def f(s):
-                    th, dth = amap(s)
-                    q = self._qs(th + side * delta)
-                    return jnp.concatenate([q, q[_K_S:_K_S + 1] * dth])
-                v, d = jax.jvp(f, (s,), (jnp.ones((), dtype=float),))
-                return v - side * delta * d / amap(s)[1], d  # back to the knot
+            def q(th, dth):
+                v = self._qs(th)
+                return jnp.concatenate([v, v[_K_S:_K_S + 1] * dth])
 
-            vals, slopes = jax.vmap(one)(self.table_knots, self.table_side)
+            vals, slopes = one_sided_samples(q, self.table_knots, self.table_side,
+                                             self.period_rad, amap)
             table = PeriodicHermiteTable(values=vals[:, :3], slopes=slopes[:, :3], **layout)
             k_m = PeriodicHermiteTable(values=vals[:, 3:], slopes=slopes[:, 3:], **layout).mean()[0]
-            th = jax.vmap(amap)(self.table_knots)[0] + self.table_side * delta
-            sig = jax.vmap(lambda t: code_jnp(sdof_signature(
-                self.mesh, self.mods, self.static_force_N, t)))(th)
-            structure_ok = jnp.all(sig == self.table_codes)
+            structure_ok = keeps_structure(
+                lambda t: code_jnp(sdof_signature(self.mesh, self.mods, self.static_force_N, t)),
+                self.table_knots, self.table_side, self.period_rad, self.table_codes, amap)
         m_eq = self.equivalent_mass_kg
         omega_n = jnp.sqrt(k_m * self.cos_bb**2 / m_eq)
         x_ref = self.static_force_N / (k_m * self.cos_bb)
