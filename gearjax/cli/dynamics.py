@@ -79,7 +79,10 @@ def register(sub, add_rig, add_scenario):
     sw = sub.add_parser(
         "sweep", help="steady-state dynamic response over pinion speeds (Figs. 8-13)",
         description="Steady-state response curves of Section 6 (default: the paper's spur case, "
-                    "3D model, short relief, damping 0.1, all three formulations, 20-900 rad/s).",
+                    "3D model, short relief, damping 0.1, all three formulations, 20-900 rad/s). "
+                    "A second run loads its models, programs and executables from the cache "
+                    "folder ($XDG_CACHE_HOME/gearjax/jax, default ~/.cache/gearjax/jax; "
+                    "GEARJAX_COMPILATION_CACHE=0: none).",
     )
     add_rig(sw)
     add_scenario(sw)
