@@ -72,7 +72,11 @@ def test_exported_sweep_is_the_jitted_one_and_a_warm_run_does_not_trace(
     cold = sweep(model, SPEEDS, TR, chunk_size=4, programs=ProgramStore(tmp_path))
     assert traces[0] == 1 and len(_entries(tmp_path)) == 1
     _same(cold, jitted_result)
-    warm = sweep(model, SPEEDS, TR, chunk_size=4, programs=ProgramStore(tmp_path))
+    store = ProgramStore(tmp_path)
+    # the program the command line compiles ahead on a thread is the one the sweep calls
+    lowered = sweep_mod.lower_sweep(model, SPEEDS, TR, chunk_size=4, programs=store)
+    assert isinstance(lowered, jax.stages.Lowered) and traces[0] == 1
+    warm = sweep(model, SPEEDS, TR, chunk_size=4, programs=store)
     assert traces[0] == 1  # loaded, not traced
     _same(warm, jitted_result)
     # new array data of the model (more damping): the same program, still not traced
@@ -149,6 +153,58 @@ def test_static_arguments_and_array_shapes_key_the_program(tmp_path):
     assert len(_entries(tmp_path)) == 4
     lowered = ProgramStore(tmp_path).lower(_scaled, x, 2.0, "a")
     assert isinstance(lowered, jax.stages.Lowered)
+
+
+@eqx.filter_jit
+def _total(x, scale: float):
+    return jnp.sum(x) * scale
+
+
+def test_values_are_keyed_by_the_content_of_their_arguments(tmp_path, monkeypatch):
+    x = jnp.arange(3.0)
+    assert float(ProgramStore(tmp_path).value(_total, x, 2.0)) == 6.0
+    assert len(_entries(tmp_path)) == 2  # the program and its value
+
+    def no_call(self, jitted, *args):
+        raise AssertionError("computed again")
+
+    with monkeypatch.context() as m:
+        m.setattr(ProgramStore, "call", no_call)
+        assert float(ProgramStore(tmp_path).value(_total, jnp.arange(3.0), 2.0)) == 6.0
+    # other content, other static value, other context (XLA flags): computed
+    assert float(ProgramStore(tmp_path).value(_total, x + 1, 2.0)) == 12.0
+    assert float(ProgramStore(tmp_path).value(_total, x, 3.0)) == 9.0
+    assert float(ProgramStore(tmp_path, context="--flag").value(_total, x, 2.0)) == 6.0
+    assert len(_entries(tmp_path)) == 2 + 1 + 2 + 1
+
+
+@pytest.mark.parametrize("against_plain", [False, pytest.param(True, marks=pytest.mark.slow)])
+def test_frequency_domain_sweep_through_the_store(tmp_path, monkeypatch, against_plain):
+    """The frequency domain's split, plan and batch through a store: a later store
+    neither traces the batch nor recomputes the split and plan, and gives the first one's
+    results exactly; (slow: another compilation) those of the plain sweep too."""
+    import gearjax.dynamics.harmonic_sweep as hs
+    from gearjax.dynamics.harmonic_sweep import harmonic_sweep
+
+    model = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief("short"),
+                                 formulation="te", damping_ratio=0.1)
+    opts = dict(harmonics=256, max_harmonics=256, floquet=False)
+    cold = harmonic_sweep(model, [310.0, 520.0], programs=ProgramStore(tmp_path), **opts)
+    plain = harmonic_sweep(model, [310.0, 520.0], **opts) if against_plain else cold
+    traces = [0]
+    real = hs.harmonic_steady_states
+
+    def counted(*args, **kwargs):  # runs only while the batch is traced
+        traces[0] += 1
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(hs, "harmonic_steady_states", counted)
+    warm = harmonic_sweep(model, [310.0, 520.0], programs=ProgramStore(tmp_path), **opts)
+    assert traces[0] == 0
+    for res in (cold, warm):
+        _same(res, plain)
+        for k, v in plain.stats.items():
+            np.testing.assert_array_equal(res.stats[k], v, err_msg=k)
 
 
 def test_a_program_with_a_host_callback_runs_as_traced_and_is_not_stored(tmp_path,

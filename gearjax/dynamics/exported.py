@@ -1,6 +1,8 @@
 """Compiled programs kept between runs: a store that a solver hands its jitted functions
 to (:meth:`AbstractProgramStore.call`), so that a later process calls the same program
-without tracing it again.
+without tracing it again, and keeps the values of deterministic preparations that cost
+more to compute than to load (:meth:`AbstractProgramStore.value`: the frequency domain's
+split and plan of a model).
 
 :class:`ProgramStore` exports each program with ``jax.export`` (StableHLO, JAX's stable
 serialisation) at the first call with a given key and keeps it in its folder
@@ -16,6 +18,9 @@ program). :class:`NoProgramStore` (the default) calls the jitted function itself
 
 * The program is the one called in the run that exports it too, so the run that fills the
   store also fills JAX's compilation cache with the executables the next run asks for.
+* :meth:`AbstractProgramStore.value` keys a value by the *content* of the arguments (every
+  array's bytes), the same code and options, JAX's optimisation setting and the store's
+  ``context`` (what else changes compiled values: the command line passes ``XLA_FLAGS``).
 * A program that ``jax.export`` refuses -- one holding a host callback, such as equinox's
   runtime checks in their default ``raise`` mode (the command line makes them NaN:
   :func:`gearjax.runtime.use_cacheable_checks`) -- is called as traced, not stored.
@@ -47,6 +52,11 @@ class AbstractProgramStore(abc.ABC):
         every other argument static)."""
 
     @abc.abstractmethod
+    def value(self, jitted, *args):
+        """``jitted(*args)`` for a deterministic program whose value may come from an
+        earlier run's identical call (same code, options and argument content)."""
+
+    @abc.abstractmethod
     def lower(self, jitted, *args):
         """The ``jax.stages.Lowered`` program that :meth:`call` with these arguments
         runs; its ``compile()`` fills JAX's caches for that call."""
@@ -56,6 +66,9 @@ class NoProgramStore(AbstractProgramStore):
     """The jitted function itself, traced in every process: the library's default."""
 
     def call(self, jitted, *args):
+        return jitted(*args)
+
+    def value(self, jitted, *args):
         return jitted(*args)
 
     def lower(self, jitted, *args):
@@ -94,17 +107,43 @@ def _uncommitted(x):
 
 
 class ProgramStore(AbstractProgramStore):
-    """Programs exported with ``jax.export`` into ``folder`` (module docstring); each is
-    loaded or exported once per store object and key. Files: ``folder/<key>.bin``."""
+    """Programs exported with ``jax.export`` into ``folder`` (module docstring), and values
+    of deterministic programs; each program is loaded or exported once per store object
+    and key. Files: ``folder/<key>.bin``. ``context``: what else changes the values that
+    compiled programs compute (e.g. the process's XLA flags), part of the values' keys."""
 
-    __slots__ = ("folder", "_programs")
+    __slots__ = ("folder", "context", "_programs")
 
-    def __init__(self, folder: str | os.PathLike):
+    def __init__(self, folder: str | os.PathLike, context: str = ""):
         self.folder = os.fspath(folder)
+        self.context = str(context)
         self._programs: dict = {}
 
     def __repr__(self) -> str:
         return f"ProgramStore({self.folder!r})"
+
+    def value(self, jitted, *args):
+        fn = jitted.__wrapped__
+        try:
+            inputs = {"value of": f"{fn.__module__}.{fn.__qualname__}", "code": code_digest(),
+                      "arguments": digest((fn, args)), "platform": jax.default_backend(),
+                      "jax": _jax_options(), "context": self.context,
+                      "optimised": not jax.config.read("jax_disable_most_optimizations")}
+        except Undigestable:
+            return self.call(jitted, *args)
+        payload = read_entry(self.folder, inputs)
+        if payload is not None:
+            try:
+                return pickle.loads(payload)
+            except Exception:  # unreadable: computed again, the entry overwritten
+                pass
+        out = self.call(jitted, *args)
+        try:
+            payload = pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception:  # a value that does not pickle: not kept
+            return out
+        write_entry(self.folder, inputs, payload)
+        return out
 
     def call(self, jitted, *args):
         found = self._program(jitted, args)

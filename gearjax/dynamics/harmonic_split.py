@@ -311,11 +311,12 @@ def harmonic_split(model, omega_ref: float,
     """The split of ``model`` at ``omega_ref`` (rad/s; host function): with one mode per
     conjugate pair and the bases cut to their numerical rank where
     ``model.speed_scaled_state`` (valid at every speed); else :func:`split_at`.
-    ``programs``: where its compiled program comes from (:mod:`gearjax.dynamics.exported`)."""
+    ``programs``: where its compiled program and its value come from
+    (:mod:`gearjax.dynamics.exported`)."""
     if not model.speed_scaled_state:
-        return programs.call(_split_at_jit, model, jnp.asarray(float(omega_ref)))
-    raw = jax.device_get(programs.call(_raw_split_jit, model, jnp.asarray(float(omega_ref)),
-                                       FORCING_RANK))
+        return programs.value(_split_at_jit, model, jnp.asarray(float(omega_ref)))
+    raw = jax.device_get(programs.value(_raw_split_jit, model, jnp.asarray(float(omega_ref)),
+                                        FORCING_RANK))
     keep, weight = _kept_modes(raw["lam"])
     n = model.state_size
     k = min(n, _rank(raw["b_sv"]))
@@ -472,9 +473,9 @@ def harmonic_plan(model, split: HarmonicSplit, n_h: int,
                   programs: AbstractProgramStore = NoProgramStore()) -> HarmonicPlan:
     """The :class:`HarmonicPlan` of a speed-scaled ``model`` with ``n_h`` harmonics, from
     its ``split`` (:func:`harmonic_split`): one sampling for every speed (host function;
-    ``programs``: where its compiled program comes from)."""
-    return HarmonicPlan(split=split, excitation=programs.call(_plan_excitation_jit, model,
-                                                              split, int(n_h)))
+    ``programs``: where its compiled program and its value come from)."""
+    return HarmonicPlan(split=split, excitation=programs.value(_plan_excitation_jit, model,
+                                                               split, int(n_h)))
 
 
 def small_gain_of(split: HarmonicSplit, c_radius, omega):

@@ -71,12 +71,14 @@ def store_dir(kind: str) -> str | None:
 
 def program_store():
     """The sweep programs' store of :func:`store_dir` (a
-    :class:`gearjax.dynamics.exported.ProgramStore`), or a
-    :class:`~gearjax.dynamics.exported.NoProgramStore` where the stores are off."""
+    :class:`gearjax.dynamics.exported.ProgramStore` whose values are keyed by this
+    process's ``XLA_FLAGS`` too), or a :class:`~gearjax.dynamics.exported.NoProgramStore`
+    where the stores are off."""
     from ..dynamics.exported import NoProgramStore, ProgramStore
 
     folder = store_dir("programs")
-    return NoProgramStore() if folder is None else ProgramStore(folder)
+    return (NoProgramStore() if folder is None
+            else ProgramStore(folder, context=os.environ.get("XLA_FLAGS", "")))
 
 
 def build_store():
