@@ -234,15 +234,18 @@ def test_digest_is_by_content_and_the_same_in_another_process(model):
         digest(object())
     code = ("from gearjax import Mesh, baud_velex_pair, table1_relief\n"
             "from gearjax.models.torsional import TorsionalModel\n"
+            "from gearjax.rigs import baud_velex_rig\n"
             "from gearjax.dynamics.stored import digest\n"
             "m = TorsionalModel.build(Mesh.build(baud_velex_pair(False)), table1_relief('short'),"
             " formulation='perturbation')\n"
-            "print(digest(m)); print(digest(m, arrays='aval'))")
+            "print(digest(m)); print(digest(m, arrays='aval')); print(digest(baud_velex_rig(False)))")
     env = dict(os.environ, PYTHONHASHSEED="123")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          env=env, timeout=300)
     assert run.returncode == 0, run.stderr[-800:]
-    assert run.stdout.split() == [digest(model), digest(model, arrays="aval")]
+    # the rig holds functions (its structure and reliefs): digested by their bytecode
+    assert run.stdout.split() == [digest(model), digest(model, arrays="aval"),
+                                  digest(baud_velex_rig(False))]
 
 
 _BUILDS = [0]

@@ -241,7 +241,7 @@ def write_entry(folder, inputs: dict, payload: bytes) -> bool:
 
 class BuildStore:
     """Values of pure functions (models from :func:`gearjax.rigs.factory.build_model`)
-    kept as pickles in ``folder``, keyed by the function, the content of its arguments
+    kept as pickles in ``folder``, keyed by the function and the content of its arguments
     (:func:`digest`), :func:`code_digest`, JAX's platform and float64 setting. JAX
     arrays come back as JAX arrays (NumPy bytes in the pickle, dtype and weak type kept).
     """
@@ -261,7 +261,7 @@ class BuildStore:
         raises."""
         try:
             inputs = {"function": _qualname(fn), "code": code_digest(),
-                      "arguments": digest((args, kwargs)), "platform": jax.default_backend(),
+                      "arguments": digest((fn, args, kwargs)), "platform": jax.default_backend(),
                       "x64": bool(jax.config.jax_enable_x64)}
         except Undigestable:
             return fn(*args, **kwargs)
