@@ -21,6 +21,7 @@ from ..excitation.te_file import read_te_csv
 from ..models.geared3d import CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS, \
     default_max_frequency_hz
 from ..rigs.factory import build_model
+from ..runtime.cache import build_store
 from .backlash import backlash_key, backlash_record
 from .contact import contact_record, contact_suffix, model_options_of
 from .refine import refinement_of
@@ -135,7 +136,9 @@ def transient_tolerances(args) -> dict:
 @dataclasses.dataclass(frozen=True)
 class DynamicsCase:
     """The inputs of a dynamics command, each read and checked once: the rig, its pinion
-    speeds (rad/s), tooth modifications, TE file, NLTE options and 3D modal cut-off (Hz)."""
+    speeds (rad/s), tooth modifications, TE file, NLTE options and 3D modal cut-off (Hz);
+    ``builds``: the store of built models (:func:`gearjax.runtime.build_store`; None:
+    every model built)."""
 
     args: argparse.Namespace
     rig: object
@@ -148,6 +151,7 @@ class DynamicsCase:
     cutoff_source: str | None
     warning: str | None
     notes: tuple
+    builds: object = None
 
     @property
     def speeds(self) -> np.ndarray:
@@ -156,15 +160,19 @@ class DynamicsCase:
     def build(self, formulation: str, back_flanks: bool = True):
         """The model of ``formulation`` (:func:`gearjax.rigs.factory.build_model`, forward
         only; ``back_flanks=False``: without the rig's backlash, the linear equations); a
-        cut-off that keeps no vibration mode is reported as ``--max-frequency``'s error."""
+        cut-off that keeps no vibration mode is reported as ``--max-frequency``'s error.
+        Through the :attr:`builds` store where there is one (an earlier run's build of
+        the same inputs and code is loaded, not computed)."""
         a = self.args
         extra = {} if back_flanks else {"backlash_m": None}
+        options = dict(model=a.model, formulation=formulation, law=a.stiffness,
+                       damping_ratio=a.damping, encoder_position=a.encoders, **self.nlte,
+                       max_frequency_hz=self.cutoff_hz, nlte_reaction=self.reaction,
+                       te_table=self.te, moving_events=False, **extra)
         try:
-            return build_model(self.rig, self.scenario.mods, model=a.model, formulation=formulation,
-                               law=a.stiffness, damping_ratio=a.damping,
-                               encoder_position=a.encoders, **self.nlte,
-                               max_frequency_hz=self.cutoff_hz, nlte_reaction=self.reaction,
-                               te_table=self.te, moving_events=False, **extra)
+            if self.builds is None:
+                return build_model(self.rig, self.scenario.mods, **options)
+            return self.builds.build(build_model, self.rig, self.scenario.mods, **options)
         except ModelError as exc:
             if exc.field != "max_frequency_hz":
                 raise
@@ -192,7 +200,7 @@ def dynamics_case(args, command: str, forms, extra_speeds=()) -> dict:
     return dict(args=args, rig=rig, spec=spec, scenario=scen, te=te, reaction=reaction,
                 nlte=nlte_options_of(args), cutoff_hz=cutoff_hz, cutoff_source=source,
                 warning=cutoff_warning(args, rig, cutoff_hz, spec.rad_s),
-                notes=tuple(rig_notes(rig, args.model)))
+                notes=tuple(rig_notes(rig, args.model)), builds=build_store())
 
 
 @dataclasses.dataclass(frozen=True)

@@ -47,6 +47,7 @@ import time
 import numpy as np
 
 from ..runtime import watchdog
+from ..runtime.cache import program_store
 from ..runtime.progress import command_meter
 from ..models.base import LINEAR_FORMULATIONS
 from ..dynamics.harmonic_sweep import HARMONIC_FLOQUET_MAX_STATES
@@ -78,7 +79,10 @@ def register(sub, add_rig, add_scenario):
     sw = sub.add_parser(
         "sweep", help="steady-state dynamic response over pinion speeds (Figs. 8-13)",
         description="Steady-state response curves of Section 6 (default: the paper's spur case, "
-                    "3D model, short relief, damping 0.1, all three formulations, 20-900 rad/s).",
+                    "3D model, short relief, damping 0.1, all three formulations, 20-900 rad/s). "
+                    "A second run loads its models, programs and executables from the cache "
+                    "folder ($XDG_CACHE_HOME/gearjax/jax, default ~/.cache/gearjax/jax; "
+                    "GEARJAX_COMPILATION_CACHE=0: none).",
     )
     add_rig(sw)
     add_scenario(sw)
@@ -279,6 +283,7 @@ def _sweep_formulations(case: SweepCase, first, done: dict, devices, lead: bool,
     from .results import method_counts
 
     a, speeds, runs = case.args, case.speeds, _Runs()
+    programs = program_store()  # exported by an earlier run: not traced again
 
     def todo_of(form):  # vectorised: ten million speeds in well under a second
         got = np.fromiter(done.get(form, ()), dtype=float)
@@ -287,7 +292,7 @@ def _sweep_formulations(case: SweepCase, first, done: dict, devices, lead: bool,
     def sweep_options(model):
         size = None if a.chunk is None else min(a.chunk, todo_of(model.formulation.name).size)
         return dict(solver=solver_for(a.method, model, a.rtol, case.tolerances),
-                    chunk_size=size, devices=devices)
+                    chunk_size=size, devices=devices, programs=programs)
 
     linear, models = None, {}  # a 3D te/perturbation model: the other one shares its build
     early, ahead = {case.forms[0]: first}, Ahead()  # models built ahead, compiling programs

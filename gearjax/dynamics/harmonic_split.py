@@ -49,6 +49,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .exported import AbstractProgramStore, NoProgramStore
 from .measure import observer
 from .small_gain import small_gain_bound
 
@@ -305,18 +306,25 @@ def _kept_modes(lam):
     return keep, np.where(up[keep], 2.0, 1.0)
 
 
-def harmonic_split(model, omega_ref: float) -> HarmonicSplit:
+def harmonic_split(model, omega_ref: float,
+                   programs: AbstractProgramStore = NoProgramStore()) -> HarmonicSplit:
     """The split of ``model`` at ``omega_ref`` (rad/s; host function): with one mode per
     conjugate pair and the bases cut to their numerical rank where
-    ``model.speed_scaled_state`` (valid at every speed); else :func:`split_at`."""
+    ``model.speed_scaled_state`` (valid at every speed); else :func:`split_at`.
+    ``programs``: where its compiled program and its value come from
+    (:mod:`gearjax.dynamics.exported`)."""
     if not model.speed_scaled_state:
-        return eqx.filter_jit(split_at)(model, jnp.asarray(float(omega_ref)))
-    raw = jax.device_get(_raw_split_jit(model, jnp.asarray(float(omega_ref)), FORCING_RANK))
+        return programs.value(_split_at_jit, model, jnp.asarray(float(omega_ref)))
+    raw = jax.device_get(programs.value(_raw_split_jit, model, jnp.asarray(float(omega_ref)),
+                                        FORCING_RANK))
     keep, weight = _kept_modes(raw["lam"])
     n = model.state_size
     k = min(n, _rank(raw["b_sv"]))
     return _assemble({key: jnp.asarray(v) for key, v in raw.items()}, float(omega_ref),
                      jnp.asarray(keep), jnp.asarray(weight), k, _rank(raw["r_sv"]), True)
+
+
+_split_at_jit = eqx.filter_jit(split_at)
 
 
 @eqx.filter_jit
@@ -461,10 +469,13 @@ def _plan_excitation(model, split: HarmonicSplit, n_h: int) -> Excitation:
 _plan_excitation_jit = eqx.filter_jit(_plan_excitation)
 
 
-def harmonic_plan(model, split: HarmonicSplit, n_h: int) -> HarmonicPlan:
+def harmonic_plan(model, split: HarmonicSplit, n_h: int,
+                  programs: AbstractProgramStore = NoProgramStore()) -> HarmonicPlan:
     """The :class:`HarmonicPlan` of a speed-scaled ``model`` with ``n_h`` harmonics, from
-    its ``split`` (:func:`harmonic_split`): one sampling for every speed (host function)."""
-    return HarmonicPlan(split=split, excitation=_plan_excitation_jit(model, split, int(n_h)))
+    its ``split`` (:func:`harmonic_split`): one sampling for every speed (host function;
+    ``programs``: where its compiled program and its value come from)."""
+    return HarmonicPlan(split=split, excitation=programs.value(_plan_excitation_jit, model,
+                                                               split, int(n_h)))
 
 
 def small_gain_of(split: HarmonicSplit, c_radius, omega):

@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import SimulationError
+from .exported import AbstractProgramStore, NoProgramStore
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 from .harmonic import check_linear_model, harmonic_steady_states, harmonics_for
 from .harmonic_split import harmonic_plan, harmonic_split
@@ -79,17 +80,21 @@ def _hb_sharded(model, speeds, n_h, plan, samples_per_mesh_period, n_refine, dev
     return shard_speeds(body, devices)(dyn, speeds)
 
 
-def _solve_batch(model, speeds, n_h, plan, samples_per_mesh_period, n_refine, devices):
+def _solve_batch(model, speeds, n_h, plan, samples_per_mesh_period, n_refine, devices,
+                 programs: AbstractProgramStore):
     """The batch of ``speeds`` on one device, or shared over ``devices`` (padded with the
-    last speed to a multiple of their number)."""
+    last speed to a multiple of their number, handed to the program sharded over them:
+    the devices it runs on); ``programs``: where the program comes from."""
     if devices is None or len(devices) < 2:
-        return _hb_batch(model, jnp.asarray(speeds), n_h, plan, samples_per_mesh_period,
-                         n_refine)
+        return programs.call(_hb_batch, model, jnp.asarray(speeds), n_h, plan,
+                             samples_per_mesh_period, n_refine)
     n_dev = len(devices)
     pad = -speeds.size % n_dev
     w = np.concatenate([speeds, np.full(pad, speeds[-1])])
-    out = _hb_sharded(model, jnp.asarray(w), n_h, plan, samples_per_mesh_period, n_refine,
-                      tuple(devices))
+    mesh = jax.sharding.Mesh(np.asarray(devices), ("speed",))
+    w = jax.device_put(w, jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("speed")))
+    out = programs.call(_hb_sharded, model, w, n_h, plan,
+                        samples_per_mesh_period, n_refine, tuple(devices))
     return tuple(np.asarray(v)[: speeds.size] for v in jax.device_get(out))
 
 
@@ -103,7 +108,8 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
                    floquet: bool = True, samples_per_mesh_period: int = 128,
                    n_refine: int = N_REFINE,
                    progress: AbstractProgressMeter = NoProgressMeter(),
-                   rank_one_tol: float | None = None, devices=None) -> SweepResult:
+                   rank_one_tol: float | None = None, devices=None,
+                   programs: AbstractProgramStore = NoProgramStore()) -> SweepResult:
     """Steady state of a linear formulation (te, perturbation; sdof or 3D) over pinion
     speeds (rad/s) in the frequency domain (module docstring): one plan of the model
     (:func:`~gearjax.dynamics.harmonic_split.harmonic_plan`, at the median speed), one
@@ -133,7 +139,8 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
     the rank-one split accepted (it perturbs the orbit by about as much; round-off of the
     3D long-relief te model's optimised compile reached 1.2e-8). ``devices``: the devices
     of this process to share the speeds over (a list, ``"all"`` or None: the default one;
-    :func:`gearjax.dynamics.batching.shard_speeds`).
+    :func:`gearjax.dynamics.batching.shard_speeds`). ``programs``: where the compiled
+    programs come from (:mod:`gearjax.dynamics.exported`; default: traced here).
 
     Raises
     ------
@@ -161,7 +168,7 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
     compiled = model.compiled_form()
     scaled = model.speed_scaled_state  # one split and one sampling for every speed
     split = harmonic_split(compiled, float(np.median(speeds)) if scaled
-                           else float(np.min(speeds)))
+                           else float(np.min(speeds)), programs)
     n_h = (int(harmonics) if harmonics is not None else
            harmonics_for(model, split, speeds, rtol, hi=hi))
     n = model.state_size
@@ -175,10 +182,10 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
     t0 = time.perf_counter()
     while todo.size:
         t_batch = time.perf_counter()
-        plan = harmonic_plan(compiled, split, n_h) if scaled else None
+        plan = harmonic_plan(compiled, split, n_h, programs) if scaled else None
         res = jax.device_get(_solve_batch(compiled, speeds[todo], n_h, plan,
                                           int(samples_per_mesh_period), int(n_refine),
-                                          devices))
+                                          devices, programs))
         for f, v in zip(_FIELDS, res):
             out[f][todo] = np.asarray(v, dtype=float)
         n_used[todo] = n_h
@@ -207,7 +214,8 @@ def harmonic_sweep(model, speeds_rad_s, *, rtol: float = 1e-6,
     rho = np.full(speeds.size, np.nan)
     need = np.flatnonzero(~proven)
     if floquet and need.size:
-        rho[need] = np.asarray(_rho_batch(model, jnp.asarray(speeds[need])), dtype=float)
+        rho[need] = np.asarray(programs.call(_rho_batch, model, jnp.asarray(speeds[need])),
+                               dtype=float)
         progress.note(task, f"Floquet radius at {need.size} speed(s) the small-gain bound "
                       f"leaves open: {time.perf_counter() - t0:.2f} s")
     ok = out["ok"] > 0
@@ -283,7 +291,8 @@ class HarmonicBalance(AbstractPeriodicSolver):
                              max_harmonics=self.max_harmonics, floquet=floquet,
                              samples_per_mesh_period=self.samples_per_mesh_period,
                              n_refine=self.n_refine, progress=run.progress,
-                             rank_one_tol=self.rank_one_tol, devices=run.devices)
+                             rank_one_tol=self.rank_one_tol, devices=run.devices,
+                             programs=run.programs)
         if run.sink is not None:
             run.sink(res)
         return res

@@ -21,6 +21,7 @@ from typing import Callable
 import equinox as eqx
 import numpy as np
 
+from .exported import AbstractProgramStore, NoProgramStore
 from .progress import AbstractProgressMeter, NoProgressMeter
 from .results import SweepResult, merge_results
 
@@ -35,12 +36,16 @@ class SweepRun(eqx.Module):
     progress : the meter told of the sweep's progress.
     sink : called with a :class:`SweepResult` of the speeds a solver has finished (its
         rows are final), as they finish; None: nothing is written.
+    programs : where the solver's compiled programs come from
+        (:class:`~gearjax.dynamics.exported.ProgramStore`: a folder of exported programs;
+        default: traced in this process).
     """
 
     chunk_size: int | None = None
     devices: object = None
     progress: AbstractProgressMeter = NoProgressMeter()
     sink: Callable[[SweepResult], None] | None = None
+    programs: AbstractProgramStore = NoProgramStore()
 
 
 class AbstractPeriodicSolver(eqx.Module):

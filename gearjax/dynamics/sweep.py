@@ -25,6 +25,9 @@ sdof model on a CPU, every model on an accelerator): :mod:`gearjax.dynamics.batc
   (``multihost_utils.process_allgather``). Only process 0 reports progress and writes
   ``out_csv``. Without ``devices`` a multi-process run uses all devices (each host would
   otherwise repeat the whole sweep).
+* ``programs`` (:class:`~gearjax.dynamics.exported.ProgramStore`): the chunk programs (and
+  the frequency domain's) come from a folder where an earlier run exported them, instead
+  of being traced again; a multi-process sweep traces its own.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import check_float64
+from .exported import AbstractProgramStore, NoProgramStore
 from .batching import over_speeds, sequential_on
 from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 
@@ -166,6 +170,7 @@ class Transient(AbstractOrbitSolver):
         lead = jax.process_index() == 0  # the process that reports and writes
         fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx = _plan(
             model, speeds, run.chunk_size, run.devices, self)
+        programs = NoProgramStore() if multi_process else run.programs
         total = n_chunks * chunk
         formulation = model.formulation.name
 
@@ -185,7 +190,7 @@ class Transient(AbstractOrbitSolver):
             if n_dev > 1:
                 w = _global_speeds(np.asarray(speeds[sel]), devices)
             t0 = time.perf_counter()
-            out = fn(compiled, w, self)
+            out = programs.call(fn, compiled, w, self)
             if multi_process and n_dev > 1:
                 from jax.experimental import multihost_utils
 
@@ -310,6 +315,7 @@ def sweep(
     out_csv: str | os.PathLike | None = None,
     orders_csv: str | os.PathLike | None = None,
     devices=None,
+    programs: AbstractProgramStore = NoProgramStore(),
 ) -> SweepResult:
     """Steady-state response over pinion speeds: the one entry point of every periodic
     solver (:mod:`gearjax.dynamics.solvers`).
@@ -336,6 +342,10 @@ def sweep(
     devices : list of JAX devices to shard the speed axis over (the transient only);
         ``None`` uses one device (the default device), ``"all"`` every device of the
         default backend.
+    programs : where the compiled programs come from
+        (:class:`~gearjax.dynamics.exported.ProgramStore`: exported into a folder by an
+        earlier run, not traced again); default :class:`~gearjax.dynamics.exported.
+        NoProgramStore`, traced in this process.
 
     Returns
     -------
@@ -373,7 +383,11 @@ def sweep(
             append_rows(out_csv, CSV_COLUMNS, [rows[i] for i in order])
 
     sink = write if (out_csv is not None or orders_csv is not None) else None
-    run = SweepRun(chunk_size=chunk_size, devices=devices, progress=progress, sink=sink)
+    if not isinstance(programs, AbstractProgramStore):
+        raise SimulationError("programs", programs, "must be a program store "
+                              "(gearjax.dynamics.exported.ProgramStore or NoProgramStore)")
+    run = SweepRun(chunk_size=chunk_size, devices=devices, progress=progress, sink=sink,
+                   programs=programs)
     return solver.sweep(model, speeds, run)
 
 
@@ -451,9 +465,11 @@ def _plan(model, speeds, chunk_size, devices, solver: Transient):
 
 
 def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(),
-                chunk_size: int | None = None, devices=None):
+                chunk_size: int | None = None, devices=None,
+                programs: AbstractProgramStore = NoProgramStore()):
     """The program that ``sweep(model, speeds_rad_s, solver, chunk_size=chunk_size,
-    devices=devices)`` will call, traced and lowered but not compiled (a
+    devices=devices, programs=programs)`` will call, traced (or loaded from ``programs``)
+    and lowered but not compiled (a
     ``jax.stages.Lowered``): its ``compile()`` releases the GIL, so a thread can compile the
     next formulation's program while another sweep traces, compiles and integrates (the
     command line's te program during the reference sweep). The executable reaches that
@@ -469,7 +485,9 @@ def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(
     sel = padded_idx[:chunk]
     w = (_global_speeds(np.asarray(speeds[sel]), devices) if n_dev > 1
          else jnp.asarray(speeds[sel]))
-    return fn.lower(compiled, w, solver)
+    if jax.process_count() > 1:
+        programs = NoProgramStore()
+    return programs.lower(fn, compiled, w, solver)
 
 
 def memory_chunk(model, simulate_kwargs: dict | None = None,

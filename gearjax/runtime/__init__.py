@@ -13,7 +13,10 @@ from typing import NamedTuple
 
 from . import code_memory as code_memory
 from . import watchdog as watchdog
+from .cache import build_store as build_store
 from .cache import compilation_cache_dir as compilation_cache_dir
+from .cache import program_store as program_store
+from .cache import store_dir as store_dir
 from .cache import use_cacheable_checks as use_cacheable_checks
 from .cache import use_compilation_cache as use_compilation_cache
 from .code_memory import release_if_crowded as release_if_crowded
@@ -28,7 +31,8 @@ from .xla import use_legacy_emitters as use_legacy_emitters
 
 __all__ = ["configure", "Configuration", "TextProgressMeter", "HostProgressMeter",
            "stall_guard", "release_if_crowded", "compilation_cache_dir",
-           "use_compilation_cache", "use_cacheable_checks", "use_cpu_workarounds",
+           "use_compilation_cache", "use_cacheable_checks", "store_dir", "program_store",
+           "build_store", "use_cpu_workarounds",
            "use_legacy_emitters", "use_host_devices", "host_device_count", "jaxlib_minor"]
 
 

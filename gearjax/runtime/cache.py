@@ -1,5 +1,8 @@
-"""JAX's persistent compilation cache for this process, and equinox's runtime checks in a
-form that cache can store.
+"""JAX's persistent compilation cache for this process, equinox's runtime checks in a
+form that cache can store, and gearjax's own stores beside it: the sweep programs exported
+with ``jax.export`` (:class:`gearjax.dynamics.exported.ProgramStore`, folder ``programs``)
+and the built models (:class:`gearjax.dynamics.stored.BuildStore`, folder ``models``), so
+that a second run neither traces its programs nor builds its models again.
 
 JAX does not store an executable that holds a host callback in its persistent cache, and
 equinox's ``error_if`` (diffrax checks its ``SaveAt`` times with it in every ``simulate``
@@ -12,7 +15,8 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["compilation_cache_dir", "use_compilation_cache", "use_cacheable_checks"]
+__all__ = ["compilation_cache_dir", "use_compilation_cache", "use_cacheable_checks",
+           "store_dir", "program_store", "build_store"]
 
 
 def compilation_cache_dir() -> str | None:
@@ -52,3 +56,35 @@ def use_compilation_cache(path: str | None = None) -> str | None:
     if path is not None:
         jax.config.update("jax_compilation_cache_dir", path)
     return path
+
+
+def store_dir(kind: str) -> str | None:
+    """Folder of gearjax's store ``kind`` (``"programs"`` or ``"models"``): a sub-folder of
+    :func:`compilation_cache_dir` (JAX's cache reads only its own files there), so the
+    same settings choose, move and disable all three; None with
+    ``GEARJAX_COMPILATION_CACHE=0``."""
+    if kind not in ("programs", "models"):
+        raise ValueError(f"kind={kind!r}: 'programs' or 'models'")
+    folder = compilation_cache_dir()
+    return None if folder is None else os.path.join(folder, kind)
+
+
+def program_store():
+    """The sweep programs' store of :func:`store_dir` (a
+    :class:`gearjax.dynamics.exported.ProgramStore` whose values are keyed by this
+    process's ``XLA_FLAGS`` too), or a :class:`~gearjax.dynamics.exported.NoProgramStore`
+    where the stores are off."""
+    from ..dynamics.exported import NoProgramStore, ProgramStore
+
+    folder = store_dir("programs")
+    return (NoProgramStore() if folder is None
+            else ProgramStore(folder, context=os.environ.get("XLA_FLAGS", "")))
+
+
+def build_store():
+    """The built models' store of :func:`store_dir` (a
+    :class:`gearjax.dynamics.stored.BuildStore`), or None where the stores are off."""
+    from ..dynamics.stored import BuildStore
+
+    folder = store_dir("models")
+    return None if folder is None else BuildStore(folder)
