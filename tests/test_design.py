@@ -706,12 +706,16 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
     from gearjax.cli.solvers import design_solver
     from gearjax.cli.solvers import solver_for
 
-    def capture(model, speeds, shooting=None, **kw):
+    def capture(model, speeds, shooting, chunk_size, progress):
         seen.clear()
-        seen.update(kw, shooting=shooting)
+        seen.update(shooting=shooting)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(steady, "steady_sweep", capture)
+    # the shooting's own sweep (Shooting.sweep): it continues no speed itself, the
+    # Fallback hands the unsolved ones to the transient
+    import inspect
+    assert "continuation" not in inspect.signature(steady._shooting_sweep).parameters
+    monkeypatch.setattr(steady, "_shooting_sweep", capture)
     # what sweep asks of a model first, and what the command line's solver choice reads
     built = types.SimpleNamespace(require_structure=lambda: None, periodic_start=False)
     for r, shoot_rtol in ((1e-4, None), (1e-11, 1e-11)):
@@ -719,7 +723,7 @@ def test_cli_design_solver_options_reach_the_objective(monkeypatch, tmp_path):
                                  solver=design_solver("steady", r))
         with pytest.raises(KeyboardInterrupt):
             sweep(built, [300.0], solver_for("steady", built, r, tolerance_options(r)))
-        assert seen["shooting"] == shoot.solver and seen["continuation"] is None
+        assert seen["shooting"] == shoot.solver
         assert shoot.solver.rtol == shoot_rtol
         assert shoot.solver.measure_rtol == r
     with pytest.raises(DesignError, match="solver"):

@@ -279,7 +279,7 @@ def test_auto_falls_back_to_the_transient_when_the_split_does_not_fit(square_wav
 
     monkeypatch.setattr(harmonic_mod, "harmonic_sweep", refuse)
     monkeypatch.setattr(sweep_mod.Auto, "choose",
-                        lambda self, m: Fallback(HarmonicBalance(), Transient()))
+                        lambda self, m, n_speeds: Fallback(HarmonicBalance(), Transient()))
     speeds = np.array([300.0, 600.0])
     res = sweep(model, speeds, Auto(), progress=TextProgressMeter())
     direct = sweep(model, speeds, Transient())
