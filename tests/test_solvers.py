@@ -89,6 +89,13 @@ def test_fallback_hands_on_only_what_the_first_did_not_solve(sdof):
     first = sweep(model, speeds, HarmonicBalance())
     assert first.status.tolist() == [RESULTS.successful, RESULTS.contact_lost]
     assert both.status.tolist() == alone.status.tolist() == [RESULTS.successful] * 2
+    # and the Fallback keeps the first solver's reason at every speed
+    assert both.stats["first_status"].tolist() == first.status.tolist()
+    # where the first solved every speed, the same record (one result layout)
+    held = sweep(model, speeds[:1], Fallback(HarmonicBalance(), Transient()))
+    assert held.solver.tolist() == ["harmonic"]
+    assert held.stats["first_status"].tolist() == [RESULTS.successful]
+    np.testing.assert_array_equal(held.stats["first_spectral_radius"], held.spectral_radius)
     assert isinstance(Fallback(Shooting(), Transient()), AbstractPeriodicSolver)
 
 

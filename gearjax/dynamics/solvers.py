@@ -93,10 +93,12 @@ class Fallback(AbstractPeriodicSolver):
     def sweep(self, model, speeds: np.ndarray, run: SweepRun) -> SweepResult:
         res = self.first.sweep(model, speeds, dataclasses.replace(run, sink=None))
         ok = np.asarray(self.first.solved(res), dtype=bool)
+        first = {"first_status": np.asarray(res.status, dtype=float),
+                 "first_spectral_radius": np.asarray(res.spectral_radius, dtype=float)}
         if run.sink is not None and ok.any():
             run.sink(res.take(ok))
         if ok.all():
-            return res
+            return dataclasses.replace(res, stats={**first, **res.stats})
         rest = ~ok
         n_rest = int(rest.sum())
         chunk = None if run.chunk_size is None else min(int(run.chunk_size), n_rest)
@@ -105,8 +107,6 @@ class Fallback(AbstractPeriodicSolver):
                           f"{n_rest} of {speeds.size} speed(s) to "
                           f"{type(self.then).__name__}")
         merged = merge_results(res, self.then.sweep(model, speeds[rest], run_rest), rest)
-        first = {"first_status": np.asarray(res.status, dtype=float),
-                 "first_spectral_radius": np.asarray(res.spectral_radius, dtype=float)}
         return dataclasses.replace(merged, stats={**first, **merged.stats})
 
     def solved(self, result: SweepResult) -> np.ndarray:
