@@ -6,6 +6,7 @@ the Harris map against the optimiser."""
 from __future__ import annotations
 
 import collections
+import types
 import math
 
 import diffrax
@@ -255,3 +256,65 @@ def test_harris_map_agrees_with_the_optimiser(mesh_iso):
     polished = optimise(obj, x_map, max_iter=15, learning_rate=0.05)
     assert polished.exact <= v_map * (1 + 1e-6)
     assert v_map - polished.exact <= 0.02 * polished.exact
+
+
+def test_map_refines_each_valley_once_and_reads_evaluated_designs(mesh_iso):
+    """A refinement centre within half the patch spacing of an earlier one takes no patch of
+    its own (the first ``around`` design always does); the map reads an evaluated design's
+    own value and a design between the points of a patch by bilinear interpolation of the
+    objective at the four around it (quasi-static te-rms: a cheap objective)."""
+    from gearjax.design import QuasiStaticObjective
+
+    obj = QuasiStaticObjective(mesh_iso, ReliefSpace(), kind="te-rms", n_positions=64)
+    amps, exts = np.linspace(4e-6, 24e-6, 5), np.linspace(0.2, 0.6, 5)
+    da, de = amps[1] - amps[0], exts[1] - exts[0]
+    opt = np.array([11.3e-6, 0.37])
+    near = opt + np.array([0.2 * da, -0.2 * de])  # 0.4 of the patch spacing: no patch
+    far = opt + np.array([1.5 * da, 0.0])  # three patch spacings away: its own patch
+    hmap = harris_map(obj, amps, exts, refine=1, n_best=1, around=[opt, near, far])
+    centres = [np.array([np.median(p.amplitudes_m), np.median(p.extents)]) for p in hmap.patches]
+    assert len(hmap.patches) in (2, 3)  # opt, far, and the best grid point unless near one
+    np.testing.assert_allclose(centres[0], opt, rtol=1e-12)
+    np.testing.assert_allclose(centres[1], far, rtol=1e-12)
+    value = lambda a, e: obj(np.array([a, e]), grad=False).exact  # noqa: E731
+    assert hmap.value_at(opt) == value(*opt)  # evaluated: its own value
+    assert hmap.value_at(far) == value(*far)
+    (a0, a1), (e0, e1) = (opt[0], opt[0] + da / 2), (opt[1] - de / 2, opt[1])
+    u, v = (near[0] - a0) / (a1 - a0), (near[1] - e0) / (e1 - e0)
+    assert (u, v) == pytest.approx((0.4, 0.6))
+    bilinear = ((1 - u) * (1 - v) * value(a0, e0) + u * (1 - v) * value(a1, e0)
+                + (1 - u) * v * value(a0, e1) + u * v * value(a1, e1))
+    assert hmap.value_at(near) == pytest.approx(bilinear, rel=1e-9)
+
+
+def test_multi_start_runs_starts_in_lockstep_only_off_the_cpu(mesh_iso, monkeypatch):
+    """``multi_start`` of a dynamic objective: one start after the other on a CPU (a start
+    that has stopped is not evaluated again), in lockstep where asked (the accelerator's
+    default); the lockstep is not entered for a single start."""
+    import importlib
+
+    from gearjax.design import multi_start
+
+    opt_mod = importlib.import_module("gearjax.design.optimise")  # the package's name is the function
+
+    calls = collections.Counter()
+
+    def fake_single(objective, x0, **kw):
+        calls["single"] += 1
+        return types.SimpleNamespace(exact=float(np.sum(x0)), x=x0)
+
+    def fake_lockstep(objective, starts, **kw):
+        calls["lockstep"] += 1
+        return [types.SimpleNamespace(exact=float(np.sum(x)), x=x) for x in starts]
+
+    monkeypatch.setattr(opt_mod, "optimise", fake_single)
+    monkeypatch.setattr(opt_mod, "optimise_lockstep", fake_lockstep)
+    obj = DynamicObjective(mesh_iso, ReliefSpace(), [700.0], "peak-force")
+    starts = np.array([[10e-6, 0.3], [20e-6, 0.5]])
+    best, runs = multi_start(obj, starts)
+    assert jax.default_backend() == "cpu" and calls == {"single": 2}
+    assert best.exact == min(r.exact for r in runs)
+    multi_start(obj, starts, lockstep=True)
+    assert calls == {"single": 2, "lockstep": 1}
+    multi_start(obj, starts[:1], lockstep=True)
+    assert calls == {"single": 3, "lockstep": 1}

@@ -307,7 +307,7 @@ def _cmd_optimise(args) -> int:
     out["runs"] = [r.as_dict(obj.space) for r in runs]
     out["history_png"] = plot_history(runs, os.path.join(args.out, "history.png"), args.objective)
     if not args.no_map and not args.separate:
-        hmap = harris_map(obj, amps, exts, refine=refine, around=[r.x for r in runs])
+        hmap = harris_map(obj, amps, exts, refine=refine, around=[best.x])
         out["map_value_at_optimum"] = hmap.value_at(best.x)
         (out["map_best_amplitude_m"], out["map_best_extent"]), out["map_best_objective"] = (
             tuple(float(v) for v in hmap.best()[0]), hmap.best()[1])

@@ -56,10 +56,16 @@ class HarrisMap:
 
     def value_at(self, x) -> float:
         """The exact objective at the design ``x = (amplitude_m, extent)`` read from the
-        map: bilinear interpolation on the finest patch (else the grid) that holds ``x``
-        with finite values at its cell's corners; NaN outside the map."""
+        map: its evaluated value where ``x`` is a point of the grid or of a patch (finite
+        there), else bilinear interpolation on the finest patch (else the grid) that holds
+        ``x`` with finite values at its cell's corners; NaN outside the map."""
         a, e = float(x[0]), float(x[1])
-        for amps, exts, val in self._levels():
+        levels = self._levels()
+        for amps, exts, val in levels:
+            i, j = np.nonzero(amps == a)[0], np.nonzero(exts == e)[0]
+            if i.size and j.size and np.isfinite(val[i[0], j[0]]):
+                return float(val[i[0], j[0]])
+        for amps, exts, val in levels:
             if not (amps[0] <= a <= amps[-1] and exts[0] <= e <= exts[-1]):
                 continue
             i = int(np.clip(np.searchsorted(amps, a) - 1, 0, amps.size - 2))
@@ -90,11 +96,14 @@ def harris_map(objective, amplitudes_m, extents, *, refine: int = 0, around=(),
                n_best: int = 2, patch: int = 5) -> HarrisMap:
     """The objective over the grid ``amplitudes_m x extents`` (shared relief), computed by
     the objective's ``grid`` in one compiled call, then refined ``refine`` times: around
-    the ``n_best`` best points evaluated so far and the designs ``around`` (e.g. an
-    optimiser's optima), a ``patch x patch`` sub-grid spanning the neighbouring cells of
-    the last level (calls of the grid's size: one compiled program for the whole map; each
-    level's spacing ``2 / (patch - 1)`` of the one before), so that the map resolves the valleys where the objective's
-    minimum lies (:meth:`HarrisMap.value_at` reads the finest level).
+    the designs ``around`` (e.g. an optimiser's optima, best first) and the ``n_best`` best
+    points evaluated so far, a ``patch x patch`` sub-grid spanning the neighbouring cells
+    of the last level (calls of the grid's size: one compiled program for the whole map;
+    each level's spacing ``2 / (patch - 1)`` of the one before), so that the map resolves
+    the valleys where the objective's minimum lies (:meth:`HarrisMap.value_at` reads the
+    finest level, an evaluated design its own value). A centre within half the new
+    spacing of one taken before it (``around`` first, in order) takes no patch of its own:
+    it lies well inside that one's, whose values would be nearly the same designs'.
 
     Raises
     ------
@@ -121,7 +130,8 @@ def harris_map(objective, amplitudes_m, extents, *, refine: int = 0, around=(),
     de = (e[-1] - e[0]) / max(e.size - 1, 1)
     u = np.linspace(-1.0, 1.0, int(patch))
     for level in range(1, int(refine) + 1):
-        centres = _best_points(hmap, int(n_best)) + list(around)
+        centres = _distinct(list(around) + _best_points(hmap, int(n_best)),
+                            da / (patch - 1), de / (patch - 1))
         grids = []
         for c in centres:
             pa = np.unique(np.clip(c[0] + da * u, lo[0], hi[0]))
@@ -153,6 +163,16 @@ def _in_chunks(objective, pts, size: int):
     padded = np.concatenate([pts, np.repeat(pts[-1:], m - n, axis=0)])
     out = [objective.grid(padded[i:i + size]) for i in range(0, m, size)]
     return (np.concatenate([o[0] for o in out])[:n], np.concatenate([o[1] for o in out])[:n])
+
+
+def _distinct(centres: list, half_a: float, half_e: float) -> list:
+    """``centres`` without those within ``half_a`` and ``half_e`` (amplitude, extent) of
+    one before them."""
+    kept = []
+    for c in centres:
+        if not any(abs(c[0] - k[0]) <= half_a and abs(c[1] - k[1]) <= half_e for k in kept):
+            kept.append(c)
+    return kept
 
 
 def _best_points(hmap: HarrisMap, n: int) -> list:

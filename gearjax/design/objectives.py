@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..dynamics.batching import over_speeds, sequential_for
+from ..dynamics.batching import on_cpu, over_speeds, sequential_for
 from ..dynamics.sweep import Transient
 from ..errors import DesignError
 from ..gears.mesh import Mesh
@@ -444,9 +444,9 @@ class DynamicObjective:
             return _evaluations(xs, self._rows_call([m] * len(self._rows), xs), self._index,
                                 False)[0]
         kept = self.model
-        try:
+        try:  # with the gradient: the optimiser's program (the value alone compiles another)
             self.model = self.build(x)
-            return self(x, grad=False)
+            return dataclasses.replace(self(x, grad=True), grad=None)
         finally:
             self.model = kept
 
@@ -465,8 +465,10 @@ class DynamicObjective:
 
     def grid(self, xs, reference_x=None) -> tuple[np.ndarray, np.ndarray]:
         """(smooth, exact) at every row of ``xs``. The torsional objective evaluates the
-        rows by :meth:`batch`, in calls of its row count (the optimiser's program: the
-        objective itself at every design, no other compilation); the 3D objective, whose
+        objective itself at every design: on a CPU one design after the other (one
+        design's speeds and orbit starts fill the cores, :func:`~gearjax.design.
+        multi_start`), elsewhere by :meth:`batch` in calls of its row count (the values
+        program of the optimiser's lockstep); the 3D objective, whose
         builds are slow, in one compiled call on a *frozen* model built at
         ``reference_x`` (default: the middle row): switching angles of other designs
         resolved to the table spacing (1/n_table of a mesh period). Rows whose
@@ -474,13 +476,16 @@ class DynamicObjective:
         xs = np.asarray(xs, dtype=float)
         k = self._index
         if self.model_type == "torsional":
-            size = len(self._rows) or DEFAULT_ROWS
-            pad = -(-xs.shape[0] // size) * size - xs.shape[0]
-            rows = np.concatenate([xs, np.repeat(xs[-1:], pad, axis=0)])
-            evs = []
-            for i in range(0, rows.shape[0], size):
-                evs += self.batch(rows[i:i + size], grad=False)
-            evs = evs[:xs.shape[0]]
+            if on_cpu():
+                evs = [self(x, grad=False) for x in xs]
+            else:
+                size = len(self._rows) or DEFAULT_ROWS
+                pad = -(-xs.shape[0] // size) * size - xs.shape[0]
+                rows = np.concatenate([xs, np.repeat(xs[-1:], pad, axis=0)])
+                evs = []
+                for i in range(0, rows.shape[0], size):
+                    evs += self.batch(rows[i:i + size], grad=False)
+                evs = evs[:xs.shape[0]]
             bad = np.array([not e.structure_ok for e in evs])
             sm = np.array([e.smooth for e in evs])
             ex = np.array([e.exact for e in evs])
@@ -498,9 +503,11 @@ class DynamicObjective:
         """:class:`Evaluation` of every row of ``xs`` (n, size) from one compiled call:
         the rows' models (each row's current model while its structure holds, else one
         of the same structure built before, else one built at the row) stacked and the
-        objective and its gradient vmapped over them (the same program for every call of
-        ``n`` rows: an optimiser's starts in lockstep, a map's grid in chunks). A row whose
-        integration failed is evaluated once more on a model built at it."""
+        objective (and with ``grad`` its gradient) vmapped over them: one program for
+        every call of ``n`` rows with gradients (an optimiser's starts in lockstep), one
+        without (a map's grid in chunks, which would pay 2-3x its cost for tangents it
+        drops). A row whose integration failed is evaluated once more on a model built
+        at it."""
         xs = np.stack([self.space.check(x) for x in np.asarray(xs, dtype=float)])
         n = xs.shape[0]
         if len(self._rows) != n:
@@ -508,7 +515,7 @@ class DynamicObjective:
         fresh = np.zeros(n, bool)
         for attempt in range(2):
             models = [self._row_model(i, xs[i], bool(fresh[i])) for i in range(n)]
-            out = self._rows_call(models, xs)
+            out = self._rows_call(models, xs, grad)
             ok = np.asarray(out[1][1][2], dtype=bool)
             if ok.all() or attempt == 1:
                 break
@@ -517,12 +524,16 @@ class DynamicObjective:
                 self._rows[i] = None
         return _evaluations(xs, out, self._index, grad)
 
-    def _rows_call(self, models, xs):
+    def _rows_call(self, models, xs, grad: bool = True):
+        """:func:`_dyn_rows` (``grad``) or :func:`_dyn_rows_values` of the rows' models
+        at ``xs``, in the one layout ``(jacobian or None, (smooth, (exact, per, ok)))``."""
         dyn = [eqx.partition(m, eqx.is_array) for m in models]
         static = dyn[0][1]
         stacked = jax.tree.map(lambda *a: jnp.stack(a), *[d for d, _ in dyn])
-        return _dyn_rows(stacked, static, jnp.asarray(xs), jnp.asarray(self.speeds),
-                         self._static, self.adjoint)
+        args = (stacked, static, jnp.asarray(xs), jnp.asarray(self.speeds), self._static)
+        if grad:
+            return _dyn_rows(*args, self.adjoint)
+        return None, _dyn_rows_values(*args)
 
     def _row_model(self, i: int, x, fresh: bool):
         """Row ``i``'s model for the design ``x`` (:meth:`batch`; the pool of earlier
@@ -545,7 +556,7 @@ class DynamicObjective:
 
 def _evaluations(xs, out, k: int, grad: bool) -> list:
     """The :class:`Evaluation` of each row of a :func:`_dyn_rows` call."""
-    g, (sm, (ex, per, ok)) = jax.device_get(out)
+    g, (sm, (ex, per, ok)) = jax.device_get(out)  # g None without gradients
     evs = []
     for i in range(xs.shape[0]):
         p = np.asarray(per[i])[k]  # (speeds, starts)
@@ -603,6 +614,15 @@ def _dyn_rows(stacked, static_model, xs, speeds, static, adjoint):
     def one(dyn, x):
         model = eqx.combine(dyn, static_model)
         return _value_and_jac(lambda y: _dyn_values_impl(model, y, speeds, static, adjoint))(x)
+
+    return jax.vmap(one)(stacked, xs)
+
+
+@eqx.filter_jit
+def _dyn_rows_values(stacked, static_model, xs, speeds, static):
+    """:func:`_dyn_rows` without the Jacobian (values alone, vmapped over the rows)."""
+    def one(dyn, x):
+        return _dyn_values_impl(eqx.combine(dyn, static_model), x, speeds, static)
 
     return jax.vmap(one)(stacked, xs)
 

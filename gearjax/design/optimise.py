@@ -135,19 +135,28 @@ def coarse_starts(space: ReliefSpace, n_per_axis: int = 2) -> np.ndarray:
 def multi_start(objective, starts, *, learning_rate: float = 0.15, max_iter: int = 60,
                 rtol: float = 1e-4, patience: int = 8, step_tol: float = 1e-4, callback=None,
                 progress: AbstractProgressMeter = NoProgressMeter(),
-                ) -> tuple[OptimisationResult, list]:
+                lockstep: bool | None = None) -> tuple[OptimisationResult, list]:
     """:func:`optimise` from every row of ``starts`` with these options (its own);
     returns (best by exact value, all).
 
-    A :class:`~gearjax.design.DynamicObjective` runs the starts in lockstep
+    ``lockstep``: a :class:`~gearjax.design.DynamicObjective` runs the starts in lockstep
     (:func:`optimise_lockstep`: every step evaluates all starts in one compiled call);
-    each start's path is the one :func:`optimise` takes from it alone."""
+    else one start after the other. Default (None): in lockstep on an accelerator, one
+    after the other on a CPU, where one design's speeds and orbit starts already fill the
+    cores (a lockstep step costs about the sum of its starts', and a start that has
+    stopped is still evaluated at every step until the last stops:
+    ``benchmarks/results/design_loop.md``). Either way each start's path is the one
+    :func:`optimise` takes from it alone (to the models' round-off: a lockstep row keeps
+    a model of its own)."""
+    from ..dynamics.batching import on_cpu
     from .objectives import DynamicObjective
 
     options = dict(learning_rate=learning_rate, max_iter=max_iter, rtol=rtol,
                    patience=patience, step_tol=step_tol, callback=callback, progress=progress)
     starts = np.asarray(starts, dtype=float)
-    if isinstance(objective, DynamicObjective) and starts.shape[0] > 1:
+    if lockstep is None:
+        lockstep = not on_cpu()
+    if lockstep and isinstance(objective, DynamicObjective) and starts.shape[0] > 1:
         results = optimise_lockstep(objective, starts, **options)
     else:
         results = [optimise(objective, x0, **options) for x0 in starts]
