@@ -155,6 +155,43 @@ def test_static_arguments_and_array_shapes_key_the_program(tmp_path):
     assert isinstance(lowered, jax.stages.Lowered)
 
 
+class _Gain(eqx.Module):
+    gain: jax.Array
+    power: int = eqx.field(static=True)
+
+
+@eqx.filter_jit
+def _apply(g, x):
+    return g.gain * x**g.power
+
+
+def test_a_call_like_an_earlier_one_reuses_its_key(tmp_path, monkeypatch):
+    """The arguments are digested once per call signature: the same module object and
+    arrays of the same type (a sweep's next chunk) reuse the key; another object, static
+    value, scalar or shape is digested and keyed apart (its own entry, its own result)."""
+    count = [0]
+    inner = exported_mod.digest
+
+    def counted(*args, **kwargs):
+        count[0] += 1
+        return inner(*args, **kwargs)
+
+    monkeypatch.setattr(exported_mod, "digest", counted)
+    store = ProgramStore(tmp_path)
+    g2, g3 = _Gain(jnp.asarray(2.0), 2), _Gain(jnp.asarray(2.0), 3)
+    x = jnp.arange(3.0)
+    np.testing.assert_array_equal(store.call(_apply, g2, x), [0.0, 2.0, 8.0])
+    np.testing.assert_array_equal(store.call(_apply, g2, x + 1), [2.0, 8.0, 18.0])
+    assert count[0] == 1 and len(_entries(tmp_path)) == 1
+    np.testing.assert_array_equal(store.call(_apply, g3, x), [0.0, 2.0, 16.0])
+    store.call(_apply, g2, jnp.arange(4.0))
+    assert count[0] == 3 and len(_entries(tmp_path)) == 3
+    store.call(_scaled, x, 2.0, "a")
+    store.call(_scaled, x, 3.0, "a")
+    store.call(_scaled, x, 3.0, "a")
+    assert count[0] == 5 and len(_entries(tmp_path)) == 5
+
+
 @eqx.filter_jit
 def _total(x, scale: float):
     return jnp.sum(x) * scale

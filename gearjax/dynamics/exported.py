@@ -112,12 +112,13 @@ class ProgramStore(AbstractProgramStore):
     and key. Files: ``folder/<key>.bin``. ``context``: what else changes the values that
     compiled programs compute (e.g. the process's XLA flags), part of the values' keys."""
 
-    __slots__ = ("folder", "context", "_programs")
+    __slots__ = ("folder", "context", "_programs", "_keys")
 
     def __init__(self, folder: str | os.PathLike, context: str = ""):
         self.folder = os.fspath(folder)
         self.context = str(context)
         self._programs: dict = {}
+        self._keys: dict = {}  # identity of a call's arguments -> its key (_inputs)
 
     def __repr__(self) -> str:
         return f"ProgramStore({self.folder!r})"
@@ -165,9 +166,7 @@ class ProgramStore(AbstractProgramStore):
         dyn, static = eqx.partition(args, eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(dyn)
         try:
-            inputs = {"function": f"{fn.__module__}.{fn.__qualname__}",
-                      "code": code_digest(), "arguments": digest((fn, args), arrays="aval"),
-                      "platform": jax.default_backend(), "jax": _jax_options()}
+            inputs = self._inputs(fn, args, leaves)
         except Undigestable:
             return None
         key = repr(sorted(inputs.items()))
@@ -182,6 +181,25 @@ class ProgramStore(AbstractProgramStore):
                 if isinstance(x, jax.Array)):
             return None  # its devices are those of its arguments: it has none here
         return program, leaves
+
+    def _inputs(self, fn, args, leaves) -> dict:
+        """What keys the program of ``fn`` at ``args`` (module docstring). Digesting the
+        arguments walks the whole model, so a call whose arguments are the same objects
+        and arrays of the same types as an earlier call's (a sweep's chunks: the same
+        model and solver, another chunk of speeds) reuses that call's key; the objects
+        are held with it (their identity stays theirs), the last :data:`_KEYS_KEPT`.
+        Raises :class:`~gearjax.dynamics.stored.Undigestable`."""
+        ident = _identity(fn, args, leaves)
+        if ident is not None and ident in self._keys:
+            return self._keys[ident][0]
+        inputs = {"function": f"{fn.__module__}.{fn.__qualname__}",
+                  "code": code_digest(), "arguments": digest((fn, args), arrays="aval"),
+                  "platform": jax.default_backend(), "jax": _jax_options()}
+        if ident is not None:
+            if len(self._keys) >= _KEYS_KEPT:
+                self._keys.pop(next(iter(self._keys)))
+            self._keys[ident] = (inputs, (fn, args))
+        return inputs
 
     def _load(self, inputs) -> _Program | None:
         payload = read_entry(self.folder, inputs)
@@ -222,6 +240,33 @@ class ProgramStore(AbstractProgramStore):
         # the deserialised program, as a later run calls it: one executable for both
         return _Program(_jitted_call(jax.export.deserialize(blob)), exported.nr_devices,
                         *out_parts)
+
+
+_KEYS_KEPT = 32
+_SCALARS = (bool, int, float, complex, str, type(None))
+
+
+def _identity(fn, args, leaves):
+    """A hashable identity of a call: the function, each argument (an equinox module or
+    function by identity, a scalar by value, an array by its type), the array leaves'
+    dtypes, shapes, weak types and shardings, JAX's platform and options; None where an
+    argument is anything else (a container, mutable or rebuilt per call: digested)."""
+    parts = []
+    for a in args:
+        if isinstance(a, (eqx.Module, type(fn))):
+            parts.append(("id", id(a)))
+        elif isinstance(a, _SCALARS):
+            parts.append((type(a).__name__, a))
+        elif eqx.is_array(a):
+            parts.append(("array",))
+        else:
+            return None
+    if any(isinstance(x, jax.core.Tracer) for x in leaves):
+        return None  # under a trace: not a program to store (the digest refuses it)
+    avals = tuple((type(x).__name__, x.shape, str(x.dtype), getattr(x, "weak_type", None),
+                   x.sharding if isinstance(x, jax.Array) else None) for x in leaves)
+    return (id(fn), tuple(parts), avals, jax.default_backend(),
+            tuple(sorted(_jax_options().items())))
 
 
 def _jitted_call(exported):
