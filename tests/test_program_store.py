@@ -23,7 +23,7 @@ import gearjax.dynamics.sweep as sweep_mod
 from gearjax import Mesh, baud_velex_pair, table1_relief
 from gearjax.dynamics.exported import NoProgramStore, ProgramStore
 from gearjax.dynamics.results import METRIC_FIELDS
-from gearjax.dynamics.stored import BuildStore, Undigestable, digest
+from gearjax.dynamics.stored import BuildStore, NoBuildStore, Undigestable, digest
 from gearjax.dynamics.sweep import Transient, sweep
 from gearjax.models.torsional import TorsionalModel
 from gearjax.rigs import baud_velex_rig, build_model
@@ -338,7 +338,7 @@ def test_the_stores_sit_beside_the_compilation_cache_and_go_off_with_it(monkeypa
     monkeypatch.setenv("GEARJAX_COMPILATION_CACHE", "0")
     assert runtime.compilation_cache_dir() is None
     assert isinstance(runtime.program_store(), NoProgramStore)
-    assert runtime.build_store() is None
+    assert isinstance(runtime.build_store(), NoBuildStore)
 
 
 def test_command_line_sweep_loads_its_programs_and_models(monkeypatch, tmp_path, capsys):

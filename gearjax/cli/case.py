@@ -21,6 +21,7 @@ from ..excitation.te_file import read_te_csv
 from ..models.geared3d import CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS, \
     default_max_frequency_hz
 from ..rigs.factory import build_model
+from ..dynamics.stored import AbstractBuildStore, NoBuildStore
 from ..runtime.cache import build_store
 from .backlash import backlash_key, backlash_record
 from .contact import contact_record, contact_suffix, model_options_of
@@ -137,8 +138,8 @@ def transient_tolerances(args) -> dict:
 class DynamicsCase:
     """The inputs of a dynamics command, each read and checked once: the rig, its pinion
     speeds (rad/s), tooth modifications, TE file, NLTE options and 3D modal cut-off (Hz);
-    ``builds``: the store of built models (:func:`gearjax.runtime.build_store`; None:
-    every model built)."""
+    ``builds``: the store of built models (:func:`gearjax.runtime.build_store`; default
+    :class:`~gearjax.dynamics.stored.NoBuildStore`: every model built)."""
 
     args: argparse.Namespace
     rig: object
@@ -151,7 +152,7 @@ class DynamicsCase:
     cutoff_source: str | None
     warning: str | None
     notes: tuple
-    builds: object = None
+    builds: AbstractBuildStore = NoBuildStore()
 
     @property
     def speeds(self) -> np.ndarray:
@@ -161,8 +162,8 @@ class DynamicsCase:
         """The model of ``formulation`` (:func:`gearjax.rigs.factory.build_model`, forward
         only; ``back_flanks=False``: without the rig's backlash, the linear equations); a
         cut-off that keeps no vibration mode is reported as ``--max-frequency``'s error.
-        Through the :attr:`builds` store where there is one (an earlier run's build of
-        the same inputs and code is loaded, not computed)."""
+        Through the :attr:`builds` store (a stored build of the same inputs and code is
+        loaded, not computed)."""
         a = self.args
         extra = {} if back_flanks else {"backlash_m": None}
         options = dict(model=a.model, formulation=formulation, law=a.stiffness,
@@ -170,8 +171,6 @@ class DynamicsCase:
                        max_frequency_hz=self.cutoff_hz, nlte_reaction=self.reaction,
                        te_table=self.te, moving_events=False, **extra)
         try:
-            if self.builds is None:
-                return build_model(self.rig, self.scenario.mods, **options)
             return self.builds.build(build_model, self.rig, self.scenario.mods, **options)
         except ModelError as exc:
             if exc.field != "max_frequency_hz":

@@ -24,6 +24,7 @@ store built on these entries (:mod:`gearjax.dynamics.exported`).
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 import enum
 import functools
@@ -41,7 +42,7 @@ import jax
 import numpy as np
 
 __all__ = ["Undigestable", "digest", "code_digest", "entry_path", "read_entry",
-           "write_entry", "BuildStore"]
+           "write_entry", "AbstractBuildStore", "NoBuildStore", "BuildStore"]
 
 _MAGIC = b"gearjax-store 1\n"
 # the packages whose code a stored build or program depends on besides gearjax's own
@@ -239,7 +240,26 @@ def write_entry(folder, inputs: dict, payload: bytes) -> bool:
         return False
 
 
-class BuildStore:
+class AbstractBuildStore(abc.ABC):
+    """Where a command's built models come from: computed, or kept from an earlier run."""
+
+    @abc.abstractmethod
+    def build(self, fn, *args, **kwargs):
+        """``fn(*args, **kwargs)`` (a pure function); raises what ``fn`` raises."""
+
+
+class NoBuildStore(AbstractBuildStore):
+    """Every value computed: the library's default, and the command line's with the
+    stores off."""
+
+    def build(self, fn, *args, **kwargs):
+        return fn(*args, **kwargs)
+
+    def __repr__(self) -> str:
+        return "NoBuildStore()"
+
+
+class BuildStore(AbstractBuildStore):
     """Values of pure functions (models from :func:`gearjax.rigs.factory.build_model`)
     kept as pickles in ``folder``, keyed by the function and the content of its arguments
     (:func:`digest`), :func:`code_digest`, JAX's platform and float64 setting. JAX

@@ -83,8 +83,9 @@ def program_store():
 
 def build_store():
     """The built models' store of :func:`store_dir` (a
-    :class:`gearjax.dynamics.stored.BuildStore`), or None where the stores are off."""
-    from ..dynamics.stored import BuildStore
+    :class:`gearjax.dynamics.stored.BuildStore`), or a
+    :class:`~gearjax.dynamics.stored.NoBuildStore` where the stores are off."""
+    from ..dynamics.stored import BuildStore, NoBuildStore
 
     folder = store_dir("models")
-    return None if folder is None else BuildStore(folder)
+    return NoBuildStore() if folder is None else BuildStore(folder)
