@@ -40,8 +40,10 @@ def _common(p, add_rig):
     add_rig(p)
     p.add_argument("--model", default="torsional", choices=["torsional", "3d"],
                    help="dynamic model: torsional (sdof, default) or 3d (the rig's 3D model "
-                        "at its periodic steady state; ~1 s per value and gradient of 2 speeds "
-                        "after a ~30 s first call)")
+                        "at its periodic steady state: each value and gradient integrates "
+                        "the 3D model from every --orbits start at every speed, and a relief "
+                        "of another event structure compiles again; see the Performance page "
+                        "of the documentation for what a step costs)")
     p.add_argument("--max-frequency", type=float, default=None, metavar="HZ",
                    help="3D model: keep the modes below HZ (0 = all modes; default: 3 mesh "
                         "harmonics x 1.5 of the highest speed, at least 6 kHz, as for sweep)")
@@ -49,7 +51,8 @@ def _common(p, add_rig):
                    help="periodic steady-state solver of the dynamic objectives: transient "
                         "(diffrax, forward-mode gradients; on the 3D model cut short by a "
                         "periodic estimate after every period), steady (shooting: Newton on "
-                        "the periodicity residual, ~100x dearer on the 3D model); auto "
+                        "the periodicity residual, far dearer than the transient on the 3D "
+                        "model: one period with a tangent per state each Newton step); auto "
                         "(default): the transient")
     p.add_argument("--rtol", type=float, default=None, metavar="R",
                    help="requested relative accuracy of the dynamic metrics (default: the "

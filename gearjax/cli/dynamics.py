@@ -159,7 +159,7 @@ def register(sub, add_rig, add_scenario):
     add_speeds(st, "stability")
     st.add_argument("--method", default="auto", choices=STABILITY_METHODS,
                     help="steady: the spectral radius of the monodromy matrix (one period "
-                         "of n columns, as the shooting's; ~20 s per speed for the 3D rig); "
+                         "of n columns, as the shooting's: costly on the 3D rig); "
                          "harmonic: the frequency-domain solver's small-gain bound first, "
                          "which proves stability without integrating (3D, damping 0.1: "
                          "every speed), the monodromy only where it does not; auto "
