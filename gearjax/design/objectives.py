@@ -411,10 +411,10 @@ class DynamicObjective:
         structure has an angle map that does not fit ``x``, and its integration can crawl
         to the step limit instead of failing.
 
-        Why earlier models are kept: every build compiles the objective's programs again
-        (its event angles are static), and an optimiser's path comes back to a structure it
-        has left (see ``benchmarks/results/code_notes.md``, section
-        gearjax.design.objectives)."""
+        Why earlier models are kept: an optimiser's path comes back to a structure it has
+        left, and a 3D build compiles the objective's programs again (its event angles are
+        static; an sdof build compiles nothing: its events are padded arrays) (see
+        ``benchmarks/results/code_notes.md``, section gearjax.design.objectives)."""
         xj = jnp.asarray(x)
         if self.model is not None and not bool(_structure_holds(self.model, xj, self.space)):
             self._earlier = [self.model] + self._earlier[:MODELS_KEPT - 1]
