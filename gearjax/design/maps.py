@@ -95,11 +95,12 @@ class HarrisMap:
 def harris_map(objective, amplitudes_m, extents, *, refine: int = 0, around=(),
                n_best: int = 2, patch: int = 5) -> HarrisMap:
     """The objective over the grid ``amplitudes_m x extents`` (shared relief), computed by
-    the objective's ``grid`` in one compiled call, then refined ``refine`` times: around
+    the objective's ``grid`` (one compiled program for the whole map), then refined
+    ``refine`` times: around
     the designs ``around`` (e.g. an optimiser's optima, best first) and the ``n_best`` best
     points evaluated so far, a ``patch x patch`` sub-grid spanning the neighbouring cells
-    of the last level (calls of the grid's size: one compiled program for the whole map;
-    each level's spacing ``2 / (patch - 1)`` of the one before), so that the map resolves
+    of the last level (in calls of the grid's size; each level's spacing ``2 / (patch -
+    1)`` of the one before), so that the map resolves
     the valleys where the objective's minimum lies (:meth:`HarrisMap.value_at` reads the
     finest level, an evaluated design its own value). A centre within half the new
     spacing of one taken before it (``around`` first, in order) takes no patch of its own:
