@@ -318,3 +318,21 @@ def test_multi_start_runs_starts_in_lockstep_only_off_the_cpu(mesh_iso, monkeypa
     assert calls == {"single": 2, "lockstep": 1}
     multi_start(obj, starts[:1], lockstep=True)
     assert calls == {"single": 3, "lockstep": 1}
+
+
+@pytest.mark.slow  # two lockstep programs compiled
+def test_lockstep_values_program_gives_the_gradient_programs_values(mesh_iso):
+    """``batch(grad=False)`` (the values-only rows program an accelerator's map runs)
+    gives the value-and-gradient program's values at every row, and no gradient: to the
+    integration's accuracy (rtol 1e-7; the two programs round differently, and the
+    adaptive steps carry that into the extrema: 3e-8 measured), as the Harris map test
+    compares the map with the optimiser."""
+    obj = DynamicObjective(mesh_iso, ReliefSpace(), [700.0, 800.0], "peak-force",
+                           formulation="te", orbits=("quasi-static", "separated"))
+    xs = np.array([[10e-6, 0.3], [20e-6, 0.5], [14e-6, 0.31]])
+    with_grad, values = obj.batch(xs, grad=True), obj.batch(xs, grad=False)
+    for a, b in zip(with_grad, values):
+        assert b.grad is None and a.grad is not None
+        assert b.exact == pytest.approx(a.exact, rel=1e-6)
+        assert b.smooth == pytest.approx(a.smooth, rel=1e-6)
+        np.testing.assert_allclose(b.per_orbit, a.per_orbit, rtol=1e-6)
