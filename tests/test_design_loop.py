@@ -325,8 +325,8 @@ def test_lockstep_values_program_gives_the_gradient_programs_values(mesh_iso):
     """``batch(grad=False)`` (the values-only rows program an accelerator's map runs)
     gives the value-and-gradient program's values at every row, and no gradient: to the
     integration's accuracy (rtol 1e-7; the two programs round differently, and the
-    adaptive steps carry that into the extrema: 3e-8 measured), as the Harris map test
-    compares the map with the optimiser."""
+    adaptive steps carry that into the extrema: benchmarks/results/design_loop.md), as the
+    Harris map test compares the map with the optimiser."""
     obj = DynamicObjective(mesh_iso, ReliefSpace(), [700.0, 800.0], "peak-force",
                            formulation="te", orbits=("quasi-static", "separated"))
     xs = np.array([[10e-6, 0.3], [20e-6, 0.5], [14e-6, 0.31]])

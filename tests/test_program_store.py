@@ -43,18 +43,23 @@ def jitted_result(model):
     return sweep(model, SPEEDS, TR, chunk_size=4)
 
 
-@pytest.fixture
-def traces(monkeypatch):
-    """How often the sweep traces :func:`gearjax.dynamics.simulate.simulate`."""
+def _count_calls(monkeypatch, module, name: str) -> list:
+    """``module.name`` replaced by a wrapper counting its calls; returns ``[count]``."""
     count = [0]
-    inner = sweep_mod.simulate
+    inner = getattr(module, name)
 
     def counted(*args, **kwargs):
         count[0] += 1
         return inner(*args, **kwargs)
 
-    monkeypatch.setattr(sweep_mod, "simulate", counted)
+    monkeypatch.setattr(module, name, counted)
     return count
+
+
+@pytest.fixture
+def traces(monkeypatch):
+    """How often the sweep traces :func:`gearjax.dynamics.simulate.simulate`."""
+    return _count_calls(monkeypatch, sweep_mod, "simulate")
 
 
 def _same(a, b):
@@ -169,14 +174,7 @@ def test_a_call_like_an_earlier_one_reuses_its_key(tmp_path, monkeypatch):
     """The arguments are digested once per call signature: the same module object and
     arrays of the same type (a sweep's next chunk) reuse the key; another object, static
     value, scalar or shape is digested and keyed apart (its own entry, its own result)."""
-    count = [0]
-    inner = exported_mod.digest
-
-    def counted(*args, **kwargs):
-        count[0] += 1
-        return inner(*args, **kwargs)
-
-    monkeypatch.setattr(exported_mod, "digest", counted)
+    count = _count_calls(monkeypatch, exported_mod, "digest")
     store = ProgramStore(tmp_path)
     g2, g3 = _Gain(jnp.asarray(2.0), 2), _Gain(jnp.asarray(2.0), 3)
     x = jnp.arange(3.0)
