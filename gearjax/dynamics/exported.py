@@ -263,8 +263,9 @@ def _identity(fn, args, leaves):
             return None
     if any(isinstance(x, jax.core.Tracer) for x in leaves):
         return None  # under a trace: not a program to store (the digest refuses it)
-    avals = tuple((type(x).__name__, x.shape, str(x.dtype), getattr(x, "weak_type", None),
-                   x.sharding if isinstance(x, jax.Array) else None) for x in leaves)
+    avals = tuple((type(x).__name__, x.shape, str(x.dtype), x.weak_type, x.sharding)
+                  if isinstance(x, jax.Array) else (type(x).__name__, x.shape, str(x.dtype))
+                  for x in leaves)
     return (id(fn), tuple(parts), avals, jax.default_backend(),
             tuple(sorted(_jax_options().items())))
 
