@@ -365,8 +365,9 @@ class DynamicObjective:
 
             m = build_model(self.rig, mods, mesh=self.mesh, **self.model_kwargs)
             if frozen:
-                m = dataclasses.replace(m, event_thetas=(), event_kinds=(), event_cells=(),
-                                        table_codes=None, angle_map=None)
+                fixed = eqx.tree_at(lambda j: (j.kinds, j.cells), m.jumps,
+                                    (jnp.zeros_like(m.jumps.kinds), jnp.zeros_like(m.jumps.cells)))
+                m = dataclasses.replace(m, jumps=fixed, table_codes=None, angle_map=None)
                 m = m.with_modifications(m.mods)  # re-assembled without the angle map
         self.n_builds += 1
         self.build_time_s += time.perf_counter() - t0

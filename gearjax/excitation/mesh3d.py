@@ -12,20 +12,18 @@ is ``F_S``.
 
 :class:`QuasiStaticMesh3D` holds that solution at one design and everything the events
 need from it: the discrete state code of an angle (layout of
-:func:`gearjax.excitation.events.code`), the switching functions, the moved event angles.
-:func:`scan_brackets` brackets the state changes at build time; :func:`tabulate` fills the
-jump-aware Hermite table (exact values at the knots, slopes by forward-mode AD), the angle
-map through the moved events and the structure flag, traceable in the design.
+:func:`gearjax.excitation.events.code`), the switching functions, the moved event angles
+(:mod:`gearjax.models.geared3d_layout` brackets the state changes and places the table's
+knots in the build's program). :func:`tabulate` fills the jump-aware Hermite table (exact
+values at the knots, slopes by forward-mode AD), the angle map through the moved events and
+the structure flag, traceable in the design.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from ..gears.contact import unilateral_solve_pairwise
 from ..linalg import solve as dense_solve
@@ -34,22 +32,12 @@ from ..gears.modifications import ToothModifications
 from ..gears.quasistatic import contact_gaps
 from ..structure.condensation import Condensation, QuasiStatic3D, quasi_static_3d
 from ..structure.element import PinionGearElement
-from .events import (
-    NEWTON_STEPS,
-    check_event_roots,
-    classify_events,
-    distinct_angles,
-    find_brackets,
-    moved_event_angles,
-    quiet_origin,
-    switch_value,
-)
+from .events import NEWTON_STEPS, moved_event_angles, switch_value
+from .jumps import JumpSet
 from .tables import AngleMap, PeriodicHermiteTable, keeps_structure, one_sided_samples
 
-__all__ = ["QuasiStaticMesh3D", "TableLayout", "scan_brackets", "jump_angles", "table_layout",
-           "tabulate",
-           "table_values",
-           "fourier_coefficients", "harmonic_response"]
+__all__ = ["QuasiStaticMesh3D", "tabulate", "table_values", "fourier_coefficients",
+           "harmonic_response"]
 
 
 class QuasiStaticMesh3D(eqx.Module):
@@ -162,117 +150,16 @@ class QuasiStaticMesh3D(eqx.Module):
                                   event_cells, newton_steps)
 
 
-@eqx.filter_jit
-def _state_codes(qsm: QuasiStaticMesh3D, ts):
-    """:meth:`QuasiStaticMesh3D.state_code` with the relief zones at the angles ``ts``
-    (compiled once per model shape: the design-dependent layout is not part of ``qsm``)."""
-    return jax.vmap(lambda t: qsm.state_code(t, True))(ts)
-
-
-def state_codes(qsm: QuasiStaticMesh3D, theta, kinks: bool) -> np.ndarray:
-    """Codes (n, 1 + 3 cells) at the angles ``theta`` (NumPy, build time), evaluated in
-    fixed chunks of 32 angles (a single compilation: always with the relief zones, which
-    ``kinks=False`` then zeroes inside the path, as :meth:`QuasiStaticMesh3D.state_code`
-    would; a second compilation would add to every 3D te build)."""
-    t = np.asarray(theta, dtype=float)
-    n = t.shape[0]
-    size = -(-n // 32) * 32
-    tp = np.concatenate([t, np.full(size - n, t[0] if n else 0.0)])
-    out = [np.asarray(_state_codes(qsm, jnp.asarray(tp[i:i + 32])))
-           for i in range(0, size, 32)]
-    nc = qsm.mesh.n_cells
-    codes = np.concatenate(out)[:n] if out else np.zeros((0, 1 + 3 * nc), int)
-    if not kinks:
-        codes[:, 1 + 2 * nc:] = np.where(codes[:, 1 + nc:1 + 2 * nc] == 1, 0, -1)
-    return codes
-
-
-def scan_brackets(qsm: QuasiStaticMesh3D, theta, period: float, kinks: bool = False):
-    """Brackets ``(lo, hi)`` (adjacent floats, sorted by ``lo``) of the angles where the
-    right-hand side jumps or kinks independently of speed: cell engagement/exit,
-    quasi-static active-set changes (te, perturbation), changes of the cell realising
-    NLTE, and with ``kinks`` cells entering or leaving a relief zone (kinks of TE_S:
-    table knots, not integrator jumps); from the uniform scan ``theta`` (one period, any
-    origin) by bisection. Returns ``(lo, hi, codes at lo, codes at hi)``."""
-    theta = np.asarray(theta, dtype=float)
-
-    def code(t):
-        return state_codes(qsm, t, kinks)
-
-    lo, hi = find_brackets(code, theta, code(theta), period)
-    order = np.argsort(lo)
-    lo, hi = lo[order], hi[order]
-    return lo, hi, code(lo), code(hi)
-
-
-def jump_angles(qsm: QuasiStaticMesh3D, theta, period: float) -> np.ndarray:
-    """Sorted distinct angles in [0, period) (rad) where the right-hand side jumps or kinks
-    independently of speed (integrator jumps), from the uniform scan ``theta``."""
-    lo, hi, _, _ = scan_brackets(qsm, theta, period)
-    return distinct_angles(0.5 * (lo + hi), period)
-
-
-class TableLayout(NamedTuple):
-    """Build layout of the excitation table (see :func:`table_layout`)."""
-
-    knots: jax.Array
-    side: jax.Array
-    cell_first: jax.Array
-    origin: float
-    n_cells: int
-    max_extra: int
-    event_thetas: tuple
-    event_kinds: tuple
-    event_cells: tuple
-    codes: jax.Array | None
-
-
-def table_layout(qsm: QuasiStaticMesh3D, theta, period: float, jumps,
-                 moving_events: bool = True) -> TableLayout:
-    """Knots of the excitation table: the ``len(theta)`` uniform cells from an origin far
-    from the ``jumps`` plus the two adjacent floats of every state change (relief-zone
-    kinks included), bisected *in table coordinates* ``[origin, origin + P)`` (folding
-    adjacent floats near 0 into the table would merge them), with the side (-1, +1) each
-    is evaluated on; the events of those brackets (:func:`classify_events`, checked by
-    :func:`check_event_roots`) and, with moving events, the state codes on each side of
-    every knot (for the structure flag of :func:`tabulate`). ``moving_events=False``: the
-    events stay at the bracket angles (no root check, no codes: two compilations less)."""
-    n_cells = len(theta)
-    origin = quiet_origin(jumps, period)
-    lo, hi, c_lo, c_hi = scan_brackets(qsm, origin + np.asarray(theta), period, kinks=True)
-    knots, cell_first, max_extra = PeriodicHermiteTable.layout(
-        origin, period, n_cells, np.concatenate([lo, hi]))
-    side = np.zeros(knots.shape)
-    side[np.isin(knots, lo)] = -1.0
-    side[np.isin(knots, hi)] = 1.0
-    events = distinct_angles(0.5 * (lo + hi), period)
-    kinds, cells = classify_events(events, lo, hi, c_lo, c_hi, qsm.mesh.n_cells, period)
-    if moving_events:
-        kinds, cells = check_event_roots(qsm.switch_function, events, kinds, cells,
-                                         qsm.mesh.pair.mesh_period_rad)
-    codes = None
-    if events.size and moving_events:  # discrete state on each side of every knot
-        codes = jnp.asarray(state_codes(qsm, knots + side * (1e-9 * period), True))
-    return TableLayout(
-        knots=jnp.asarray(knots), side=jnp.asarray(side),
-        cell_first=jnp.asarray(cell_first, dtype=jnp.int32), origin=float(origin),
-        n_cells=n_cells, max_extra=int(max_extra),
-        event_thetas=tuple(float(t) for t in events), event_kinds=tuple(int(k) for k in kinds),
-        event_cells=tuple((int(a), int(b)) for a, b in cells), codes=codes)
-
-
-def tabulate(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, origin: float, period: float,
-             n_cells: int, max_extra: int, event_thetas: tuple, event_kinds: tuple,
-             event_cells: tuple, table_codes=None, values=None):
+def tabulate(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, origin, period: float,
+             n_cells: int, max_extra: int, events: JumpSet | None, table_codes=None):
     """The excitation table ``(d, k, NLTE)`` of this design, the angle map and the
     structure flag (traceable: call inside ``jit`` to differentiate in the design).
-    ``values``: what computes them (default :func:`table_values`; the build passes its
-    compiled one, :func:`gearjax.models.geared3d_excitation.tabulate_jit`).
 
     The table holds ``q(phi(s))`` in the simulation angle ``s`` at the build knots (the
     knots bracketing a jump evaluated on their own side, ``side`` -1/+1), slopes by
-    forward-mode AD; ``phi`` (:class:`AngleMap`) sends the build event angles to those
-    of this design (None without moving events). The flag is True when the design keeps
+    forward-mode AD; ``phi`` (:class:`AngleMap`) sends the build angles of ``events``
+    (a padded :class:`~gearjax.excitation.jumps.JumpSet`; fixed ones stay) to those of
+    this design (None: no angle map). The flag is True when the design keeps
     the discrete state of the build on each side of every mapped knot (``table_codes``),
     else the map is not valid and the model must be rebuilt.
 
@@ -280,24 +167,22 @@ def tabulate(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, origin: float, 
     -------
     (table, angle_map, structure_ok)
     """
-    vals, slopes, amap, ok = (values or table_values)(
-        qsm, knots, side, period=period, event_thetas=event_thetas, event_kinds=event_kinds,
-        event_cells=event_cells, table_codes=table_codes)
+    vals, slopes, amap, ok = table_values(qsm, knots, side, period=period, events=events,
+                                          table_codes=table_codes)
     table = PeriodicHermiteTable(knots=knots, values=vals, slopes=slopes, cell_first=cell_first,
                                  origin=origin, period=period, n_cells=n_cells,
                                  max_extra=max_extra)
     return table, amap, ok
 
 
-def table_values(qsm: QuasiStaticMesh3D, knots, side, *, period: float, event_thetas,
-                 event_kinds: tuple, event_cells: tuple, table_codes=None):
+def table_values(qsm: QuasiStaticMesh3D, knots, side, *, period: float,
+                 events: JumpSet | None, table_codes=None):
     """:func:`tabulate` without the table's static layout: ``(values, slopes, angle_map,
-    structure_ok)``. ``event_thetas`` may be an array (traced), so that a build compiles
-    this once for every design of one event structure (:mod:`gearjax.models.geared3d_excitation`)."""
+    structure_ok)``."""
     amap = None
-    if len(event_thetas):
-        amap = AngleMap.through(event_thetas,
-                                qsm.event_angles(event_thetas, event_kinds, event_cells), period)
+    if events is not None:
+        amap = AngleMap.through(events.thetas, qsm.event_angles(events.thetas, events.kinds,
+                                                                events.cells), period)
     vals, slopes = one_sided_samples(lambda t, _: qsm.excitation(t), knots, side, period, amap)
     ok = jnp.asarray(True)
     if table_codes is not None:

@@ -143,7 +143,14 @@ class Geared3DModel(AbstractModalModel):
     pinion_torque_Nm, damping_ratio, scale_a : C_m0 (N m), zeta, state scale ``a`` (m).
     ecc : eccentricity data or None.
     table_knots, table_cell_first, table_side, table_codes : build layout of the
-        excitation table (te/perturbation with ``excitation="table"``, else None).
+        excitation table (te/perturbation with ``excitation="table"``, else None), padded
+        to the rig's layout bounds (:mod:`gearjax.models.geared3d_layout`).
+    table_origin : () the table's first knot (rad), far from every jump.
+    jumps : the integrator's jump angles with the kind and cells of each switching event
+        (:class:`~gearjax.excitation.jumps.JumpSet`, padded); the angle map moves the
+        events of moving kinds (:meth:`jump_angles_rad`).
+    decay_omega_rad_s : () the slowest natural frequency (rad/s) with a mesh participation
+        above ``participation_tol``: it sizes the transient (:meth:`decay_rate_per_rad`).
     table, angle_map : the excitation table and the angle map of this design (None
         without table / without moving events).
     structure_ok : (bool array) this design keeps the discrete structure of the build.
@@ -160,10 +167,10 @@ class Geared3DModel(AbstractModalModel):
     (:func:`~gearjax.models.geared3d_build.modal_structure`: ``kbar_r`` is applied as its
     diagonal, ``c_r`` as its diagonal on the first ``damping_split`` coordinates and a
     dense block on the rest),
-    period_rad, decay_omega_rad_s (slowest mode with a mesh participation
-    above ``participation_tol``), qs_max_iter, table_origin, table_cells,
-    table_max_extra, excitation, harmonic_start, event_thetas, event_kinds, event_cells,
-    te_source (the TE file driving the excitation, or None).
+    period_rad, qs_max_iter, table_cells, table_max_extra (the bound of the layout),
+    excitation, harmonic_start, te_source (the TE file driving the excitation, or None).
+    The layout of the events and the table is data, so every design of one rig (relief,
+    pitch errors, damping, torque) shares the model's compiled programs.
     """
 
     mesh: Mesh
@@ -195,22 +202,19 @@ class Geared3DModel(AbstractModalModel):
     angle_map: AngleMap | None
     structure_ok: jax.Array
     jumps: JumpSet
+    table_origin: jax.Array
+    decay_omega_rad_s: jax.Array
     formulation: AbstractFormulation = eqx.field(static=True)
     mesh_vectors: str = eqx.field(static=True)
     nlte_terms: bool = eqx.field(static=True)
     n_modes: int = eqx.field(static=True)
     n_static: int = eqx.field(static=True)
     period_rad: float = eqx.field(static=True)
-    decay_omega_rad_s: float = eqx.field(static=True)
     qs_max_iter: int = eqx.field(static=True)
-    table_origin: float = eqx.field(static=True)
     table_cells: int = eqx.field(static=True)
     table_max_extra: int = eqx.field(static=True)
     excitation: str = eqx.field(static=True)
     harmonic_start: bool = eqx.field(static=True)
-    event_thetas: tuple = eqx.field(static=True)
-    event_kinds: tuple = eqx.field(static=True)
-    event_cells: tuple = eqx.field(static=True)
     te_source: str | None = eqx.field(static=True, default=None)
     nlte_inertia: bool = eqx.field(static=True, default=True)
     diagonal_stiffness: bool = eqx.field(static=True, default=False)
@@ -229,10 +233,8 @@ class Geared3DModel(AbstractModalModel):
             raise ModelError("excitation", self.excitation, f"must be one of {EXCITATIONS}")
         if (self.table is None) != (self.table_knots is None):
             raise ModelError("table", None, "the excitation table and its layout go together")
-        if len(self.event_kinds) != len(self.event_thetas) or len(self.event_cells) != len(self.event_thetas):
-            raise ModelError("event_kinds", len(self.event_kinds), "one kind and cell pair per event")
-        if (self.angle_map is not None) and not self.event_thetas:
-            raise ModelError("angle_map", "...", "an angle map needs moving events")
+        if (self.angle_map is not None) and self.table is None:
+            raise ModelError("angle_map", "...", "an angle map needs the excitation table")
         if not isinstance(self.contact_law, TEContactLaw):
             raise ModelError("contact_law", self.contact_law,
                              f"must be a TEContactLaw ({', '.join(c.name for c in TEContactLaw)})")
@@ -345,18 +347,18 @@ class Geared3DModel(AbstractModalModel):
         table, amap, ok = tabulate(
             m.quasi_static_mesh(), m.table_knots, m.table_side, m.table_cell_first,
             origin=m.table_origin, period=m.period_rad, n_cells=m.table_cells,
-            max_extra=m.table_max_extra, event_thetas=m.event_thetas,
-            event_kinds=m.event_kinds, event_cells=m.event_cells, table_codes=m.table_codes)
+            max_extra=m.table_max_extra, events=None if m.angle_map is None else m.jumps,
+            table_codes=m.table_codes)
         return eqx.tree_at(lambda m: (m.table, m.angle_map, m.structure_ok), m,
                            (table, amap, ok), is_leaf=lambda x: x is None)
 
     def jump_angles_rad(self, newton_steps: int = NEWTON_STEPS):
         """The event angles ``theta_j`` (rad) of the current design, one per entry of
-        :attr:`event_thetas`: Newton iterations on the switching functions from the
-        build-time angle (geometric events stay fixed); differentiable in the
+        :attr:`jumps` (padding included): Newton iterations on the switching functions
+        from the build-time angle (fixed events stay); differentiable in the
         modifications (at the root ``d theta_j = -(dg/d design) / (dg/d theta)``)."""
-        return self.quasi_static_mesh().event_angles(self.event_thetas, self.event_kinds,
-                                                     self.event_cells, newton_steps)
+        j = self.jumps
+        return self.quasi_static_mesh().event_angles(j.thetas, j.kinds, j.cells, newton_steps)
 
     def angle(self, s):
         """(theta, dtheta/ds): the pinion angle (rad) at the simulation angle ``s`` (rad);

@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ModelError
-from ..excitation.events import distinct_angles, engagement_angles
+from ..excitation.events import engagement_angles
 from ..excitation.jumps import JumpSet
 from ..excitation.mesh3d import QuasiStaticMesh3D
 from ..excitation.te_file import TETable
@@ -253,15 +253,18 @@ def build_geared3d(
         loaded_codes=not isinstance(formulation, Reference),
         cell_states=contact_law is TEContactLaw.CELLS and not isinstance(formulation, Reference))
 
-    # speed-independent RHS jumps (te/perturbation: + table events: NLTE' jumps at zone kinks)
+    # speed-independent RHS jumps (te/perturbation: + table events: NLTE' jumps at zone
+    # kinks), laid out in one program per rig (the reference with backlash: + the angles
+    # where back cells enter or leave, fixed)
     tabulated = not isinstance(formulation, Reference) and excitation == "table"
-    jumps, layout = own_table_fields(qsm, theta_tab, period, tabulated, moving_events)
-    if te_table is not None:
-        jumps, layout, period = te_file_fields(te_table, layout, jumps, red.w_r @ red.q0,
-                                               nlte_terms)
-    if backlash is not None and isinstance(formulation, Reference):  # back cells entering / leaving
+    back = ()
+    if backlash is not None and isinstance(formulation, Reference):
         back = np.mod(back_flank_angle_rad(pair) - engagement_angles(mesh, period), period)
-        jumps = distinct_angles(np.concatenate([np.asarray(jumps, dtype=float), back]), period)
+    jumps, layout = own_table_fields(qsm, n_tab, float(period), tabulated, moving_events, back)
+    if te_table is not None:
+        file_jumps, layout, period = te_file_fields(te_table, layout, jumps.angles(),
+                                                    red.w_r @ red.q0, nlte_terms)
+        jumps = JumpSet.from_angles(file_jumps, period, mesh_period=pair.mesh_period_rad)
 
     return cls(
         mesh=mesh, mods=mods, element=el,
@@ -273,8 +276,7 @@ def build_geared3d(
         damping_ratio=jnp.asarray(zeta), scale_a=jnp.asarray(scale_a), ecc=ecc,
         formulation=formulation, mesh_vectors=mesh_vectors, nlte_terms=bool(nlte_terms),
         n_modes=int(red.n_modes), n_static=int(red.n_static), period_rad=float(period),
-        jumps=JumpSet.from_angles(jumps, period, mesh_period=pair.mesh_period_rad),
-        decay_omega_rad_s=decay_omega,
+        jumps=jumps, decay_omega_rad_s=jnp.asarray(decay_omega),
         qs_max_iter=int(qs_max_iter), excitation=excitation,
         harmonic_start=bool(harmonic_start),
         te_source=None if te_table is None else te_table.source,

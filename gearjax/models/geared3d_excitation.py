@@ -20,7 +20,7 @@ at every right-hand side instead, to check it).
 
 Design derivatives (moving events): the angles where ``k`` jumps, NLTE' jumps or ``TE_S``
 kinks move with the tip relief. The tabulated formulations record every event at build
-(``Geared3DModel.event_thetas``, ``event_kinds``, ``event_cells``), move them by Newton on
+(``Geared3DModel.jumps``: angles, kinds, cells, padded), move them by Newton on
 their switching functions (``Geared3DModel.jump_angles_rad``) and integrate in the simulation angle
 ``s`` with ``theta = phi(s)`` (:class:`gearjax.excitation.tables.AngleMap`, the identity at
 the build design): ``Geared3DModel.vector_field`` is ``phi'(s) dy/dtheta``. The model is complete
@@ -37,57 +37,53 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ..excitation.events import distinct_angles
-from ..excitation.mesh3d import (QuasiStaticMesh3D, jump_angles, table_layout, table_values,
-                                 tabulate)
+from ..excitation.jumps import JumpSet
+from ..excitation.mesh3d import QuasiStaticMesh3D, tabulate
 from ..excitation.te_file import TETable, excitation_table
+from .geared3d_layout import layout_3d
 
-__all__ = ["own_table_fields", "te_file_fields", "file_mean_stiffness", "tabulate_jit"]
-
-_table_values_jit = eqx.filter_jit(table_values)
+__all__ = ["own_table_fields", "te_file_fields", "file_mean_stiffness"]
 
 
-def tabulate_jit(qsm: QuasiStaticMesh3D, knots, side, cell_first, *, event_thetas: tuple,
-                 **layout):
-    """:func:`gearjax.excitation.mesh3d.tabulate` at build time, its values compiled once
-    per model shape and event structure: the build's event angles go in as an array and
-    the table's origin (both move with the design) stays outside the program: as static
-    values they would make every design compile its own."""
-    return tabulate(qsm, knots, side, cell_first, values=_table_values_jit,
-                    event_thetas=jnp.asarray(event_thetas, dtype=float), **layout)
+@eqx.filter_jit
+def _tabulated(qsm: QuasiStaticMesh3D, knots, side, cell_first, origin, events, codes, *,
+               period: float, n_cells: int, max_extra: int):
+    """:func:`gearjax.excitation.mesh3d.tabulate` at build time, compiled once per rig and
+    layout bounds (the layout is data)."""
+    return tabulate(qsm, knots, side, cell_first, origin=origin, period=period,
+                    n_cells=n_cells, max_extra=max_extra, events=events, table_codes=codes)
 
 
 def _no_table() -> dict:
     """Layout fields of a model without table (a function: a jnp array at import would
     start the XLA backend, which must wait for ``jax.distributed.initialize``)."""
     return dict(table_knots=None, table_cell_first=None, table_side=None, table_codes=None,
-                table=None, angle_map=None, structure_ok=jnp.asarray(True), table_origin=0.0,
-                table_cells=0, table_max_extra=1, event_thetas=(), event_kinds=(), event_cells=())
+                table=None, angle_map=None, structure_ok=jnp.asarray(True),
+                table_origin=jnp.asarray(0.0), table_cells=0, table_max_extra=1)
 
 
-def own_table_fields(qsm: QuasiStaticMesh3D, theta_tab, period: float, tabulated: bool,
-                     moving_events: bool = True):
-    """(jump angles (rad), layout fields) of a model excited by its own quasi-static mesh:
-    the speed-independent right-hand-side jumps and, when ``tabulated`` (te/perturbation
-    with ``excitation="table"``), the table of ``(d, k, NLTE)`` with the zone kinks of NLTE'
-    as events (moving with the design through the angle map; with ``moving_events=False``
-    they stay at the build angles: no angle map, the same table at the build design, and
-    about a third of the table's compilation)."""
-    jumps = jump_angles(qsm, theta_tab, period)
+def own_table_fields(qsm: QuasiStaticMesh3D, n_scan: int, period: float, tabulated: bool,
+                     moving_events: bool = True, extra_angles=()) -> tuple[JumpSet, dict]:
+    """(jump set, layout fields) of a model excited by its own quasi-static mesh, laid out
+    in the build's program (:func:`gearjax.models.geared3d_layout.layout_3d`, from a
+    uniform scan of ``n_scan`` angles over ``period``): the speed-independent right-hand
+    side jumps and, when ``tabulated`` (te/perturbation with ``excitation="table"``), the
+    table of ``(d, k, NLTE)`` with the zone kinks of NLTE' as events (moving with the
+    design through the angle map; with ``moving_events=False`` they stay at the build
+    angles: no angle map, the same table at the build design). ``extra_angles``: fixed
+    jumps added (rad)."""
+    lay = layout_3d(qsm, n_scan, period, tabulated=tabulated, moving_events=moving_events,
+                    extra_angles=extra_angles)
     if not tabulated:
-        return jumps, _no_table()
-    lay = table_layout(qsm, theta_tab, period, jumps, moving_events)
-    jumps = distinct_angles(np.concatenate([jumps, lay.event_thetas]), period)
-    ev = (dict(event_thetas=lay.event_thetas, event_kinds=lay.event_kinds,
-               event_cells=lay.event_cells) if moving_events
-          else dict(event_thetas=(), event_kinds=(), event_cells=()))  # (and no codes)
-    table, amap, ok = tabulate_jit(
-        qsm, lay.knots, lay.side, lay.cell_first, origin=lay.origin, period=float(period),
-        n_cells=lay.n_cells, max_extra=lay.max_extra, table_codes=lay.codes, **ev)
-    return jumps, dict(table_knots=lay.knots, table_cell_first=lay.cell_first,
-                       table_side=lay.side, table_codes=lay.codes, table=table,
-                       angle_map=amap, structure_ok=ok, table_origin=lay.origin,
-                       table_cells=lay.n_cells, table_max_extra=lay.max_extra, **ev)
+        return lay.jumps, _no_table()
+    events = lay.jumps if moving_events else None
+    table, amap, ok = _tabulated(qsm, lay.knots, lay.side, lay.cell_first, lay.origin, events,
+                                 lay.codes, period=float(period), n_cells=int(n_scan),
+                                 max_extra=lay.max_extra)
+    return lay.jumps, dict(table_knots=lay.knots, table_cell_first=lay.cell_first,
+                           table_side=lay.side, table_codes=lay.codes, table=table,
+                           angle_map=amap, structure_ok=ok, table_origin=lay.origin,
+                           table_cells=int(n_scan), table_max_extra=lay.max_extra)
 
 
 def file_mean_stiffness(te: TETable) -> float | None:
@@ -113,6 +109,7 @@ def te_file_fields(te: TETable, own: dict, own_jumps, w_x0: float, nlte_terms: b
         d = np.column_stack([d[:, 0] + d[:, 2], d[:, 1], d[:, 2]])
     table = eqx.tree_at(lambda t: (t.values, t.slopes), table, (jnp.asarray(v), jnp.asarray(d)))
     fields = dict(_no_table(), table_knots=table.knots, table_cell_first=table.cell_first,
-                  table_side=jnp.asarray(side), table=table, table_origin=float(table.origin),
-                  table_cells=int(table.n_cells), table_max_extra=int(table.max_extra))
+                  table_side=jnp.asarray(side), table=table,
+                  table_origin=jnp.asarray(table.origin), table_cells=int(table.n_cells),
+                  table_max_extra=int(table.max_extra))
     return tuple(float(j) for j in jumps), fields, float(table.period)

@@ -118,6 +118,13 @@ class GearedStructure(NamedTuple):
             n_modes=int(red.n_modes), n_static=int(red.n_static))
 
 
+@eqx.filter_jit
+def _mean_local_vector(element: PinionGearElement):
+    """The element's averaged V (12,), one program per mesh shape (a lambda jitted in the
+    build would trace and compile again at every build)."""
+    return element.mean_local_vector()
+
+
 def geared_structure(structure, mesh: Mesh, torque_Nm: float, torque_node: int | None = None,
                      encoder_nodes: tuple[int, int] | None = None,
                      fixed_dofs=()) -> GearedStructure:
@@ -158,7 +165,7 @@ def geared_structure(structure, mesh: Mesh, torque_Nm: float, torque_node: int |
 
     # element on the full numbering; vectors are restricted to the free dofs below
     el = PinionGearElement.at_nodes(mesh, n_all, pn, gn)
-    v_loc12 = np.asarray(eqx.filter_jit(lambda e: e.mean_local_vector())(el))
+    v_loc12 = np.asarray(_mean_local_vector(el))
     for name, d in (("torque_node", _tors(torque_node)), ("encoder_nodes[0]", _tors(enc[0])),
                     ("encoder_nodes[1]", _tors(enc[1]))):
         if pos[d] < 0:

@@ -1,0 +1,163 @@
+"""The excitation layout of the 3D model (:class:`gearjax.models.geared3d.Geared3DModel`),
+computed in the program: one scan of the exact 3D quasi-static solution (paper Eq. (25))
+over the excitation period finds every change of its discrete state (cells entering or
+leaving the path of contact, the loaded set, the cell realising NLTE and, for the table of
+the te/perturbation formulations, the relief zones: kinks of TE_S) bracketed by adjacent
+floats, the integrator's jump angles, the knots of the
+:class:`~gearjax.excitation.tables.PeriodicHermiteTable` and the kind of each switching
+event (fixed, or moving with the design: :mod:`gearjax.excitation.events`).
+
+Traced (:mod:`gearjax.excitation.layout`): arrays of static bounds (:func:`geared3d_bounds`,
+a function of the mesh and the excitation period only), so every relief, pitch-error set,
+damping ratio and torque of one rig builds its layout with the same program, and the
+models of those designs share their sweep programs. A design whose layout outgrows a bound
+is laid out again with larger bounds (:func:`layout_3d`: a second program, once).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..excitation.events import engagement_angles
+from ..excitation.jumps import JumpSet, round_up, separated_density
+from ..excitation.layout import (LayoutBounds, classify_events, distinct_jumps, find_changes,
+                                 fix_unlocated, knot_sides, quiet_origin, table_knots)
+from ..excitation.mesh3d import QuasiStaticMesh3D
+from ..gears.mesh import Mesh
+
+__all__ = ["geared3d_bounds", "layout_3d", "Layout3D"]
+
+
+def geared3d_bounds(mesh: Mesh, period: float, extra_angles=()) -> LayoutBounds:
+    """Static bounds of the 3D layout for every design of ``mesh`` over ``period`` (rad):
+    the distinct engagement angles and ``extra_angles``, plus per mesh period and cell of a
+    contact line two relief-zone starts and two changes of the loaded set, plus two
+    changes of the cell realising NLTE (rounded up to multiples of 8); brackets an eighth
+    more; extra knots per table cell: two per cell of a contact line and four more (the
+    cells of one line change their loaded state within one table cell)."""
+    n_mesh = int(round(period / mesh.pair.mesh_period_rad))
+    angles = np.concatenate([np.asarray(engagement_angles(mesh, period), dtype=float),
+                             np.asarray(extra_angles, dtype=float).reshape(-1)])
+    geo = np.unique(np.round(np.mod(angles, period) / period, 12))
+    jumps = round_up(geo.size + (4 * mesh.cells_per_line + 2) * n_mesh)
+    return LayoutBounds(jumps=jumps, brackets=round_up(1.125 * jumps + 4),
+                        max_extra=round_up(2 * mesh.cells_per_line + 4))
+
+
+class Layout3D(eqx.Module):
+    """The layout of one 3D design (:func:`layout_3d`).
+
+    Attributes
+    ----------
+    jumps : the integrator's jump angles with the kind and cells of each event
+        (:class:`~gearjax.excitation.jumps.JumpSet`, padded to the bound).
+    knots, side, cell_first : the table's knots (padded with its last one), the side
+        (-1/+1) each knot bracketing a jump is read on, the first knot of each uniform
+        cell; None without a table.
+    origin : () the table's origin (rad), far from every state change.
+    codes : (knots, n_code) the discrete state on each side of every knot (for the
+        structure flag), or None (no table, or events fixed).
+    max_extra : the bound of extra knots in one uniform cell (static).
+    """
+
+    jumps: JumpSet
+    knots: jax.Array | None
+    side: jax.Array | None
+    cell_first: jax.Array | None
+    origin: jax.Array
+    codes: jax.Array | None
+    max_extra: int = eqx.field(static=True)
+
+
+@eqx.filter_jit
+def _scan(qsm: QuasiStaticMesh3D, n: int, period: float, bounds: LayoutBounds,
+          extra: tuple, tabulated: bool, moving: bool, density: float):
+    """The layout of ``qsm`` (traced; every argument but ``qsm`` static) and what it needs:
+    ``(Layout3D, need (LayoutBounds of traced ints), unlocated)``."""
+    def code_fn(t):
+        return jax.vmap(lambda tt: qsm.state_code(tt, tabulated))(t)
+
+    theta = jnp.arange(n) * (period / n)
+    c0 = code_fn(theta)
+    changed0 = jnp.any(c0 != jnp.roll(c0, -1, axis=0), axis=1)
+    # the table origin far from every change, then the changes bracketed by adjacent
+    # floats *in table coordinates* [origin, origin + P)
+    origin = quiet_origin(theta, changed0, period)
+    ch = find_changes(code_fn, origin + theta, period, bounds.brackets)
+    fixed = jnp.asarray(np.asarray(extra, dtype=float))
+    cand = jnp.concatenate([fixed, ch.hi])
+    ok = jnp.concatenate([jnp.ones(fixed.shape[0], bool), jnp.isfinite(ch.hi)])
+    thetas, n_jumps = distinct_jumps(cand, ok, period, bounds.jumps, tol=1e-9)
+    valid = jnp.arange(bounds.jumps) < n_jumps
+    n_cells = qsm.mesh.n_cells
+    kinds = jnp.zeros(bounds.jumps, jnp.int32)
+    cells = jnp.zeros((bounds.jumps, 2), jnp.int32)
+    unlocated = jnp.asarray(0)
+    if tabulated and moving:
+        kinds, cells = classify_events(thetas, ch.lo, ch.hi, ch.c_lo, ch.c_hi, n_cells, period)
+        kinds, cells, unlocated = fix_unlocated(qsm.switch_function, thetas, kinds, cells,
+                                                valid, qsm.mesh.pair.mesh_period_rad)
+    jumps = JumpSet.padded(thetas, kinds, cells, n_jumps, period, bounds.jumps, density)
+    max_extra = jnp.asarray(1)
+    knots = side = cell_first = codes = None
+    if tabulated:
+        pts = jnp.concatenate([ch.lo, ch.hi])
+        knots, cell_first, _, max_extra = table_knots(origin, period, n, pts,
+                                                      jnp.isfinite(pts), 2 * bounds.brackets)
+        side = knot_sides(knots, ch.lo, ch.hi)
+        if moving:
+            codes = code_fn(knots + side * (1e-9 * period))
+    need = LayoutBounds(jumps=n_jumps, brackets=ch.count, max_extra=jnp.maximum(1, max_extra))
+    lay = Layout3D(jumps=jumps, knots=knots, side=side, cell_first=cell_first,
+                   origin=jnp.asarray(origin), codes=codes, max_extra=bounds.max_extra)
+    return lay, need, unlocated
+
+
+def layout_3d(qsm: QuasiStaticMesh3D, n: int, period: float, *, tabulated: bool,
+              moving_events: bool = True, extra_angles=()) -> Layout3D:
+    """The layout of the 3D design of ``qsm`` over one excitation period ``period`` (rad)
+    from a uniform scan of ``n`` angles, in one compiled program per rig, options and
+    bounds (:func:`geared3d_bounds`; grown and laid out again where the design outgrows
+    them).
+
+    Parameters
+    ----------
+    tabulated : te/perturbation with a table: the relief zones join the state (kinks of
+        TE_S are table knots and events) and the table's knots are placed; else the jumps
+        alone (every event fixed).
+    moving_events : tabulated: classify the events (moving with the design through the
+        angle map; a moving event whose switching function Newton does not hold at its
+        angle is kept fixed, with a ``RuntimeWarning``) and record the state codes at the
+        knots; False: every event fixed at its build angle, no codes.
+    extra_angles : design-independent jump angles (rad) added as fixed events (the
+        reference formulation's back-flank engagement angles with backlash).
+    """
+    extra = tuple(float(a) for a in np.mod(np.asarray(extra_angles, dtype=float).reshape(-1),
+                                           period))
+    geo = np.concatenate([np.asarray(engagement_angles(qsm.mesh, period), dtype=float),
+                          np.asarray(extra, dtype=float)])
+    density = separated_density(np.unique(np.mod(geo, period)), qsm.mesh.pair.mesh_period_rad,
+                                period)
+    bounds = geared3d_bounds(qsm.mesh, period, extra)
+    # the layout reads the discrete state alone, not d: one program whether NLTE is kept
+    qsm = dataclasses.replace(qsm, nlte_terms=True)
+    while True:
+        lay, need, unlocated = _scan(qsm, int(n), float(period), bounds, extra,
+                                     bool(tabulated), bool(moving_events), float(density))
+        need = LayoutBounds(*(int(v) for v in need))
+        if all(k <= b for k, b in zip(need, bounds)):
+            break
+        bounds = bounds.grown(need)  # a larger program, once
+    if int(unlocated):
+        warnings.warn(
+            f"{int(unlocated)} design-dependent switching angles could not be located by "
+            "their switching function at the build design; they are kept at their build "
+            "angles (forward results exact, their design derivative is not followed)",
+            RuntimeWarning, stacklevel=3)
+    return lay
