@@ -39,12 +39,15 @@ MAX_ROUNDS = 64  # state changes found in one scan interval, one per round
 
 class LayoutBounds(NamedTuple):
     """Static bounds of a model's layout: ``jumps`` (integrator jump angles), ``brackets``
-    (state changes per period, each one bracket of two table knots) and ``max_extra``
-    (extra knots in one uniform table cell)."""
+    (state changes per period, each one bracket of two table knots), ``max_extra``
+    (extra knots in one uniform table cell) and ``intervals`` (intervals of the uniform
+    scan in which the state changes, bisected side by side: where several changes share
+    one interval, as the cells of a 3D contact line do, fewer than ``brackets``)."""
 
     jumps: int
     brackets: int
     max_extra: int
+    intervals: int
 
     def grown(self, need: "LayoutBounds") -> "LayoutBounds":
         """Bounds that hold ``need`` (each at least doubled where it does not fit)."""
@@ -53,37 +56,43 @@ class LayoutBounds(NamedTuple):
         def g(have, want):
             return have if want <= have else round_up(max(2 * have, want))
         return LayoutBounds(g(self.jumps, need.jumps), g(self.brackets, need.brackets),
-                            g(self.max_extra, need.max_extra))
+                            g(self.max_extra, need.max_extra),
+                            g(self.intervals, need.intervals))
 
 
 class Changes(NamedTuple):
     """Brackets of the state changes (:func:`find_changes`): ``lo``, ``hi`` (bound,)
     adjacent floats around each change (``+inf`` in unused slots), ``c_lo``, ``c_hi``
     (bound, n_code) the codes there, ``count`` () the number found (more than the bound:
-    overflow)."""
+    overflow), ``n_intervals`` () the scan intervals in which the state changes."""
 
     lo: jax.Array
     hi: jax.Array
     c_lo: jax.Array
     c_hi: jax.Array
     count: jax.Array
+    n_intervals: jax.Array
 
 
-def find_changes(code_fn, theta, period: float, bound: int) -> Changes:
+def find_changes(code_fn, theta, period: float, bound: int,
+                 intervals: int | None = None) -> Changes:
     """Every change of the discrete state over one period, bracketed by adjacent floats
     (traced :func:`gearjax.excitation.events.find_brackets`: bisection from the uniform scan
     ``theta`` (n,) of spacing ``period / n``; several changes in one scan interval are found
     one per round, the brackets in round order, then scan order, as there).
 
     ``code_fn`` maps a (m,) array of angles to the (m, n_code) int code matrix (traceable,
-    any m). At most ``bound`` changes are kept; ``count`` says how many there were."""
+    any m). At most ``bound`` changes are kept, found in at most ``intervals`` (default
+    ``bound``) scan intervals bisected side by side; ``count`` and ``n_intervals`` say how
+    many there were."""
     n = theta.shape[0]
     c = code_fn(theta)
     nxt = jnp.roll(c, -1, axis=0)
     changed = jnp.any(c != nxt, axis=1)
     n_changed = jnp.sum(changed)
-    idx = jnp.nonzero(changed, size=bound, fill_value=0)[0]
-    active = jnp.arange(bound) < n_changed
+    slots = bound if intervals is None else int(intervals)
+    idx = jnp.nonzero(changed, size=slots, fill_value=0)[0]
+    active = jnp.arange(slots) < n_changed
     h = period / n
     a = theta[idx]
     b = a + h
@@ -93,17 +102,26 @@ def find_changes(code_fn, theta, period: float, bound: int) -> Changes:
     def bisect(a, b, ca, cb, on):
         # the codes at the ends are those the bisection read there (a code re-read at an
         # end in another program may round the other way a few floats from a change)
-        def body(_, lhc):
-            lo, hi, c_hi = lhc
+        # (halving stops once every bracket is two adjacent floats: a halving more would
+        # change nothing, and each one costs a code evaluation of every slot)
+        def interior_of(lo, hi):
             mid = 0.5 * (lo + hi)
-            interior = on & (mid > lo) & (mid < hi)
+            return mid, on & (mid > lo) & (mid < hi)
+
+        def cond(st):
+            i, lo, hi, _ = st
+            return (i < BISECTIONS) & jnp.any(interior_of(lo, hi)[1])
+
+        def body(st):
+            i, lo, hi, c_hi = st
+            mid, interior = interior_of(lo, hi)
             c_mid = code_fn(mid)
             same = jnp.all(c_mid == ca, axis=1)
             move_hi = interior & ~same
-            return (jnp.where(interior & same, mid, lo), jnp.where(move_hi, mid, hi),
+            return (i + 1, jnp.where(interior & same, mid, lo), jnp.where(move_hi, mid, hi),
                     jnp.where(move_hi[:, None], c_mid, c_hi))
 
-        return jax.lax.fori_loop(0, BISECTIONS, body, (a, b, cb))
+        return jax.lax.while_loop(cond, body, (jnp.asarray(0), a, b, cb))[1:]
 
     def cond(s):
         return jnp.any(s["on"]) & (s["round"] < MAX_ROUNDS)
@@ -120,12 +138,12 @@ def find_changes(code_fn, theta, period: float, bound: int) -> Changes:
                     c_lo=put(s["c_lo"], c_lo), c_hi=put(s["c_hi"], c_hi))
 
     init = dict(a=a, b=b, ca=ca, cb=cb, on=active, round=jnp.asarray(0),
-                count=jnp.asarray(0), lo=inf, hi=inf, c_lo=jnp.zeros_like(ca),
-                c_hi=jnp.zeros_like(ca))
+                count=jnp.asarray(0), lo=inf, hi=inf, c_lo=jnp.zeros((bound,) + ca.shape[1:], ca.dtype),
+                c_hi=jnp.zeros((bound,) + ca.shape[1:], ca.dtype))
     s = jax.lax.while_loop(cond, body, init)
     # more changed scan intervals than slots: count them as overflow too
-    count = jnp.where(n_changed > bound, jnp.maximum(s["count"], n_changed), s["count"])
-    return Changes(s["lo"], s["hi"], s["c_lo"], s["c_hi"], count)
+    count = jnp.where(n_changed > slots, jnp.maximum(s["count"], n_changed), s["count"])
+    return Changes(s["lo"], s["hi"], s["c_lo"], s["c_hi"], count, n_changed)
 
 
 def event_kinds(c_lo, c_hi, n):

@@ -39,15 +39,24 @@ def geared3d_bounds(mesh: Mesh, period: float, extra_angles=()) -> LayoutBounds:
     the distinct engagement angles and ``extra_angles``, plus per mesh period and cell of a
     contact line two relief-zone starts and two changes of the loaded set, plus two
     changes of the cell realising NLTE (rounded up to multiples of 8); brackets an eighth
-    more; extra knots per table cell: two per cell of a contact line and four more (the
-    cells of one line change their loaded state within one table cell)."""
+    more. Spur teeth: the cells of a contact line change their loaded state within one
+    scan interval and one table cell, so the scan intervals holding changes are about the
+    distinct engagement angles plus eight per mesh period (a multiple of 16), and a table
+    cell holds up to two extra knots per cell of a line and four more; helical teeth: the
+    cells change one after the other, every bracket in a scan interval of its own, and a
+    table cell holds 8 extra knots (16 beyond 16 jumps per mesh period)."""
     n_mesh = int(round(period / mesh.pair.mesh_period_rad))
     angles = np.concatenate([np.asarray(engagement_angles(mesh, period), dtype=float),
                              np.asarray(extra_angles, dtype=float).reshape(-1)])
     geo = np.unique(np.round(np.mod(angles, period) / period, 12))
     jumps = round_up(geo.size + (4 * mesh.cells_per_line + 2) * n_mesh)
-    return LayoutBounds(jumps=jumps, brackets=round_up(1.125 * jumps + 4),
-                        max_extra=round_up(2 * mesh.cells_per_line + 4))
+    brackets = round_up(1.125 * jumps + 4)
+    if not mesh.pair.spur:  # the cells of a line engage and unload one after the other
+        return LayoutBounds(jumps=jumps, brackets=brackets,
+                            max_extra=8 if jumps <= 16 * n_mesh else 16, intervals=brackets)
+    return LayoutBounds(jumps=jumps, brackets=brackets,
+                        max_extra=round_up(2 * mesh.cells_per_line + 4),
+                        intervals=round_up(geo.size + 8 * n_mesh, 16))
 
 
 class Layout3D(eqx.Module):
@@ -89,7 +98,7 @@ def _scan(qsm: QuasiStaticMesh3D, n: int, period: float, bounds: LayoutBounds,
     # the table origin far from every change, then the changes bracketed by adjacent
     # floats *in table coordinates* [origin, origin + P)
     origin = quiet_origin(theta, changed0, period)
-    ch = find_changes(code_fn, origin + theta, period, bounds.brackets)
+    ch = find_changes(code_fn, origin + theta, period, bounds.brackets, bounds.intervals)
     fixed = jnp.asarray(np.asarray(extra, dtype=float))
     cand = jnp.concatenate([fixed, ch.hi])
     ok = jnp.concatenate([jnp.ones(fixed.shape[0], bool), jnp.isfinite(ch.hi)])
@@ -113,7 +122,8 @@ def _scan(qsm: QuasiStaticMesh3D, n: int, period: float, bounds: LayoutBounds,
         side = knot_sides(knots, ch.lo, ch.hi)
         if moving:
             codes = code_fn(knots + side * (1e-9 * period))
-    need = LayoutBounds(jumps=n_jumps, brackets=ch.count, max_extra=jnp.maximum(1, max_extra))
+    need = LayoutBounds(jumps=n_jumps, brackets=ch.count, max_extra=jnp.maximum(1, max_extra),
+                        intervals=ch.n_intervals)
     lay = Layout3D(jumps=jumps, knots=knots, side=side, cell_first=cell_first,
                    origin=jnp.asarray(origin), codes=codes, max_extra=bounds.max_extra)
     return lay, need, unlocated

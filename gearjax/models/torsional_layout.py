@@ -61,7 +61,8 @@ def sdof_bounds(mesh: Mesh, period: float, back_flanks: bool = False) -> LayoutB
                              / period, 12))
     jumps = round_up(geo.size + (4 * mesh.cells_per_line + 2) * n_mesh)
     extra = 8 if jumps <= 16 * n_mesh else 16
-    return LayoutBounds(jumps=jumps, brackets=round_up(1.125 * jumps + 4), max_extra=extra)
+    brackets = round_up(1.125 * jumps + 4)
+    return LayoutBounds(jumps=jumps, brackets=brackets, max_extra=extra, intervals=brackets)
 
 
 def sdof_scan_layout(mesh: Mesh, mods: ToothModifications, force, n_table: int,
@@ -107,7 +108,7 @@ def sdof_scan_layout(mesh: Mesh, mods: ToothModifications, force, n_table: int,
     # table origin far from every change of the discrete quasi-static state, then the
     # changes bracketed by adjacent floats *in table coordinates* [origin, origin + P)
     origin = quiet_origin(theta, changed0, period)
-    ch = find_changes(code_fn, origin + theta, period, bounds.brackets)
+    ch = find_changes(code_fn, origin + theta, period, bounds.brackets, bounds.intervals)
     geo = geometric_jumps(mesh, period, back_flanks)
     cand = jnp.concatenate([jnp.asarray(geo), ch.hi])
     ok = jnp.concatenate([jnp.ones(geo.size, bool), jnp.isfinite(ch.hi)])
@@ -117,7 +118,8 @@ def sdof_scan_layout(mesh: Mesh, mods: ToothModifications, force, n_table: int,
         origin, period, n, extra, jnp.isfinite(extra), 2 * bounds.brackets)
     side = knot_sides(knots, ch.lo, ch.hi)
     codes = code_fn(knots + side * (1e-9 * period))
-    need = LayoutBounds(jumps=n_jumps, brackets=ch.count, max_extra=jnp.maximum(1, max_extra))
+    need = LayoutBounds(jumps=n_jumps, brackets=ch.count, max_extra=jnp.maximum(1, max_extra),
+                        intervals=ch.n_intervals)
     return dict(
         table_knots=knots, table_side=side, table_cell_first=cell_first,
         table_origin=jnp.asarray(origin), table_codes=codes, thetas=thetas, n_jumps=n_jumps,
