@@ -137,9 +137,9 @@ def find_changes(code_fn, theta, period: float, bound: int,
                     count=s["count"] + jnp.sum(on), lo=put(s["lo"], lo), hi=put(s["hi"], hi),
                     c_lo=put(s["c_lo"], c_lo), c_hi=put(s["c_hi"], c_hi))
 
+    codes = jnp.zeros((bound,) + ca.shape[1:], ca.dtype)
     init = dict(a=a, b=b, ca=ca, cb=cb, on=active, round=jnp.asarray(0),
-                count=jnp.asarray(0), lo=inf, hi=inf, c_lo=jnp.zeros((bound,) + ca.shape[1:], ca.dtype),
-                c_hi=jnp.zeros((bound,) + ca.shape[1:], ca.dtype))
+                count=jnp.asarray(0), lo=inf, hi=inf, c_lo=codes, c_hi=codes)
     s = jax.lax.while_loop(cond, body, init)
     # more changed scan intervals than slots: count them as overflow too
     count = jnp.where(n_changed > slots, jnp.maximum(s["count"], n_changed), s["count"])

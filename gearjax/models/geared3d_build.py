@@ -13,11 +13,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ModelError
-from ..excitation.events import engagement_angles
 from ..excitation.jumps import JumpSet
 from ..excitation.mesh3d import QuasiStaticMesh3D
 from ..excitation.te_file import TETable
-from ..gears.backlash import back_flank_angle_rad, check_model_backlash
+from ..gears.backlash import check_model_backlash
 from ..gears.contact import TEContactLaw
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
@@ -257,10 +256,9 @@ def build_geared3d(
     # kinks), laid out in one program per rig (the reference with backlash: + the angles
     # where back cells enter or leave, fixed)
     tabulated = not isinstance(formulation, Reference) and excitation == "table"
-    back = ()
-    if backlash is not None and isinstance(formulation, Reference):
-        back = np.mod(back_flank_angle_rad(pair) - engagement_angles(mesh, period), period)
-    jumps, layout = own_table_fields(qsm, n_tab, float(period), tabulated, moving_events, back)
+    back_flanks = backlash is not None and isinstance(formulation, Reference)
+    jumps, layout = own_table_fields(qsm, n_tab, float(period), tabulated, moving_events,
+                                     back_flanks)
     if te_table is not None:
         file_jumps, layout, period = te_file_fields(te_table, layout, jumps.angles(),
                                                     red.w_r @ red.q0, nlte_terms)

@@ -63,17 +63,18 @@ def _no_table() -> dict:
 
 
 def own_table_fields(qsm: QuasiStaticMesh3D, n_scan: int, period: float, tabulated: bool,
-                     moving_events: bool = True, extra_angles=()) -> tuple[JumpSet, dict]:
+                     moving_events: bool = True,
+                     back_flanks: bool = False) -> tuple[JumpSet, dict]:
     """(jump set, layout fields) of a model excited by its own quasi-static mesh, laid out
     in the build's program (:func:`gearjax.models.geared3d_layout.layout_3d`, from a
     uniform scan of ``n_scan`` angles over ``period``): the speed-independent right-hand
     side jumps and, when ``tabulated`` (te/perturbation with ``excitation="table"``), the
     table of ``(d, k, NLTE)`` with the zone kinks of NLTE' as events (moving with the
     design through the angle map; with ``moving_events=False`` they stay at the build
-    angles: no angle map, the same table at the build design). ``extra_angles``: fixed
-    jumps added (rad)."""
+    angles: no angle map, the same table at the build design). ``back_flanks``: the
+    back-flank engagement angles join the jumps, fixed."""
     lay = layout_3d(qsm, n_scan, period, tabulated=tabulated, moving_events=moving_events,
-                    extra_angles=extra_angles)
+                    back_flanks=back_flanks)
     if not tabulated:
         return lay.jumps, _no_table()
     events = lay.jumps if moving_events else None

@@ -24,39 +24,34 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..excitation.events import engagement_angles
 from ..excitation.jumps import JumpSet, round_up, separated_density
 from ..excitation.layout import (LayoutBounds, classify_events, distinct_jumps, find_changes,
                                  fix_unlocated, knot_sides, quiet_origin, table_knots)
 from ..excitation.mesh3d import QuasiStaticMesh3D
 from ..gears.mesh import Mesh
+from .torsional_layout import back_flank_jumps, geometric_jumps, sdof_bounds
 
 __all__ = ["geared3d_bounds", "layout_3d", "Layout3D"]
 
 
-def geared3d_bounds(mesh: Mesh, period: float, extra_angles=()) -> LayoutBounds:
+def geared3d_bounds(mesh: Mesh, period: float, back_flanks: bool = False) -> LayoutBounds:
     """Static bounds of the 3D layout for every design of ``mesh`` over ``period`` (rad):
-    the distinct engagement angles and ``extra_angles``, plus per mesh period and cell of a
-    contact line two relief-zone starts and two changes of the loaded set, plus two
-    changes of the cell realising NLTE (rounded up to multiples of 8); brackets an eighth
-    more. Spur teeth: the cells of a contact line change their loaded state within one
-    scan interval and one table cell, so the scan intervals holding changes are about the
-    distinct engagement angles plus eight per mesh period (a multiple of 16), and a table
-    cell holds up to two extra knots per cell of a line and four more; helical teeth: the
-    cells change one after the other, every bracket in a scan interval of its own, and a
-    table cell holds 8 extra knots (16 beyond 16 jumps per mesh period)."""
+    the rule of :func:`gearjax.models.torsional_layout.sdof_bounds` with the 3D mesh's own
+    cells per contact line (jumps, brackets; helical teeth: the cells change one after
+    the other, every bracket in a scan interval of its own, 8 extra knots in a table cell,
+    16 beyond 16 jumps per mesh period). Spur teeth: the cells of a contact line change
+    their loaded state within one scan interval and one table cell, so the scan intervals
+    holding changes are about the distinct geometric jump angles plus eight per mesh
+    period (a multiple of 16), and a table cell holds up to two extra knots per cell of a
+    line and four more."""
+    bounds = sdof_bounds(mesh, period, back_flanks)
+    if not mesh.pair.spur:
+        return bounds
     n_mesh = int(round(period / mesh.pair.mesh_period_rad))
-    angles = np.concatenate([np.asarray(engagement_angles(mesh, period), dtype=float),
-                             np.asarray(extra_angles, dtype=float).reshape(-1)])
-    geo = np.unique(np.round(np.mod(angles, period) / period, 12))
-    jumps = round_up(geo.size + (4 * mesh.cells_per_line + 2) * n_mesh)
-    brackets = round_up(1.125 * jumps + 4)
-    if not mesh.pair.spur:  # the cells of a line engage and unload one after the other
-        return LayoutBounds(jumps=jumps, brackets=brackets,
-                            max_extra=8 if jumps <= 16 * n_mesh else 16, intervals=brackets)
-    return LayoutBounds(jumps=jumps, brackets=brackets,
-                        max_extra=round_up(2 * mesh.cells_per_line + 4),
-                        intervals=round_up(geo.size + 8 * n_mesh, 16))
+    geo = np.unique(np.round(np.mod(geometric_jumps(mesh, period, back_flanks), period)
+                             / period, 12))
+    return bounds._replace(max_extra=round_up(2 * mesh.cells_per_line + 4),
+                           intervals=round_up(geo.size + 8 * n_mesh, 16))
 
 
 class Layout3D(eqx.Module):
@@ -130,7 +125,7 @@ def _scan(qsm: QuasiStaticMesh3D, n: int, period: float, bounds: LayoutBounds,
 
 
 def layout_3d(qsm: QuasiStaticMesh3D, n: int, period: float, *, tabulated: bool,
-              moving_events: bool = True, extra_angles=()) -> Layout3D:
+              moving_events: bool = True, back_flanks: bool = False) -> Layout3D:
     """The layout of the 3D design of ``qsm`` over one excitation period ``period`` (rad)
     from a uniform scan of ``n`` angles, in one compiled program per rig, options and
     bounds (:func:`geared3d_bounds`; grown and laid out again where the design outgrows
@@ -145,16 +140,15 @@ def layout_3d(qsm: QuasiStaticMesh3D, n: int, period: float, *, tabulated: bool,
         angle map; a moving event whose switching function Newton does not hold at its
         angle is kept fixed, with a ``RuntimeWarning``) and record the state codes at the
         knots; False: every event fixed at its build angle, no codes.
-    extra_angles : design-independent jump angles (rad) added as fixed events (the
-        reference formulation's back-flank engagement angles with backlash).
+    back_flanks : the angles where back-flank cells enter or leave the path of contact
+        join the jumps as fixed events (the reference formulation with backlash,
+        :func:`gearjax.models.torsional_layout.back_flank_jumps`).
     """
-    extra = tuple(float(a) for a in np.mod(np.asarray(extra_angles, dtype=float).reshape(-1),
-                                           period))
-    geo = np.concatenate([np.asarray(engagement_angles(qsm.mesh, period), dtype=float),
-                          np.asarray(extra, dtype=float)])
-    density = separated_density(np.unique(np.mod(geo, period)), qsm.mesh.pair.mesh_period_rad,
-                                period)
-    bounds = geared3d_bounds(qsm.mesh, period, extra)
+    mesh = qsm.mesh
+    extra = tuple(float(a) for a in back_flank_jumps(mesh, period)) if back_flanks else ()
+    density = separated_density(np.unique(np.mod(geometric_jumps(mesh, period, back_flanks),
+                                                 period)), mesh.pair.mesh_period_rad, period)
+    bounds = geared3d_bounds(mesh, period, back_flanks)
     # the layout reads the discrete state alone, not d: one program whether NLTE is kept
     qsm = dataclasses.replace(qsm, nlte_terms=True)
     while True:

@@ -34,7 +34,8 @@ from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
 
 __all__ = ["sdof_scan_layout", "sdof_classify_host", "sdof_classify_traced",
-           "sdof_events_layout", "sdof_bounds", "geometric_jumps", "classify_events"]
+           "sdof_events_layout", "sdof_bounds", "geometric_jumps", "back_flank_jumps",
+           "classify_events"]
 
 
 def geometric_jumps(mesh: Mesh, period: float, back_flanks: bool = False) -> np.ndarray:
@@ -45,8 +46,15 @@ def geometric_jumps(mesh: Mesh, period: float, back_flanks: bool = False) -> np.
     geo = np.asarray(engagement_angles(mesh, period), dtype=float)
     if not back_flanks:
         return geo
-    back = np.mod(back_flank_angle_rad(mesh.pair) - geo, period)
-    return np.concatenate([geo, np.unique(back)])
+    return np.concatenate([geo, back_flank_jumps(mesh, period)])
+
+
+def back_flank_jumps(mesh: Mesh, period: float) -> np.ndarray:
+    """The distinct angles (rad, in ``[0, period)``) where back-flank cells enter or leave
+    the path of contact: the engagement angles mirrored through
+    :func:`gearjax.gears.backlash.back_flank_angle_rad` (NumPy)."""
+    geo = np.asarray(engagement_angles(mesh, period), dtype=float)
+    return np.unique(np.mod(back_flank_angle_rad(mesh.pair) - geo, period))
 
 
 def sdof_bounds(mesh: Mesh, period: float, back_flanks: bool = False) -> LayoutBounds:
