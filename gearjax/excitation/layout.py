@@ -24,6 +24,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import warnings
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -31,7 +33,8 @@ import numpy as np
 from .events import EV_FIXED, EV_LOADED, EV_NLTE, EV_ZONE1, EV_ZONE2, NEWTON_STEPS, moved_event_angles
 
 __all__ = ["LayoutBounds", "Changes", "find_changes", "event_kinds", "classify_events",
-           "distinct_jumps", "quiet_origin", "table_knots", "knot_sides", "fix_unlocated"]
+           "distinct_jumps", "quiet_origin", "table_knots", "knot_sides", "fix_unlocated",
+           "ScanLayout", "scan_layout", "warn_unlocated"]
 
 BISECTIONS = 80  # halvings of a scan interval: adjacent floats from any spacing >= 2^-80
 MAX_ROUNDS = 64  # state changes found in one scan interval, one per round
@@ -277,3 +280,73 @@ def fix_unlocated(switch, s_j, kinds, cells, valid, mesh_period: float, rtol: fl
     kinds = jnp.where(bad, EV_FIXED, kinds).astype(jnp.int32)
     cells = jnp.where(bad[:, None], 0, cells).astype(jnp.int32)
     return kinds, cells, jnp.sum(bad)
+
+
+class ScanLayout(NamedTuple):
+    """A design's layout from one uniform scan (:func:`scan_layout`): ``origin`` () the
+    table origin (rad); ``changes`` the brackets of the state changes in table coordinates
+    (:class:`Changes`); ``thetas`` (bounds.jumps,) the sorted distinct jump angles (rad)
+    and ``n_jumps``; ``knots``, ``side``, ``cell_first`` the table's knots, the side each
+    is read on and the first knot of each uniform cell (:func:`table_knots`,
+    :func:`knot_sides`; None without a table); ``need`` the bounds this design needs
+    (a :class:`LayoutBounds` of traced ints: more than the bounds is an overflow)."""
+
+    origin: jax.Array
+    changes: Changes
+    thetas: jax.Array
+    n_jumps: jax.Array
+    knots: jax.Array | None
+    side: jax.Array | None
+    cell_first: jax.Array | None
+    need: LayoutBounds
+
+    def knot_codes(self, code_fn, period: float):
+        """The (knots, n_code) discrete state on the side of every knot it is read on
+        (``1e-9 period`` off a jump knot): the codes of the structure check."""
+        return code_fn(self.knots + self.side * (1e-9 * period))
+
+
+def scan_layout(code_fn, codes, period: float, bounds: LayoutBounds, fixed=(), *,
+                tol: float = 1e-12, table: bool = True) -> ScanLayout:
+    """The layout of one design over one excitation period ``period`` (rad), traced: the
+    table origin far from every state change of the uniform scan (:func:`quiet_origin`),
+    every change bracketed by adjacent floats from that origin (:func:`find_changes`),
+    the jump angles (the changes' upper brackets and the ``fixed`` angles, distinct to
+    ``tol`` periods: :func:`distinct_jumps`) and, with ``table``, the table's knots (the
+    uniform grid and both floats of every bracket: :func:`table_knots`).
+
+    ``code_fn`` maps (m,) angles to the (m, n_code) int code matrix (traceable, any m);
+    ``codes`` is its value at the uniform scan ``k period / n``, k = 0..n-1 (n = its
+    length, also the table's cells), which the caller computes with whatever else it
+    reads there; ``bounds`` the static sizes (:class:`LayoutBounds`)."""
+    n = codes.shape[0]
+    theta = jnp.arange(n) * (period / n)
+    changed0 = jnp.any(codes != jnp.roll(codes, -1, axis=0), axis=1)
+    origin = quiet_origin(theta, changed0, period)
+    ch = find_changes(code_fn, origin + theta, period, bounds.brackets, bounds.intervals)
+    fixed = jnp.asarray(np.asarray(fixed, dtype=float).reshape(-1))
+    cand = jnp.concatenate([fixed, ch.hi])
+    ok = jnp.concatenate([jnp.ones(fixed.shape[0], bool), jnp.isfinite(ch.hi)])
+    thetas, n_jumps = distinct_jumps(cand, ok, period, bounds.jumps, tol=tol)
+    knots = side = cell_first = None
+    max_extra = jnp.asarray(0)
+    if table:
+        pts = jnp.concatenate([ch.lo, ch.hi])
+        knots, cell_first, _, max_extra = table_knots(origin, period, n, pts,
+                                                      jnp.isfinite(pts), 2 * bounds.brackets)
+        side = knot_sides(knots, ch.lo, ch.hi)
+    need = LayoutBounds(jumps=n_jumps, brackets=ch.count, max_extra=jnp.maximum(1, max_extra),
+                        intervals=ch.n_intervals)
+    return ScanLayout(origin=jnp.asarray(origin), changes=ch, thetas=thetas, n_jumps=n_jumps,
+                      knots=knots, side=side, cell_first=cell_first, need=need)
+
+
+def warn_unlocated(count: int, stacklevel: int = 3) -> None:
+    """``RuntimeWarning`` for ``count`` > 0 moving events :func:`fix_unlocated` kept fixed
+    at their build angles."""
+    if count:
+        warnings.warn(
+            f"{count} design-dependent switching angles could not be located by their "
+            "switching function at the build design; they are kept at their build angles "
+            "(forward results exact, their design derivative is not followed)",
+            RuntimeWarning, stacklevel=stacklevel + 1)

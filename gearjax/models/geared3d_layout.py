@@ -17,7 +17,6 @@ is laid out again with larger bounds (:func:`layout_3d`: a second program, once)
 from __future__ import annotations
 
 import dataclasses
-import warnings
 
 import equinox as eqx
 import jax
@@ -25,8 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..excitation.jumps import JumpSet, round_up, separated_density
-from ..excitation.layout import (LayoutBounds, classify_events, distinct_jumps, find_changes,
-                                 fix_unlocated, knot_sides, quiet_origin, table_knots)
+from ..excitation.layout import (LayoutBounds, classify_events, fix_unlocated, scan_layout,
+                                 warn_unlocated)
 from ..excitation.mesh3d import QuasiStaticMesh3D
 from ..gears.mesh import Mesh
 from .torsional_layout import back_flank_jumps, geometric_jumps, sdof_bounds
@@ -87,41 +86,22 @@ def _scan(qsm: QuasiStaticMesh3D, n: int, period: float, bounds: LayoutBounds,
     def code_fn(t):
         return jax.vmap(lambda tt: qsm.state_code(tt, tabulated))(t)
 
-    theta = jnp.arange(n) * (period / n)
-    c0 = code_fn(theta)
-    changed0 = jnp.any(c0 != jnp.roll(c0, -1, axis=0), axis=1)
-    # the table origin far from every change, then the changes bracketed by adjacent
-    # floats *in table coordinates* [origin, origin + P)
-    origin = quiet_origin(theta, changed0, period)
-    ch = find_changes(code_fn, origin + theta, period, bounds.brackets, bounds.intervals)
-    fixed = jnp.asarray(np.asarray(extra, dtype=float))
-    cand = jnp.concatenate([fixed, ch.hi])
-    ok = jnp.concatenate([jnp.ones(fixed.shape[0], bool), jnp.isfinite(ch.hi)])
-    thetas, n_jumps = distinct_jumps(cand, ok, period, bounds.jumps, tol=1e-9)
-    valid = jnp.arange(bounds.jumps) < n_jumps
-    n_cells = qsm.mesh.n_cells
+    lay = scan_layout(code_fn, code_fn(jnp.arange(n) * (period / n)), period, bounds, extra,
+                      tol=1e-9, table=tabulated)
     kinds = jnp.zeros(bounds.jumps, jnp.int32)
     cells = jnp.zeros((bounds.jumps, 2), jnp.int32)
     unlocated = jnp.asarray(0)
     if tabulated and moving:
-        kinds, cells = classify_events(thetas, ch.lo, ch.hi, ch.c_lo, ch.c_hi, n_cells, period)
-        kinds, cells, unlocated = fix_unlocated(qsm.switch_function, thetas, kinds, cells,
+        ch, valid = lay.changes, jnp.arange(bounds.jumps) < lay.n_jumps
+        kinds, cells = classify_events(lay.thetas, ch.lo, ch.hi, ch.c_lo, ch.c_hi,
+                                       qsm.mesh.n_cells, period)
+        kinds, cells, unlocated = fix_unlocated(qsm.switch_function, lay.thetas, kinds, cells,
                                                 valid, qsm.mesh.pair.mesh_period_rad)
-    jumps = JumpSet.padded(thetas, kinds, cells, n_jumps, period, bounds.jumps, density)
-    max_extra = jnp.asarray(1)
-    knots = side = cell_first = codes = None
-    if tabulated:
-        pts = jnp.concatenate([ch.lo, ch.hi])
-        knots, cell_first, _, max_extra = table_knots(origin, period, n, pts,
-                                                      jnp.isfinite(pts), 2 * bounds.brackets)
-        side = knot_sides(knots, ch.lo, ch.hi)
-        if moving:
-            codes = code_fn(knots + side * (1e-9 * period))
-    need = LayoutBounds(jumps=n_jumps, brackets=ch.count, max_extra=jnp.maximum(1, max_extra),
-                        intervals=ch.n_intervals)
-    lay = Layout3D(jumps=jumps, knots=knots, side=side, cell_first=cell_first,
-                   origin=jnp.asarray(origin), codes=codes, max_extra=bounds.max_extra)
-    return lay, need, unlocated
+    jumps = JumpSet.padded(lay.thetas, kinds, cells, lay.n_jumps, period, bounds.jumps, density)
+    codes = lay.knot_codes(code_fn, period) if tabulated and moving else None
+    out = Layout3D(jumps=jumps, knots=lay.knots, side=lay.side, cell_first=lay.cell_first,
+                   origin=lay.origin, codes=codes, max_extra=bounds.max_extra)
+    return out, lay.need, unlocated
 
 
 def layout_3d(qsm: QuasiStaticMesh3D, n: int, period: float, *, tabulated: bool,
@@ -158,10 +138,5 @@ def layout_3d(qsm: QuasiStaticMesh3D, n: int, period: float, *, tabulated: bool,
         if all(k <= b for k, b in zip(need, bounds)):
             break
         bounds = bounds.grown(need)  # a larger program, once
-    if int(unlocated):
-        warnings.warn(
-            f"{int(unlocated)} design-dependent switching angles could not be located by "
-            "their switching function at the build design; they are kept at their build "
-            "angles (forward results exact, their design derivative is not followed)",
-            RuntimeWarning, stacklevel=3)
+    warn_unlocated(int(unlocated))
     return lay

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import warnings
 
 import equinox as eqx
 import jax
@@ -25,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ModelError
-from ..excitation.layout import LayoutBounds
+from ..excitation.layout import LayoutBounds, warn_unlocated
 from ..gears.backlash import check_model_backlash
 from ..gears.contact import TEContactLaw
 from ..gears.geometry import solid_cylinder_inertias
@@ -200,12 +199,7 @@ def build_torsional(
         kinds, cells = torsional_layout.sdof_classify_host(
             scan, data[0].n_cells, period, torsional_layout.classify_events)
         model, unlocated = _finish(cls, data, opts_t, bounds, scan, kinds, cells)
-        if int(unlocated):
-            warnings.warn(
-                f"{int(unlocated)} design-dependent switching angles could not be located "
-                "by their switching function at the build design; they are kept at their "
-                "build angles (forward results exact, their design derivative is not "
-                "followed)", RuntimeWarning, stacklevel=3)
+        warn_unlocated(int(unlocated))
         return model
 
 

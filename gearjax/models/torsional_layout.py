@@ -25,8 +25,7 @@ import numpy as np
 from ..excitation.events import code_jnp, engagement_angles
 from ..excitation.jumps import JumpSet, round_up, separated_density
 from ..excitation.events import classify_events
-from ..excitation.layout import (LayoutBounds, distinct_jumps, find_changes, fix_unlocated,
-                                 knot_sides, quiet_origin, table_knots)
+from ..excitation.layout import LayoutBounds, fix_unlocated, scan_layout
 from ..excitation.layout import classify_events as classify_traced
 from ..excitation.sdof import sdof_signature, sdof_switch
 from ..gears.backlash import back_flank_angle_rad
@@ -109,31 +108,16 @@ def sdof_scan_layout(mesh: Mesh, mods: ToothModifications, force, n_table: int,
     def code_fn(t):
         return jax.vmap(lambda tt: code_jnp(signature(tt)))(t)
 
-    theta = jnp.arange(n) * (period / n)
-    scan = jax.vmap(signature)(theta)
-    c0 = jax.vmap(code_jnp)(scan)
-    changed0 = jnp.any(c0 != jnp.roll(c0, -1, axis=0), axis=1)
-    # table origin far from every change of the discrete quasi-static state, then the
-    # changes bracketed by adjacent floats *in table coordinates* [origin, origin + P)
-    origin = quiet_origin(theta, changed0, period)
-    ch = find_changes(code_fn, origin + theta, period, bounds.brackets, bounds.intervals)
-    geo = geometric_jumps(mesh, period, back_flanks)
-    cand = jnp.concatenate([jnp.asarray(geo), ch.hi])
-    ok = jnp.concatenate([jnp.ones(geo.size, bool), jnp.isfinite(ch.hi)])
-    thetas, n_jumps = distinct_jumps(cand, ok, period, bounds.jumps)
-    extra = jnp.concatenate([ch.lo, ch.hi])
-    knots, cell_first, _, max_extra = table_knots(
-        origin, period, n, extra, jnp.isfinite(extra), 2 * bounds.brackets)
-    side = knot_sides(knots, ch.lo, ch.hi)
-    codes = code_fn(knots + side * (1e-9 * period))
-    need = LayoutBounds(jumps=n_jumps, brackets=ch.count, max_extra=jnp.maximum(1, max_extra),
-                        intervals=ch.n_intervals)
+    scan = jax.vmap(signature)(jnp.arange(n) * (period / n))
+    lay = scan_layout(code_fn, jax.vmap(code_jnp)(scan), period, bounds,
+                      geometric_jumps(mesh, period, back_flanks))
+    ch = lay.changes
     return dict(
-        table_knots=knots, table_side=side, table_cell_first=cell_first,
-        table_origin=jnp.asarray(origin), table_codes=codes, thetas=thetas, n_jumps=n_jumps,
-        lo=ch.lo, hi=ch.hi, c_lo=ch.c_lo, c_hi=ch.c_hi,
+        table_knots=lay.knots, table_side=lay.side, table_cell_first=lay.cell_first,
+        table_origin=lay.origin, table_codes=lay.knot_codes(code_fn, period),
+        thetas=lay.thetas, n_jumps=lay.n_jumps, lo=ch.lo, hi=ch.hi, c_lo=ch.c_lo, c_hi=ch.c_hi,
         nlte_max=jnp.max(jnp.abs(scan["nlte"])), contact=jnp.all(jnp.isfinite(scan["x_s"])),
-        need=need,
+        need=lay.need,
     )
 
 
