@@ -51,6 +51,7 @@ from ..runtime.cache import program_store
 from ..runtime.progress import command_meter
 from ..models.base import LINEAR_FORMULATIONS
 from ..dynamics.harmonic_sweep import HARMONIC_FLOQUET_MAX_STATES
+from ..dynamics.sweep import FREQUENCY_DOMAIN_MIN_SPEEDS
 from ..gears.quasistatic import static_mesh_force
 from ..rigs.campbell import campbell
 from ..rigs.figures import predicted_critical_speeds
@@ -109,9 +110,10 @@ def register(sub, add_rig, add_scenario):
                          "perturbation; speeds where the linear orbit loses contact or is not "
                          "proven stable go to the transient), steady (shooting), transient; "
                          "auto (default): the cheapest measured from what the model declares "
-                         "(gearjax.Auto): harmonic for te/perturbation of the 3D model, the "
-                         "transient otherwise (3D: accelerated by a periodic estimate after "
-                         "every period)")
+                         "and the number of speeds (gearjax.Auto): harmonic for te of the 3D "
+                         f"model from {FREQUENCY_DOMAIN_MIN_SPEEDS} speeds, the transient otherwise (3D: accelerated by "
+                         "a periodic estimate after every period; perturbation started on its "
+                         "frequency-domain orbit)")
     sw.add_argument("--rtol", type=float, default=None, metavar="R",
                     help="requested relative accuracy of the metrics (default: each solver's "
                          "own, rtol 1e-7 and periodicity 1e-3): integrator rtol (atol R/100), "

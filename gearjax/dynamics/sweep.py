@@ -5,8 +5,9 @@ per chunk of speeds, its speeds one after the other (a 3D model on a CPU) or vma
 sdof model on a CPU, every model on an accelerator): :mod:`gearjax.dynamics.batching`.
 
 * The speeds are the only batched input, so a new set of speeds (same chunk size) never
-  recompiles: the model's array data and the speeds are traced, only its static structure
-  (formulation, which terms exist, jump angles) and the simulation options are compiled in.
+  recompiles: the model's array data (its design, jump angles and tables included) and the
+  speeds are traced, only its static structure (formulation, which terms exist, the bounds
+  of its jump set) and the simulation options are compiled in.
   Chunks are padded to ``chunk_size`` by repeating the last speed.
 * Progress is reported per chunk to the ``progress`` meter
   (:class:`~gearjax.dynamics.progress.AbstractProgressMeter`, default none); rows are
