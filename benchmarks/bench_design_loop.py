@@ -7,6 +7,9 @@ Two measurements, each in a fresh process (empty in-memory caches; no persistent
   as the main job, 45 speeds 20-900 rad/s, the README's API): wall time, XLA compilations
   and their seconds, traces, per step. Goal (issue 51): after the first sweep, a rebuild
   with another relief and its sweep compile nothing (sdof <= 0.5 s in all, 3D <= 3 s).
+  ``--max-frequency auto``: the 3D model at the command line's modal cut-off (default:
+  every mode, ``build_model``'s default); ``--configure``: one CPU device per core and the
+  speeds shared over them, as the command line.
 * ``optimise``: the library calls of ``gearjax optimise`` with its defaults (sdof te,
   660-900 rad/s x 8, 4 starts in lockstep, 30 steps, the 7 x 7 Harris map refined once
   around its best points and the optima, the rebuilt check): wall time, compilations
@@ -17,6 +20,7 @@ Run on a quiet machine (timings are meaningless while other work shares the core
 
     python benchmarks/bench_design_loop.py notebook --model torsional
     python benchmarks/bench_design_loop.py notebook --model 3d
+    python benchmarks/bench_design_loop.py notebook --model 3d --max-frequency auto --configure
     python benchmarks/bench_design_loop.py optimise
 
 and record the output in ``benchmarks/results/design_loop.md``.
@@ -61,24 +65,31 @@ class Step:
               f"({SECONDS[TRACE] - s[TRACE]:6.2f} s)", flush=True)
 
 
-def notebook(model: str) -> None:
+def notebook(model: str, cutoff: str, devices=None) -> None:
     import gearjax as gj
+    from gearjax.models.cutoff import default_max_frequency_hz
 
     rig = gj.get_rig("baud-velex-spur")
     speeds = np.linspace(20.0, 900.0, 45)
+    extra = {}
+    if model == "3d" and cutoff == "auto":  # the command line's cut-off for these speeds
+        extra["max_frequency_hz"] = default_max_frequency_hz(float(speeds.max()),
+                                                             rig.pair.z1)
+    print(f"# 3D cut-off: {extra.get('max_frequency_hz', 'all modes')}; devices "
+          f"{jax.devices()}")
     for name, (a, e) in (("A short", (13.3e-6, 0.2)), ("B long", (13.3e-6, 0.5)),
                          ("C", (10e-6, 0.35)), ("D short", (16e-6, 0.15))):
         with Step(f"build {name}"):
             m = gj.build_model(rig, gj.ToothModifications.tip_relief(a, e), model=model,
-                               formulation="te", damping_ratio=0.1)
+                               formulation="te", damping_ratio=0.1, **extra)
             jax.block_until_ready(m)
         with Step(f"sweep {name}"):
-            r = gj.sweep(m, speeds)
+            r = gj.sweep(m, speeds, devices=devices)
         print(f"    max force {np.nanmax(r.max_mesh_force_N):.6g} N, "
               f"{len(m.jump_thetas)} jumps, NLTE terms {m.nlte_terms}, "
               f"all converged {bool(np.all(r.converged))}")
         with Step(f"sweep {name} again"):
-            gj.sweep(m, speeds)
+            gj.sweep(m, speeds, devices=devices)
 
 
 def optimise() -> None:
@@ -124,12 +135,28 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("what", choices=["notebook", "optimise"])
     p.add_argument("--model", default="torsional", choices=["torsional", "3d"])
+    p.add_argument("--max-frequency", default="all", choices=["all", "auto"],
+                   help="notebook, 3D: all modes (build_model's default) or the command "
+                        "line's cut-off for the speeds (default_max_frequency_hz)")
+    p.add_argument("--configure", action="store_true",
+                   help="notebook: gearjax.runtime.configure() first with one CPU device "
+                        "per core, the speeds shared over them (devices='all'), as "
+                        "the command line (no persistent cache here)")
     args = p.parse_args(argv)
+    devices = None
+    if args.configure and args.what == "notebook":
+        from gearjax import runtime
+
+        runtime.configure(host_devices=runtime.host_device_count())
+        devices = "all" if len(jax.devices()) > 1 else None
     jax.config.update("jax_enable_x64", True)
     jax.monitoring.register_event_duration_secs_listener(_listen)
     print(f"# bench_design_loop {args.what} ({args.model}), jax {jax.__version__}, "
           f"{jax.devices()[0].platform}")
-    notebook(args.model) if args.what == "notebook" else optimise()
+    if args.what == "notebook":
+        notebook(args.model, args.max_frequency, devices)
+    else:
+        optimise()
     return 0
 
 
