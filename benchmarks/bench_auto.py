@@ -119,11 +119,14 @@ def solver_of(name: str):
             "tight": Transient(**tolerance_options(1e-10))}[name]
 
 
-def one(model_name: str, formulation: str, method: str, speeds, out_path: str) -> None:
-    """Run one case in this process and write its JSON record."""
+def one(model_name: str, formulation: str, method: str, speeds, out_path: str,
+        devices: int = 1) -> None:
+    """Run one case in this process and write its JSON record; ``devices`` > 1: that many
+    CPU devices, the speeds shared over them (``devices="all"``) as ``gearjax sweep`` does."""
     import gearjax as gj
 
-    gj.runtime.configure(legacy_emitters=True)
+    gj.runtime.configure(legacy_emitters=True, host_devices=devices if devices > 1 else None)
+    dev = "all" if devices > 1 else None
     t0 = time.perf_counter()
     model = build(model_name, formulation, speeds)
     te = build(model_name, "te", speeds) if method == "transient-hb-start" else None
@@ -134,7 +137,7 @@ def one(model_name: str, formulation: str, method: str, speeds, out_path: str) -
         if method == "transient-hb-start":
             res = hb_start_sweep(model, te, speeds)
         else:
-            r = gj.sweep(model, speeds, solver_of(method))
+            r = gj.sweep(model, speeds, solver_of(method), devices=dev)
             res = {k: np.asarray(getattr(r, k), dtype=float) for k in METRICS}
             res["transient_periods"] = np.asarray(r.transient_periods, dtype=float)
             res["converged"] = np.asarray(r.converged, dtype=float)
@@ -146,7 +149,7 @@ def one(model_name: str, formulation: str, method: str, speeds, out_path: str) -
         from gearjax.dynamics.solvers import SweepRun
 
         t0 = time.perf_counter()
-        HarmonicBalance().sweep(model, speeds, SweepRun())
+        HarmonicBalance().sweep(model, speeds, SweepRun(devices=dev))
         alone = time.perf_counter() - t0
     rec = {"model": model_name, "formulation": formulation, "method": method,
            "build_s": t_build, "first_s": times[0], "run_s": times[1], "alone_s": alone,
@@ -178,13 +181,16 @@ def main() -> int:
     ap.add_argument("--out", default=None, help="write the Markdown table here")
     ap.add_argument("--no-reference", action="store_true",
                     help="skip the tight reference (times only; the error columns read '-')")
+    ap.add_argument("--devices", type=int, default=1,
+                    help="CPU devices of each case's process; above 1 the speeds are shared "
+                         "over them, as gearjax sweep shares them (default 1)")
     ap.add_argument("--one", nargs=4, metavar=("MODEL", "FORMULATION", "METHOD", "JSON"),
                     help=argparse.SUPPRESS)
     args = ap.parse_args()
     lo, hi, n = args.speeds.split(":")
     speeds = np.linspace(float(lo), float(hi), int(n))
     if args.one:
-        one(*args.one[:3], speeds, args.one[3])
+        one(*args.one[:3], speeds, args.one[3], args.devices)
         return 0
     work = tempfile.mkdtemp(prefix="bench-auto-")
     rows = []
@@ -196,7 +202,7 @@ def main() -> int:
             for method in (() if args.no_reference else ("tight",)) + tuple(chosen):
                 path = os.path.join(work, f"{model}-{form}-{method}.json")
                 cmd = [sys.executable, __file__, "--speeds", args.speeds,
-                       "--one", model, form, method, path]
+                       "--devices", str(args.devices), "--one", model, form, method, path]
                 t0 = time.perf_counter()
                 subprocess.run(cmd, check=True, env=dict(os.environ))
                 with open(path) as fh:

@@ -32,7 +32,8 @@ class SweepRun(eqx.Module):
     """How a solver runs a sweep, besides the model, speeds and its own options.
 
     chunk_size : speeds per compiled call (None: the solver's rule).
-    devices : JAX devices to share the speeds over (None: one; only the transient shards).
+    devices : JAX devices to share the speeds over (None: one): the transient's and the
+        frequency domain's speeds (one process for the latter); the shooting refuses them.
     progress : the meter told of the sweep's progress.
     sink : called with a :class:`SweepResult` of the speeds a solver has finished (its
         rows are final), as they finish; None: nothing is written.

@@ -340,7 +340,8 @@ def sweep(
     out_csv : append one row per speed (columns :data:`CSV_COLUMNS`) as speeds finish.
     orders_csv : append one row per speed of mesh-order amplitudes (columns
         :data:`gearjax.dynamics.results.ORDER_COLUMNS`) before ``out_csv`` gets it.
-    devices : list of JAX devices to shard the speed axis over (the transient only);
+    devices : list of JAX devices to shard the speed axis over (the transient, and the
+        frequency domain in one process; the shooting refuses them);
         ``None`` uses one device (the default device), ``"all"`` every device of the
         default backend.
     programs : where the compiled programs come from
