@@ -111,9 +111,9 @@ def register(sub, add_rig, add_scenario):
                          "proven stable go to the transient), steady (shooting), transient; "
                          "auto (default): the cheapest measured from what the model declares "
                          "and the number of speeds (gearjax.Auto): harmonic for te of the 3D "
-                         f"model from {FREQUENCY_DOMAIN_MIN_SPEEDS} speeds, the transient otherwise (3D: accelerated by "
-                         "a periodic estimate after every period; perturbation started on its "
-                         "frequency-domain orbit)")
+                         f"model from {FREQUENCY_DOMAIN_MIN_SPEEDS} speeds, the transient "
+                         "otherwise (3D: accelerated by a periodic estimate after every "
+                         "period; perturbation started on its frequency-domain orbit)")
     sw.add_argument("--rtol", type=float, default=None, metavar="R",
                     help="requested relative accuracy of the metrics (default: each solver's "
                          "own, rtol 1e-7 and periodicity 1e-3): integrator rtol (atol R/100), "

@@ -8,7 +8,8 @@ from a uniform scan (as :func:`gearjax.excitation.events.find_brackets`, same or
 floats), :func:`classify_events` names the event at each jump angle (as the NumPy
 :func:`gearjax.excitation.events.classify_events`), :func:`distinct_jumps`,
 :func:`quiet_origin` and :func:`table_knots` give the integrator's jump angles, the table's
-origin and its knots. Every array has a static length (the :class:`LayoutBounds` of the
+origin and its knots; :func:`scan_layout` chains them from a uniform scan, the layout of
+both gear models. Every array has a static length (the :class:`LayoutBounds` of the
 model: a rig, not a design, fixes them); invalid entries are masked, and the bracket
 angles of unused slots are ``+inf``. An overflow of a bound is reported as a flag (the
 builder then grows the bound: a new program, once).
@@ -22,9 +23,8 @@ design (a bisection), so derivatives flow through the angle map instead
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import warnings
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
