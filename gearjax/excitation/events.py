@@ -263,7 +263,7 @@ def switch_value(mesh, mods, cells, theta, approach_minus_gap, kind, a, b):
 def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = NEWTON_STEPS):
     """Event angles of the current design: ``newton_steps`` Newton iterations on
     ``switch(kind, a, b, theta)`` from each build angle ``s_j`` (events of kind
-    ``EV_FIXED`` stay). Differentiable: at the root the unrolled iterations return
+    ``EV_FIXED`` stay). Differentiable: at the root the iterations return
     ``d theta_j = -(dg/d design) / (dg/d theta)`` (implicit function theorem). A step
     where ``dg/d theta`` is 0 is not taken (a kinked switching function, e.g. a removed
     material that is 0 on one side of a relief start, whose iterate landed on the flat
@@ -274,13 +274,16 @@ def moved_event_angles(switch, s_j, kinds, cells, newton_steps: int = NEWTON_STE
     ab = jnp.asarray(cells, dtype=jnp.int32).reshape(-1, 2)
 
     def one(s, kind, a, b):
-        th = s
         fixed = kind == EV_FIXED
-        for _ in range(newton_steps):
+
+        def step(_, th):
             g, dg = jax.jvp(lambda t: switch(kind, a, b, t), (th,), (jnp.ones((), dtype=float),))
             hold = fixed | (dg == 0.0)
-            th = th - jnp.where(hold, 0.0, g / jnp.where(hold, 1.0, dg))
-        return th
+            return th - jnp.where(hold, 0.0, g / jnp.where(hold, 1.0, dg))
+
+        # a loop of static length: one copy of the switching function in the program
+        # (compiled once, not newton_steps times), differentiable as the unrolled steps
+        return jax.lax.fori_loop(0, newton_steps, step, s)
 
     return jax.vmap(one)(s_j, kinds, ab[:, 0], ab[:, 1])
 
