@@ -312,8 +312,9 @@ def scan_layout(code_fn, codes, period: float, bounds: LayoutBounds, fixed=(), *
     table origin far from every state change of the uniform scan (:func:`quiet_origin`),
     every change bracketed by adjacent floats from that origin (:func:`find_changes`),
     the jump angles (the changes' upper brackets and the ``fixed`` angles, host floats in
-    rad, distinct to ``tol`` periods: :func:`distinct_jumps`) and, with ``table``, the table's knots (the
-    uniform grid and both floats of every bracket: :func:`table_knots`).
+    rad, distinct to ``tol`` periods: :func:`distinct_jumps`) and, with ``table``, the
+    table's knots (the uniform grid and both floats of every bracket:
+    :func:`table_knots`).
 
     ``code_fn`` maps (m,) angles to the (m, n_code) int code matrix (traceable, any m);
     ``codes`` is its value at the uniform scan ``k period / n``, k = 0..n-1 (n = its

@@ -21,14 +21,14 @@ import dataclasses
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from ..excitation.jumps import JumpSet, round_up, separated_density
+from ..excitation.jumps import JumpSet, round_up
 from ..excitation.layout import (LayoutBounds, classify_events, fix_unlocated, scan_layout,
                                  warn_unlocated)
 from ..excitation.mesh3d import QuasiStaticMesh3D
 from ..gears.mesh import Mesh
-from .torsional_layout import back_flank_jumps, geometric_jumps, sdof_bounds
+from .torsional_layout import (back_flank_jumps, distinct_geometric_count, geometric_density,
+                               sdof_bounds)
 
 __all__ = ["geared3d_bounds", "layout_3d", "Layout3D"]
 
@@ -47,10 +47,9 @@ def geared3d_bounds(mesh: Mesh, period: float, back_flanks: bool = False) -> Lay
     if not mesh.pair.spur:
         return bounds
     n_mesh = int(round(period / mesh.pair.mesh_period_rad))
-    geo = np.unique(np.round(np.mod(geometric_jumps(mesh, period, back_flanks), period)
-                             / period, 12))
+    n_geo = distinct_geometric_count(mesh, period, back_flanks)
     return bounds._replace(max_extra=round_up(2 * mesh.cells_per_line + 4),
-                           intervals=round_up(geo.size + 8 * n_mesh, 16))
+                           intervals=round_up(n_geo + 8 * n_mesh, 16))
 
 
 class Layout3D(eqx.Module):
@@ -126,8 +125,7 @@ def layout_3d(qsm: QuasiStaticMesh3D, n: int, period: float, *, tabulated: bool,
     """
     mesh = qsm.mesh
     extra = tuple(float(a) for a in back_flank_jumps(mesh, period)) if back_flanks else ()
-    density = separated_density(np.unique(np.mod(geometric_jumps(mesh, period, back_flanks),
-                                                 period)), mesh.pair.mesh_period_rad, period)
+    density = geometric_density(mesh, period, back_flanks)
     bounds = geared3d_bounds(mesh, period, back_flanks)
     # the layout reads the discrete state alone, not d: one program whether NLTE is kept
     qsm = dataclasses.replace(qsm, nlte_terms=True)

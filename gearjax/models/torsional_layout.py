@@ -34,7 +34,7 @@ from ..gears.modifications import ToothModifications
 
 __all__ = ["sdof_scan_layout", "sdof_classify_host", "sdof_classify_traced",
            "sdof_events_layout", "sdof_bounds", "geometric_jumps", "back_flank_jumps",
-           "classify_events"]
+           "distinct_geometric_count", "geometric_density", "classify_events"]
 
 
 def geometric_jumps(mesh: Mesh, period: float, back_flanks: bool = False) -> np.ndarray:
@@ -56,6 +56,22 @@ def back_flank_jumps(mesh: Mesh, period: float) -> np.ndarray:
     return np.unique(np.mod(back_flank_angle_rad(mesh.pair) - geo, period))
 
 
+def distinct_geometric_count(mesh: Mesh, period: float, back_flanks: bool = False) -> int:
+    """How many distinct angles :func:`geometric_jumps` holds over one ``period`` (rad),
+    folded into it and merged to 1e-12 of it: the design-independent part of the layout
+    bounds (:func:`sdof_bounds`, :func:`gearjax.models.geared3d_layout.geared3d_bounds`)."""
+    geo = np.round(np.mod(geometric_jumps(mesh, period, back_flanks), period) / period, 12)
+    return int(np.unique(geo).size)
+
+
+def geometric_density(mesh: Mesh, period: float, back_flanks: bool = False) -> float:
+    """The :func:`gearjax.excitation.jumps.separated_density` of the distinct
+    :func:`geometric_jumps` (design-independent, so one integrator for every design of a
+    rig): the jump density of both gear models' jump sets."""
+    geo = np.unique(np.mod(geometric_jumps(mesh, period, back_flanks), period))
+    return separated_density(geo, mesh.pair.mesh_period_rad, period)
+
+
 def sdof_bounds(mesh: Mesh, period: float, back_flanks: bool = False) -> LayoutBounds:
     """Static bounds of the sdof layout for every design of ``mesh`` over ``period``:
     the distinct engagement angles, plus per mesh period and cell of a contact line two
@@ -64,9 +80,8 @@ def sdof_bounds(mesh: Mesh, period: float, back_flanks: bool = False) -> LayoutB
     per table cell (16 where there are more than 16 jumps per mesh period); ``back_flanks``:
     the back-flank engagement angles too (:func:`geometric_jumps`)."""
     n_mesh = int(round(period / mesh.pair.mesh_period_rad))
-    geo = np.unique(np.round(np.mod(geometric_jumps(mesh, period, back_flanks), period)
-                             / period, 12))
-    jumps = round_up(geo.size + (4 * mesh.cells_per_line + 2) * n_mesh)
+    jumps = round_up(distinct_geometric_count(mesh, period, back_flanks)
+                     + (4 * mesh.cells_per_line + 2) * n_mesh)
     extra = 8 if jumps <= 16 * n_mesh else 16
     brackets = round_up(1.125 * jumps + 4)
     return LayoutBounds(jumps=jumps, brackets=brackets, max_extra=extra, intervals=brackets)
@@ -158,9 +173,6 @@ def sdof_events_layout(mesh: Mesh, mods: ToothModifications, force, period: floa
     switch = eqx.Partial(sdof_switch, mesh, mods, jnp.asarray(force, dtype=float))
     kinds, cells, unlocated = fix_unlocated(switch, scan["thetas"], kinds, cells, valid,
                                             mesh.pair.mesh_period_rad)
-    geo = geometric_jumps(mesh, period, back_flanks)
-    density = separated_density(np.unique(np.mod(geo, period)), mesh.pair.mesh_period_rad,
-                                period)
     jumps = JumpSet.padded(scan["thetas"], kinds, cells, scan["n_jumps"], period,
-                           bounds.jumps, density)
+                           bounds.jumps, geometric_density(mesh, period, back_flanks))
     return jumps, unlocated
