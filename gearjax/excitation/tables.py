@@ -80,8 +80,12 @@ class PeriodicHermiteTable(eqx.Module):
         return knots, cell_first, int(max(1, counts.max()))
 
     def wrap(self, theta):
-        """theta folded into [origin, origin + period)."""
-        return self.origin + jnp.mod(theta - self.origin, self.period)
+        """theta folded into [origin, origin + period), derivative 1: ``mod`` of a
+        difference a little below a multiple of the period rounds up to the period itself,
+        which is folded back (the padding knots repeat ``origin + period``, and a lookup
+        there would pick a zero-width segment, whose second derivative is 0 / 0)."""
+        s = self.origin + jnp.mod(theta - self.origin, self.period)
+        return jnp.where(s < self.origin + self.period, s, s - self.period)
 
     def __call__(self, theta):
         """(values (q,), slopes (q,)) at ``theta`` (rad)."""
@@ -94,7 +98,8 @@ class PeriodicHermiteTable(eqx.Module):
         j = jnp.minimum(j0 + jnp.sum(self.knots[cand] <= s), last)
         t0, t1 = self.knots[j], self.knots[j + 1]
         w = jnp.maximum(t1 - t0, 1e-300)
-        u = jnp.clip((s - t0) / w, 0.0, 1.0)
+        u = (s - t0) / w  # clipped to [0, 1] in value alone: d/ds stays 1/w at the knots
+        u = u + jax.lax.stop_gradient(jnp.clip(u, 0.0, 1.0) - u)
         return hermite_segment(self.values[j], self.values[j + 1], self.slopes[j] * w,
                                self.slopes[j + 1] * w, u, w)
 
