@@ -246,10 +246,13 @@ def test_torsional_structure_matches_sdof_model(torsional_setup, formulation):
 # and separated: tests/test_contact_law.py::test_3d_te_contact_law_is_the_cell_law_for_perfect_teeth
 def test_te_formulation_equals_reference_without_contact_changes():
     """Perfect spur gears (all gaps zero) and the averaged V: the dynamic active set is the
-    quasi-static one, so Eq. (42) is an exact rewriting of Eq. (14) at any speed."""
+    quasi-static one, so Eq. (42) is an exact rewriting of Eq. (14) at any speed. (NLTE = 0:
+    the reference builds without NLTE terms, the te model likewise here, so that both share
+    one modal basis; by default it would keep them, and E in its basis, for other designs.)"""
     common = dict(cells_per_line=2, mesh_vectors="mean", max_frequency_hz=5000.0, n_table=32)
     ref = build_model(baud_velex_rig(False), ToothModifications.none(), formulation="reference", **common)
-    te = build_model(baud_velex_rig(False), ToothModifications.none(), formulation="te", **common)
+    te = build_model(baud_velex_rig(False), ToothModifications.none(), formulation="te",
+                     nlte_terms=False, **common)
     run = lambda m: simulate(m, 200.0, n_transient_periods=6, n_measured_periods=2)  # noqa: E731
     a, b = run(ref), run(te)
     assert not bool(a.contact_loss) and bool(a.solver_ok) and bool(b.solver_ok)
@@ -406,7 +409,7 @@ def test_pinion_eccentricity_terms(torsional_setup):
     assert m.ecc is not None and m.period_rad == pytest.approx(26 * mesh.pair.mesh_period_rad)
     m1 = float(m.ecc.masses_kg[0])
     for th in (0.0, 0.4, 1.3):
-        _, _, g = m._ecc_local(jnp.asarray(th))
+        _, _, g = m.ecc.local_vectors(jnp.asarray(th), *m.mesh.pair.base_radii_m)
         g = np.asarray(g)
         np.testing.assert_allclose(np.hypot(g[1], g[2]), m1 * 20e-6, rtol=1e-12)
         assert np.all(g[[0, 3, 4, 5, 6, 9, 10, 11]] == 0) and np.all(g[7:9] == 0)  # no gear ecc.
@@ -493,11 +496,13 @@ def test_accelerated_transient_reaches_the_frequency_domain_orbit(torsional_setu
     decays by its own free-decay multiplier and the per-period periodic estimate
     (modal_periodic_estimate) is exact: the accelerated transient must stop after ~2
     periods on the orbit solved harmonic by harmonic (frequency domain, independent of
-    any integration), where the plain automatic transient integrates tens of periods."""
+    any integration), where the plain automatic transient integrates tens of periods.
+    (Short relief, NLTE = 0: built without the NLTE terms, which the tabulated model
+    would otherwise keep for other designs.)"""
     mesh, _, _, s, fixed = torsional_setup
     m = without_contact_law(Geared3DModel.build(
         s, mesh, table1_relief("short"), fixed_dofs=fixed, n_table=128, damping_ratio=0.05,
-        formulation="perturbation", mesh_vectors="mean"))
+        formulation="perturbation", mesh_vectors="mean", nlte_terms=False))
     for omega in (jnp.asarray(800.0),):  # near the mode: 23 plain periods
         exact = simulate(m, omega, n_transient_periods=0, y0=m.harmonic_state(omega),
                          rtol=1e-10, atol=1e-12)
@@ -683,3 +688,52 @@ def test_a_design_of_another_event_structure_compiles_nothing(rig_te):
         np.testing.assert_allclose(np.asarray(other.table.values[j]), np.asarray(exact),
                                    rtol=1e-6, atol=1e-14)
     assert np.isfinite(b.dynamic_factor[0]) and abs(b.dynamic_factor[0] - a.dynamic_factor[0]) > 1e-3
+
+
+def test_nlte_appearing_compiles_nothing(rig_te):
+    """Designs as data (3D), the canonical change: the short relief of Table 1 (NLTE
+    identically zero) after the long one (NLTE != 0) builds and sweeps without tracing or
+    compiling, both with their NLTE terms (one program), and the terms the short design
+    compiles vanish: its vector field and outputs are those of the same arrays with the
+    terms not compiled (``nlte_terms=False``: no E, F terms, TE_S - NLTE read as TE_S)."""
+    import collections
+
+    import gearjax.dynamics.sweep as sweep_mod
+
+    kw = dict(n_transient_periods=1, n_measured_periods=2)
+    sweep_mod.sweep(rig_te, [300.0], sweep_mod.Transient(**kw))
+    counts = collections.Counter()
+    jax.monitoring.register_event_duration_secs_listener(
+        lambda event, duration, **k: counts.update([event]))
+    short = build_model(baud_velex_rig(False), table1_relief("short"), cells_per_line=4,
+                        formulation="te", max_frequency_hz=6000.0, n_table=32)
+    res = sweep_mod.sweep(short, [300.0], sweep_mod.Transient(**kw))
+    assert counts["/jax/core/compile/jaxpr_trace_duration"] == 0
+    assert counts["/jax/core/compile/backend_compile_duration"] == 0
+    assert rig_te.nlte_terms and short.nlte_terms and bool(short.structure_ok)
+    assert np.all(np.asarray(short.table.values[:, 2]) == 0.0)  # short relief: NLTE = 0
+    assert np.any(np.asarray(rig_te.table.values[:, 2]) != 0.0)
+    assert np.all(np.isfinite(res.dynamic_factor))
+    without = dataclasses.replace(short, nlte_terms=False)
+    rng = np.random.default_rng(5)
+    for s in rng.uniform(0.0, short.period_rad, 4):
+        y = jnp.asarray(rng.normal(size=short.state_size) * 0.3)
+        np.testing.assert_array_equal(np.asarray(short.vector_field(s, y, 300.0)),
+                                      np.asarray(without.vector_field(s, y, 300.0)))
+        a, b = short.outputs(s, y, 300.0), without.outputs(s, y, 300.0)
+        for f in ("mesh_force_N", "dte_m", "accel_m_s2"):
+            assert float(getattr(a, f)) == float(getattr(b, f)), f
+
+
+def test_a_model_without_nlte_terms_is_not_valid_where_nlte_appears(torsional_setup):
+    """A model built without NLTE terms (the reference formulation at a relief whose NLTE
+    is identically zero: its NLTE'' E is not compiled) and mapped by with_modifications to a
+    design with NLTE says so by its structure flag, instead of integrating without
+    NLTE'' E; a design that keeps NLTE at zero keeps the flag."""
+    mesh, _, _, s, fixed = torsional_setup
+    m = Geared3DModel.build(s, mesh, table1_relief("short"), fixed_dofs=fixed,
+                            formulation="reference", n_table=32)
+    assert not m.nlte_terms and bool(m.structure_ok)
+    flag = eqx.filter_jit(lambda m, mods: m.with_modifications(mods).structure_ok)
+    assert not bool(flag(m, table1_relief("long")))  # NLTE appears
+    assert bool(flag(m, ToothModifications.tip_relief(16e-6, 0.15)))  # short: NLTE = 0

@@ -41,8 +41,9 @@ def _common(p, add_rig):
     p.add_argument("--model", default="torsional", choices=["torsional", "3d"],
                    help="dynamic model: torsional (sdof, default) or 3d (the rig's 3D model "
                         "at its periodic steady state: each value and gradient integrates "
-                        "the 3D model from every --orbits start at every speed; a relief "
-                        "where NLTE appears or vanishes compiles once more; see the "
+                        "the 3D model from every --orbits start at every speed; with "
+                        "--formulation reference a relief where NLTE appears or vanishes "
+                        "compiles once more; see the "
                         "Performance page of the documentation for what a step costs)")
     p.add_argument("--max-frequency", type=float, default=None, metavar="HZ",
                    help="3D model: keep the modes below HZ (0 = all modes; default: 3 mesh "

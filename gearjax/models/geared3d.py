@@ -43,9 +43,10 @@ take TE_S, NLTE and k from a TE file (:mod:`gearjax.models.geared3d_excitation`)
 Inertial excitations (text after Eq. (14)): ``E`` (Eq. (5), :meth:`gearjax.structure.geared.
 GearedStructure.inertial_vector`) plus the eccentricity parts ``E~``, ``F~``, ``G~``
 (:class:`gearjax.structure.geared.Eccentricity`). Without eccentricity these are not
-compiled; without NLTE terms (``nlte_terms=False``, or NLTE identically zero) E and F are
-not compiled and ``TE_S - NLTE`` becomes ``TE_S``; ``nlte_inertia=False`` (Section 6.3.2,
-"NLTE'' set at zero") drops the E and F terms alone, with no substitution (``u = q'``).
+compiled; without NLTE terms (``nlte_terms=False``, or NLTE identically zero where the build
+does not keep them for every design, :func:`gearjax.models.geared3d_build.shares_nlte_programs`)
+E and F are not compiled and ``TE_S - NLTE`` becomes ``TE_S``; ``nlte_inertia=False`` (Section
+6.3.2, "NLTE'' set at zero") drops the E and F terms alone, with no substitution (``u = q'``).
 ``E_0`` is projected once at build (``e_r = T^T E_0``); the eccentricity parts act at the
 12 element dofs; ``G~`` (the unbalance of eccentric bodies, no NLTE in it) stays whenever
 there is an eccentricity.
@@ -115,7 +116,7 @@ from .base import (LINEAR_FORMULATIONS, AbstractModalModel, ModelOutputs,
                    modal_periodic_estimate, modal_transient_amplitudes, modal_transient_start)
 from .formulations import (AbstractFormulation, Perturbation, Reference, TransmissionError,
                            formulation_of)
-from .geared3d_build import EXCITATIONS, MESH_VECTORS, build_geared3d
+from .geared3d_build import EXCITATIONS, MESH_VECTORS, build_geared3d, nlte_vanishes
 from .cutoff import (CUTOFF_FLOOR_HZ, CUTOFF_MARGIN, CUTOFF_MESH_HARMONICS,  # re-exported
                      default_max_frequency_hz)
 
@@ -337,18 +338,22 @@ class Geared3DModel(AbstractModalModel):
     def with_modifications(self, mods: ToothModifications) -> "Geared3DModel":
         """The complete model of the design ``mods`` (same structure, modal basis, ``k_m``
         and build layout): excitation table, angle map through the moved events and
-        :attr:`structure_ok` recomputed. Traceable (jit, jacfwd) in ``mods``."""
+        :attr:`structure_ok` recomputed (False also where a model built without NLTE terms
+        meets a design with NLTE: :func:`~gearjax.models.geared3d_build.nlte_vanishes`).
+        Traceable (jit, jacfwd) in ``mods``."""
         if self.te_source is not None:
             raise ModelError("te_source", self.te_source, "the excitation comes from a TE file; "
                              "tooth modifications cannot change it (build the model without it)")
         m = eqx.tree_at(lambda m: m.mods, self, mods)
-        if m.table_knots is None:
-            return m
-        table, amap, ok = tabulate(
-            m.quasi_static_mesh(), m.table_knots, m.table_side, m.table_cell_first,
-            origin=m.table_origin, period=m.period_rad, n_cells=m.table_cells,
-            max_extra=m.table_max_extra, events=None if m.angle_map is None else m.jumps,
-            table_codes=m.table_codes)
+        table, amap, ok = m.table, m.angle_map, jnp.asarray(True)
+        if m.table_knots is not None:
+            table, amap, ok = tabulate(
+                m.quasi_static_mesh(), m.table_knots, m.table_side, m.table_cell_first,
+                origin=m.table_origin, period=m.period_rad, n_cells=m.table_cells,
+                max_extra=m.table_max_extra, events=None if m.angle_map is None else m.jumps,
+                table_codes=m.table_codes)
+        if not m.nlte_terms:  # built without NLTE terms: valid while the design has none
+            ok = ok & nlte_vanishes(m.mesh, mods, m.period_rad)
         return eqx.tree_at(lambda m: (m.table, m.angle_map, m.structure_ok), m,
                            (table, amap, ok), is_leaf=lambda x: x is None)
 
@@ -401,9 +406,6 @@ class Geared3DModel(AbstractModalModel):
         return self.q0 + d / self.c_wv * self.c_v_r
 
     # ------------------------------------------------------------------ excitation vectors
-    def _ecc_local(self, theta):
-        return self.ecc.local_vectors(theta, *self.mesh.pair.base_radii_m)
-
     @property
     def nlte_inertial_terms(self) -> bool:
         """``NLTE'' E + NLTE' F`` are in the equations (``nlte_terms`` and ``nlte_inertia``)."""

@@ -20,7 +20,7 @@ from ..gears.backlash import check_model_backlash
 from ..gears.contact import TEContactLaw
 from ..gears.mesh import Mesh
 from ..gears.modifications import ToothModifications
-from ..gears.quasistatic import static_mesh_force
+from ..gears.quasistatic import contact_gaps, static_mesh_force
 from ..structure.condensation import Condensation, quasi_static_3d
 from ..structure.geared import Eccentricity, disc_mass, geared_structure
 from .formulations import AbstractFormulation, Reference, formulation_of
@@ -49,6 +49,36 @@ def modal_structure(kbar_r, c_r, n_modes: int, tol: float = 1e-6) -> dict:
     head[p:, p:] = np.diag(np.diag(c)[p:])  # the static-correction block may be dense
     split = p if 0 < p <= c.shape[0] and diagonal(head) else 0
     return {"diagonal_stiffness": diagonal(k), "damping_split": split}
+
+
+NLTE_SCAN = 256  # samples per mesh period of nlte_vanishes (the build's n_table default)
+
+
+def shares_nlte_programs(formulation, excitation: str, te_table, harmonic_start: bool) -> bool:
+    """Whether a 3D build keeps its NLTE terms whatever its design's NLTE (``nlte_terms``
+    None): a tabulated te/perturbation model of the mesh's own geometry, without a TE file
+    and without the constant-coefficient start (``harmonic_start`` needs the terms
+    absent). Every relief of the rig then shares the model's compiled programs: where NLTE
+    is identically zero the terms vanish (NLTE' = 0 in the table), and the direction of
+    ``NLTE'' E`` is in the modal basis either way. The reference formulation and
+    ``excitation="inline"`` (NLTE' from the contact geometry at every right-hand side) and
+    a TE file (whose design cannot change) keep them only where NLTE is not identically
+    zero."""
+    return (not isinstance(formulation, Reference) and excitation == "table"
+            and te_table is None and not harmonic_start)
+
+
+def nlte_vanishes(mesh: Mesh, mods: ToothModifications, period: float,
+                  n_per_mesh: int = NLTE_SCAN):
+    """() bool: NLTE (m, :func:`gearjax.gears.quasistatic.contact_gaps`) is 0 at
+    ``n_per_mesh`` uniform samples per mesh period over ``period`` (rad), the build's
+    test for "identically zero". Traceable in ``mods``: a model built without NLTE terms
+    stays valid for a design only where this holds
+    (:meth:`~gearjax.models.geared3d.Geared3DModel.with_modifications`)."""
+    n = int(n_per_mesh) * max(1, round(period / mesh.pair.mesh_period_rad))
+    theta = jnp.arange(n) * (period / n)
+    nlte = jax.vmap(lambda t: contact_gaps(mesh, mods, t)[2])(theta)
+    return jnp.all(nlte == 0.0)
 
 
 @eqx.filter_jit
@@ -114,8 +144,11 @@ def build_geared3d(
         (``"reference"``, ``"te"``, ``"perturbation"``).
     mesh_vectors : ``"cells"`` (V(M_i), paper) or ``"mean"`` (averaged V everywhere:
         the reference contact and the quasi-static TE_S then use V, Eq. (27)).
-    nlte_terms : keep NLTE in the equations (default: unless NLTE is identically zero);
-        False: NLTE = 0 everywhere.
+    nlte_terms : keep NLTE in the equations; False: NLTE = 0 everywhere. Default: kept
+        by a tabulated te/perturbation model of the mesh's own geometry (no ``te_table``,
+        no ``harmonic_start``), so that every relief of the rig shares its compiled
+        programs (where NLTE is identically zero the terms vanish); elsewhere kept unless
+        NLTE is identically zero (:func:`shares_nlte_programs`).
     nlte_inertia : False drops ``NLTE'' E + NLTE' F`` alone (Section 6.3.2, "NLTE'' set
         at zero"): ``TE_S - NLTE`` stays in the forcing, NLTE in the DTE, E out of the basis.
     max_frequency_hz : modal cut-off (Hz); None keeps all modes (exact).
@@ -141,8 +174,8 @@ def build_geared3d(
         periodic steady state (:meth:`harmonic_state`, see :attr:`periodic_start`).
     te_table : te/perturbation: TE_S, NLTE and (if given) k from a TE file (Section 6.2,
         :mod:`gearjax.models.geared3d_excitation`); its mean stiffness is k_m unless
-        ``mean_stiffness_N_per_m`` is given; ``nlte_terms`` None: kept iff its NLTE is
-        not identically 0.
+        ``mean_stiffness_N_per_m`` is given; ``nlte_terms`` None: kept unless its NLTE
+        is identically 0.
     moving_events : te/perturbation table: False keeps the switching angles at the build
         angles (no angle map: the same model at the build design, built faster for
         forward sweeps; :meth:`with_modifications` then moves no switching angle).
@@ -217,8 +250,9 @@ def build_geared3d(
     nlte_tab = np.asarray(qs.nlte_m)
     if te_table is not None:
         nlte_tab = np.asarray(te_table.values[:, 1])
-    if nlte_terms is None:
-        nlte_terms = bool(np.max(np.abs(nlte_tab - 0.0)) > 0.0)
+    if nlte_terms is None:  # the rule of the ``nlte_terms`` parameter
+        nlte_terms = (shares_nlte_programs(formulation, excitation, te_table, harmonic_start)
+                      or bool(np.max(np.abs(nlte_tab - 0.0)) > 0.0))
     cond = Condensation.build(K, F0, W, gs.element_dofs, keep12, k_m=k_m, v_local=v12)
 
     # modal basis of (M, K_bar), projected vectors
