@@ -414,10 +414,10 @@ class Geared3DModel(AbstractModalModel):
     def _inertial(self, theta):
         """``(e, e', f, g)`` (r,) in modal coordinates at the pinion angle ``theta`` (rad):
         ``T^T E``, its theta-derivative, ``T^T F~`` and ``T^T G~``; None for the terms that
-        are absent (no eccentricity, or no NLTE inertial terms)."""
+        are absent (no eccentricity: E constant, no E', F~, G~; no NLTE inertial terms)."""
         use_e = self.nlte_inertial_terms
         if self.ecc is None:
-            return ((self.e_r, jnp.zeros_like(self.e_r)) if use_e else (None, None)) + (None, None)
+            return (self.e_r if use_e else None), None, None, None
         tl = self.t_local.T
         rb1, rb2 = self.mesh.pair.base_radii_m
         _, f_loc, g_loc = self.ecc.local_vectors(theta, rb1, rb2)
@@ -430,15 +430,17 @@ class Geared3DModel(AbstractModalModel):
     def _nlte_derivs(self, s, order: int = 1):
         """NLTE (m) and its derivatives with respect to theta (``order`` 1 or 2) at the
         simulation angle ``s`` (chain rule through the angle map: d/dtheta = (d/ds) /
-        phi'): from the excitation table (exact at the kinks, which are knots) or the exact
+        phi'): from the excitation table (its Hermite segment's own derivative, the lookup
+        that :meth:`_excitation` makes; exact at the kinks, which are knots) or the exact
         :func:`gearjax.gears.quasistatic.contact_gaps`."""
-        if self.table is not None:
-            f = lambda t: self.table(t)[0][2]  # noqa: E731
-        else:
-            f = lambda t: contact_gaps(self.mesh, self.mods, t)[2]  # noqa: E731
 
         def d1(t):
-            n0, n1 = jax.jvp(f, (t,), (jnp.ones_like(t),))
+            if self.table is not None:
+                vals, slopes = self.table(t)
+                n0, n1 = vals[2], slopes[2]
+            else:
+                f = lambda t: contact_gaps(self.mesh, self.mods, t)[2]  # noqa: E731
+                n0, n1 = jax.jvp(f, (t,), (jnp.ones_like(t),))
             dth = self.angle(t)[1]
             return n0, (n1 if dth is None else n1 / dth)
 
@@ -554,10 +556,10 @@ class Geared3DModel(AbstractModalModel):
             qp = u
         force, _ = self._elastic(s, q, contact)
         up = -(force + omega * self._damping_product(qp)) / omega**2
-        if e is not None:
+        if ep is not None:
             up = up + nl1 * ep
-            if f is not None:
-                up = up - nl1 * f
+        if f is not None:
+            up = up - nl1 * f
         if g is not None:
             up = up - g
         return q, qp, up
@@ -659,7 +661,7 @@ class Geared3DModel(AbstractModalModel):
         qpp = up
         if e is not None:
             _, nl1, nl2 = self._nlte_derivs(theta, order=2)
-            qpp = up - nl2 * e - nl1 * ep
+            qpp = up - nl2 * e - (0.0 if ep is None else nl1 * ep)
         dte = self.w_r @ q
         if isinstance(self.formulation, Reference) or self.nlte_terms:
             dte = dte + (self.table(theta)[0][2] if self.table is not None
