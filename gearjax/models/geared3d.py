@@ -338,9 +338,8 @@ class Geared3DModel(AbstractModalModel):
     def with_modifications(self, mods: ToothModifications) -> "Geared3DModel":
         """The complete model of the design ``mods`` (same structure, modal basis, ``k_m``
         and build layout): excitation table, angle map through the moved events and
-        :attr:`structure_ok` recomputed (False also where a model built without NLTE terms
-        meets a design with NLTE: :func:`~gearjax.models.geared3d_build.nlte_vanishes`).
-        Traceable (jit, jacfwd) in ``mods``."""
+        :attr:`structure_ok` recomputed (False also where a model without NLTE terms meets
+        NLTE: :func:`~gearjax.models.geared3d_build.nlte_vanishes`). Traceable in ``mods``."""
         if self.te_source is not None:
             raise ModelError("te_source", self.te_source, "the excitation comes from a TE file; "
                              "tooth modifications cannot change it (build the model without it)")
@@ -436,11 +435,10 @@ class Geared3DModel(AbstractModalModel):
 
         def d1(t):
             if self.table is not None:
-                vals, slopes = self.table(t)
-                n0, n1 = vals[2], slopes[2]
+                n0, n1 = (v[2] for v in self.table(t))
             else:
-                f = lambda t: contact_gaps(self.mesh, self.mods, t)[2]  # noqa: E731
-                n0, n1 = jax.jvp(f, (t,), (jnp.ones_like(t),))
+                n0, n1 = jax.jvp(lambda t: contact_gaps(self.mesh, self.mods, t)[2], (t,),
+                                 (jnp.ones_like(t),))
             dth = self.angle(t)[1]
             return n0, (n1 if dth is None else n1 / dth)
 
