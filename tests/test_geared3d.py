@@ -136,11 +136,16 @@ def test_relations_on_random_rigs(seed):
 
 
 # ---------------------------------------------------------------------- fixtures
+def _rig_te_model(mods):
+    """The Baud-Velex spur rig's te model at ``mods``, reduced (6 kHz), coarse cells."""
+    return build_model(baud_velex_rig(False), mods, cells_per_line=4, formulation="te",
+                       max_frequency_hz=6000.0, n_table=32)
+
+
 @pytest.fixture(scope="module")
 def rig_te():
     """Baud-Velex spur rig, long relief (NLTE != 0), reduced (6 kHz), coarse cells: te."""
-    return build_model(baud_velex_rig(False), table1_relief("long"), cells_per_line=4,
-                                    formulation="te", max_frequency_hz=6000.0, n_table=32)
+    return _rig_te_model(table1_relief("long"))
 
 
 def test_model_relations_and_static_balance(rig_te):
@@ -669,7 +674,9 @@ def test_a_design_of_another_event_structure_compiles_nothing(rig_te):
     import gearjax.dynamics.sweep as sweep_mod
 
     kw = dict(n_transient_periods=1, n_measured_periods=2)
-    a = sweep_mod.sweep(rig_te, [300.0], sweep_mod.Transient(**kw))
+    # built here, not taken from the fixture: the suite may have released the compiled
+    # programs since (gearjax.runtime.code_memory), and "nothing compiles" needs them
+    a = sweep_mod.sweep(_rig_te_model(table1_relief("long")), [300.0], sweep_mod.Transient(**kw))
     counts = collections.Counter()
     jax.monitoring.register_event_duration_secs_listener(
         lambda event, duration, **k: counts.update([event]))
@@ -701,7 +708,8 @@ def test_nlte_appearing_compiles_nothing(rig_te):
     import gearjax.dynamics.sweep as sweep_mod
 
     kw = dict(n_transient_periods=1, n_measured_periods=2)
-    sweep_mod.sweep(rig_te, [300.0], sweep_mod.Transient(**kw))
+    # built here (the suite may have released the fixture's programs: code_memory)
+    sweep_mod.sweep(_rig_te_model(table1_relief("long")), [300.0], sweep_mod.Transient(**kw))
     counts = collections.Counter()
     jax.monitoring.register_event_duration_secs_listener(
         lambda event, duration, **k: counts.update([event]))
