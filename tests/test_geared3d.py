@@ -680,9 +680,7 @@ def test_a_design_of_another_event_structure_compiles_nothing(rig_te):
     counts = collections.Counter()
     jax.monitoring.register_event_duration_secs_listener(
         lambda event, duration, **k: counts.update([event]))
-    other = build_model(baud_velex_rig(False), ToothModifications.tip_relief(10e-6, 0.35),
-                        cells_per_line=4, formulation="te", max_frequency_hz=6000.0,
-                        n_table=32)
+    other = _rig_te_model(ToothModifications.tip_relief(10e-6, 0.35))
     b = sweep_mod.sweep(other, [300.0], sweep_mod.Transient(**kw))
     assert counts["/jax/core/compile/jaxpr_trace_duration"] == 0
     assert counts["/jax/core/compile/backend_compile_duration"] == 0
@@ -713,8 +711,7 @@ def test_nlte_appearing_compiles_nothing(rig_te):
     counts = collections.Counter()
     jax.monitoring.register_event_duration_secs_listener(
         lambda event, duration, **k: counts.update([event]))
-    short = build_model(baud_velex_rig(False), table1_relief("short"), cells_per_line=4,
-                        formulation="te", max_frequency_hz=6000.0, n_table=32)
+    short = _rig_te_model(table1_relief("short"))
     res = sweep_mod.sweep(short, [300.0], sweep_mod.Transient(**kw))
     assert counts["/jax/core/compile/jaxpr_trace_duration"] == 0
     assert counts["/jax/core/compile/backend_compile_duration"] == 0
