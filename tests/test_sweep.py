@@ -14,6 +14,7 @@ import textwrap
 import equinox as eqx
 import jax
 import numpy as np
+import jax.numpy as jnp
 import pytest
 
 import gearjax.dynamics.sweep as sweep_mod
@@ -22,7 +23,7 @@ from gearjax.rigs import baud_velex_rig, build_model
 from gearjax.models.torsional import TorsionalModel
 from gearjax.dynamics.simulate import SimulationError, simulate
 from gearjax.dynamics.sweep import CSV_COLUMNS, Transient, sweep
-from gearjax.dynamics.results import append_rows
+from gearjax.dynamics.results import METRIC_FIELDS, append_rows
 from gearjax.errors import GearjaxError
 from gearjax.runtime import TextProgressMeter
 
@@ -219,6 +220,27 @@ def test_mapped_batch_equals_the_vmapped_one(model, monkeypatch):
         np.testing.assert_allclose(x[~lost], y[~lost], rtol=5e-7 if f == "dte_ptp_m" else 1e-7,
                                    err_msg=f)
         np.testing.assert_allclose(x[lost], y[lost], rtol=1e-5, err_msg=f)
+
+
+def test_mapped_chunk_skips_its_padding(model, monkeypatch):
+    """Mapped, a chunk's padding slots hold NaN speeds and are not integrated (their step
+    count is NaN, not a count), while the real slot next to them is the single-speed
+    simulation; a sweep whose last chunk is padded reports only its own speeds."""
+    monkeypatch.setattr(sweep_mod, "sequential_on", lambda platform, n: True)
+    sw = np.asarray([300.0, 700.0, 500.0])
+    *_, idx, pad, slots = sweep_mod._plan(model, sw, 4, None, TR)
+    assert pad.tolist() == [False, False, False, True] and np.isnan(slots[3])
+    assert sorted(idx[~pad].tolist()) == [0, 1, 2]
+    out = sweep_mod._sequential(model, jnp.asarray([300.0, np.nan]), TR)
+    steps = out[METRIC_FIELDS.index("n_steps")]
+    one = eqx.filter_jit(simulate)(model, np.float64(300.0), **OPTS)
+    assert steps[0] == int(one.n_steps) and np.isnan(steps[1])
+    force = out[METRIC_FIELDS.index("max_mesh_force_N")]
+    assert np.isnan(force[1])
+    np.testing.assert_allclose(force[0], float(one.max_mesh_force_N), rtol=1e-10)
+    res = sweep(model, sw, chunk_size=4, solver=TR)
+    assert res.speed_rad_s.tolist() == sw.tolist()
+    assert np.all(np.isfinite(res.max_mesh_force_N)) and np.all(res.n_steps > 0)
 
 
 _SHARDED = textwrap.dedent(

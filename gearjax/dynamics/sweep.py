@@ -8,7 +8,8 @@ sdof model on a CPU, every model on an accelerator): :mod:`gearjax.dynamics.batc
   recompiles: the model's array data (its design, jump angles and tables included) and the
   speeds are traced, only its static structure (formulation, which terms exist, the bounds
   of its jump set) and the simulation options are compiled in.
-  Chunks are padded to ``chunk_size`` by repeating the last speed.
+  Chunks are padded to ``chunk_size``: vmapped, by repeating the last speed (a lane in
+  lockstep); mapped, by NaN speeds, which the program skips.
 * Progress is reported per chunk to the ``progress`` meter
   (:class:`~gearjax.dynamics.progress.AbstractProgressMeter`, default none); rows are
   appended to ``out_csv`` as chunks complete (a header is written when the file is new or
@@ -51,8 +52,9 @@ from .progress import AbstractProgressMeter, NoProgressMeter, check_meter
 
 from .harmonic_sweep import HarmonicBalance
 from .solvers import AbstractOrbitSolver, AbstractPeriodicSolver, Fallback, SweepRun
-from .results import (CSV_COLUMNS, FLAG_FIELDS, METRIC_FIELDS, ORDER_COLUMNS, SweepResult,
-                      append_rows, empty_metrics)
+from .orders import N_MESH_ORDERS
+from .results import (CSV_COLUMNS, FLAG_FIELDS, METRIC_FIELDS, ORDER_COLUMNS, ORDER_FIELDS,
+                      SweepResult, append_rows, empty_metrics)
 from .orbit import metric_status
 from .simulate import SimulationError, SimulationResult, simulate
 
@@ -63,9 +65,24 @@ __all__ = ["sweep", "Transient", "Auto", "SweepResult", "CSV_COLUMNS", "toleranc
 
 def _over_speeds(model, speeds, solver, sequential: bool):
     """The metrics of ``solver`` (a :class:`Transient`, static) at every speed of
-    ``speeds``, mapped or vmapped (:func:`gearjax.dynamics.batching.over_speeds`)."""
-    return over_speeds(lambda w: _metrics_only(solver.orbit_metrics(model, w)), speeds,
-                       sequential=sequential)
+    ``speeds``, mapped or vmapped (:func:`gearjax.dynamics.batching.over_speeds`). Mapped,
+    each metric is a float and a NaN speed (a padding slot of the chunk, :func:`_plan`) is
+    not integrated: its metrics are NaN (a ``lax.cond`` under ``lax.map`` runs one branch;
+    under ``vmap`` it would run both)."""
+    if not sequential:
+        return over_speeds(lambda w: _metrics_only(solver.orbit_metrics(model, w)), speeds,
+                           sequential=False)
+
+    def one(w):
+        return tuple(jnp.asarray(v, float) for v in
+                     _metrics_only(solver.orbit_metrics(model, w)))
+
+    def padding(w):
+        return tuple(jnp.full((N_MESH_ORDERS,) if f in ORDER_FIELDS else (), jnp.nan)
+                     for f in METRIC_FIELDS)
+
+    return over_speeds(lambda w: jax.lax.cond(jnp.isnan(w), padding, one, w), speeds,
+                       sequential=True)
 
 
 @partial(eqx.filter_jit, donate="none")
@@ -169,7 +186,7 @@ class Transient(AbstractOrbitSolver):
         progress, sink = run.progress, run.sink
         multi_process = jax.process_count() > 1
         lead = jax.process_index() == 0  # the process that reports and writes
-        fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx = _plan(
+        fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, pad, slot_speeds = _plan(
             model, speeds, run.chunk_size, run.devices, self)
         programs = NoProgramStore() if multi_process else run.programs
         total = n_chunks * chunk
@@ -180,16 +197,16 @@ class Transient(AbstractOrbitSolver):
             sink, progress = None, NoProgressMeter()
         task = f"sweep {formulation}"
         progress.start(task, speeds.size, f"chunk 1/{n_chunks}: "
-                       f"{len(set(padded_idx[:chunk].tolist()))} speeds "
+                       f"{int(np.sum(~pad[:chunk]))} speeds "
                        f"{speeds[padded_idx[:chunk]].min():.4g}-"
                        f"{speeds[padded_idx[:chunk]].max():.4g} rad/s, compiling and integrating")
         t_start = time.perf_counter()
         n_done = n_unconverged = 0  # so far, as the progress line says
         for c in range(n_chunks):
             sel = padded_idx[c * chunk:(c + 1) * chunk]
-            w = jnp.asarray(speeds[sel])
+            w = jnp.asarray(slot_speeds[c * chunk:(c + 1) * chunk])
             if n_dev > 1:
-                w = _global_speeds(np.asarray(speeds[sel]), devices)
+                w = _global_speeds(slot_speeds[c * chunk:(c + 1) * chunk], devices)
             t0 = time.perf_counter()
             out = programs.call(fn, compiled, w, self)
             if multi_process and n_dev > 1:
@@ -200,30 +217,23 @@ class Transient(AbstractOrbitSolver):
             dt = time.perf_counter() - t0
             for f, v in zip(METRIC_FIELDS, out):
                 results[f][c * chunk:(c + 1) * chunk] = np.asarray(v, dtype=float)
-            # rows of the real (non-padded) speeds of this chunk, in sorted-speed order
-            first = {}
-            for j, i in enumerate(sel):
-                first.setdefault(int(i), c * chunk + j)
-            real_rows = sorted(first.values(), key=lambda k: padded_idx[k])
+            # rows of the real (non-padding) speeds of this chunk, in sorted-speed order
+            real = np.flatnonzero(~pad[c * chunk:(c + 1) * chunk])
+            real_rows = sorted((c * chunk + real).tolist(), key=lambda k: padded_idx[k])
             if sink is not None:
                 sink(_gather(results, formulation, real_rows))
-            n_done += len(first)
-            conv = np.asarray(out[METRIC_FIELDS.index("converged")], dtype=bool)
-            real = np.asarray(list(first.values())) - c * chunk
+            n_done += real.size
+            conv = np.asarray(out[METRIC_FIELDS.index("converged")], dtype=float) == 1.0
             n_unconverged += int(np.sum(~conv[real]))
             progress.update(
                 task, n_done, speeds.size,
-                f"chunk {c + 1}/{n_chunks}: {len(first)} speeds {speeds[sel].min():.4g}-"
+                f"chunk {c + 1}/{n_chunks}: {real.size} speeds {speeds[sel].min():.4g}-"
                 f"{speeds[sel].max():.4g} rad/s in {dt:.2f} s"
                 f"{' incl. compile' if c == 0 else ''}, {n_unconverged} not converged",
                 elapsed_s=time.perf_counter() - t_start)
-        # back to the caller's order: the first padded slot holding each speed index
+        # back to the caller's order: the one real slot of each speed
         where = np.empty(speeds.size, dtype=int)
-        seen = np.zeros(speeds.size, dtype=bool)
-        for k, i in enumerate(padded_idx):
-            if not seen[i]:
-                where[i] = k
-                seen[i] = True
+        where[padded_idx[~pad]] = np.flatnonzero(~pad)
         res = _gather(results, formulation, where)
         failed = ~res.solver_ok.astype(bool)
         if np.any(failed):
@@ -437,7 +447,9 @@ def planned_chunk(model, n_speeds: int, solver: AbstractPeriodicSolver = Auto(),
 
 def _plan(model, speeds, chunk_size, devices, solver: Transient):
     """How ``solver`` (a :class:`Transient`) runs ``speeds``: the compiled function, the
-    model it takes, the devices, the chunk and the speeds' padded, cost-sorted order."""
+    model it takes, the devices, the chunk, the speeds' padded, cost-sorted order (an index
+    into ``speeds`` per slot), which slots are padding, and the speed of every slot (NaN
+    in a padding slot where the speeds are mapped: :func:`_over_speeds` skips it)."""
     devices, n_dev, first, chunk = _chunking(model, speeds.size, chunk_size, devices, solver)
     sequential = sequential_on(first.platform, model.state_size)
     n_chunks = int(math.ceil(speeds.size / chunk))
@@ -448,6 +460,7 @@ def _plan(model, speeds, chunk_size, devices, solver: Transient):
     # dealt round-robin to the devices
     order = _cost_order(speeds)
     padded_idx = np.concatenate([order, np.full(total - speeds.size, order[-1])])
+    pad = np.arange(total) >= speeds.size
     if n_dev > 1:
         per = chunk // n_dev
         # chunk c, device d, slot s <- sorted position (c * per + s) * n_dev + d
@@ -456,14 +469,15 @@ def _plan(model, speeds, chunk_size, devices, solver: Transient):
         for c in range(n_chunks):
             for dv in range(n_dev):
                 layout[c, dv] = pos[c * per:(c + 1) * per, dv]
-        padded_idx = padded_idx[layout.reshape(-1)]
+        padded_idx, pad = padded_idx[layout.reshape(-1)], pad[layout.reshape(-1)]
         key = (tuple(devices), sequential)
         if key not in _SHARDED_CACHE:
             _SHARDED_CACHE[key] = _make_sharded(devices, sequential)
         fn = _SHARDED_CACHE[key]
     else:
         fn = _sequential if sequential else _batched
-    return fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx
+    slot_speeds = np.where(pad & sequential, np.nan, speeds[padded_idx])
+    return fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, pad, slot_speeds
 
 
 def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(),
@@ -482,11 +496,10 @@ def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(
         solver = solver.choose(model, speeds.size)
     if not isinstance(solver, Transient):
         raise SimulationError("solver", solver, "only the transient's program is lowered ahead")
-    fn, compiled, devices, n_dev, chunk, _, padded_idx = _plan(
+    fn, compiled, devices, n_dev, chunk, _, _, _, slot_speeds = _plan(
         model, speeds, chunk_size, devices, solver)
-    sel = padded_idx[:chunk]
-    w = (_global_speeds(np.asarray(speeds[sel]), devices) if n_dev > 1
-         else jnp.asarray(speeds[sel]))
+    w = (_global_speeds(slot_speeds[:chunk], devices) if n_dev > 1
+         else jnp.asarray(slot_speeds[:chunk]))
     if jax.process_count() > 1:
         programs = NoProgramStore()
     return programs.lower(fn, compiled, w, solver)
