@@ -199,7 +199,8 @@ class Transient(AbstractOrbitSolver):
         progress.start(task, speeds.size, f"chunk 1/{n_chunks}: "
                        f"{int(np.sum(~pad[:chunk]))} speeds "
                        f"{speeds[padded_idx[:chunk]].min():.4g}-"
-                       f"{speeds[padded_idx[:chunk]].max():.4g} rad/s, compiling and integrating")
+                       f"{speeds[padded_idx[:chunk]].max():.4g} rad/s: compiling if new, "
+                       "then integrating")
         t_start = time.perf_counter()
         n_done = n_unconverged = 0  # so far, as the progress line says
         for c in range(n_chunks):
@@ -229,7 +230,7 @@ class Transient(AbstractOrbitSolver):
                 task, n_done, speeds.size,
                 f"chunk {c + 1}/{n_chunks}: {real.size} speeds {speeds[sel].min():.4g}-"
                 f"{speeds[sel].max():.4g} rad/s in {dt:.2f} s"
-                f"{' incl. compile' if c == 0 else ''}, {n_unconverged} not converged",
+                f"{' incl. compile if new' if c == 0 else ''}, {n_unconverged} not converged",
                 elapsed_s=time.perf_counter() - t_start)
         # back to the caller's order: the one real slot of each speed
         where = np.empty(speeds.size, dtype=int)
