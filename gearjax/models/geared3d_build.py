@@ -70,10 +70,11 @@ def shares_nlte_programs(formulation, excitation: str, te_table, harmonic_start:
 
 def nlte_vanishes(mesh: Mesh, mods: ToothModifications, period: float,
                   n_per_mesh: int = NLTE_SCAN):
-    """() bool: NLTE (m, :func:`gearjax.gears.quasistatic.contact_gaps`) is 0 at
-    ``n_per_mesh`` uniform samples per mesh period over ``period`` (rad), the build's
-    test for "identically zero". Traceable in ``mods``: a model built without NLTE terms
-    stays valid for a design only where this holds
+    """() bool: NLTE (m, :func:`gearjax.gears.quasistatic.contact_gaps`) is exactly 0 at
+    ``n_per_mesh`` uniform samples per mesh period over ``period`` (rad): the build's test
+    for "identically zero" (which reads its own quasi-static scan, ``n_table`` samples per
+    mesh period), at the default sampling. Traceable in ``mods``: a model built without
+    NLTE terms stays valid for a design only where this holds
     (:meth:`~gearjax.models.geared3d.Geared3DModel.with_modifications`)."""
     n = int(n_per_mesh) * max(1, round(period / mesh.pair.mesh_period_rad))
     theta = jnp.arange(n) * (period / n)
