@@ -203,11 +203,11 @@ def test_mapped_batch_equals_the_vmapped_one(model, monkeypatch):
     the teeth."""
     speeds = [700.0, 90.0, 1200.0, 310.0, 520.0, 860.0, 150.0]
     sw = np.asarray(speeds)
-    assert sweep_mod._plan(model, sw, 4, None, TR)[0] is sweep_mod._batched  # 2 states
+    assert sweep_mod._plan(model, sw, 4, None, TR).fn is sweep_mod._batched  # 2 states
     res = {}
     for mapped, fn in ((True, sweep_mod._sequential), (False, sweep_mod._batched)):
         monkeypatch.setattr(sweep_mod, "sequential_on", lambda platform, n, m=mapped: m)
-        assert sweep_mod._plan(model, sw, 4, None, TR)[0] is fn
+        assert sweep_mod._plan(model, sw, 4, None, TR).fn is fn
         res[mapped] = sweep(model, speeds, chunk_size=4, solver=TR)
     a, b = res[True], res[False]
     assert a.speed_rad_s.tolist() == b.speed_rad_s.tolist() == speeds
@@ -228,7 +228,8 @@ def test_mapped_chunk_skips_its_padding(model, monkeypatch):
     simulation; a sweep whose last chunk is padded reports only its own speeds."""
     monkeypatch.setattr(sweep_mod, "sequential_on", lambda platform, n: True)
     sw = np.asarray([300.0, 700.0, 500.0])
-    *_, idx, pad, slots = sweep_mod._plan(model, sw, 4, None, TR)
+    plan = sweep_mod._plan(model, sw, 4, None, TR)
+    idx, pad, slots = plan.padded_idx, plan.pad, plan.slot_speeds
     assert pad.tolist() == [False, False, False, True] and np.isnan(slots[3])
     assert sorted(idx[~pad].tolist()) == [0, 1, 2]
     out = sweep_mod._sequential(model, jnp.asarray([300.0, np.nan]), TR)

@@ -39,6 +39,7 @@ import math
 import os
 import time
 from functools import partial
+from typing import Callable, NamedTuple
 
 import equinox as eqx
 import jax
@@ -186,8 +187,8 @@ class Transient(AbstractOrbitSolver):
         progress, sink = run.progress, run.sink
         multi_process = jax.process_count() > 1
         lead = jax.process_index() == 0  # the process that reports and writes
-        fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, pad, slot_speeds = _plan(
-            model, speeds, run.chunk_size, run.devices, self)
+        plan = _plan(model, speeds, run.chunk_size, run.devices, self)
+        chunk, n_chunks, padded_idx, pad = plan.chunk, plan.n_chunks, plan.padded_idx, plan.pad
         programs = NoProgramStore() if multi_process else run.programs
         total = n_chunks * chunk
         formulation = model.formulation.name
@@ -205,12 +206,11 @@ class Transient(AbstractOrbitSolver):
         n_done = n_unconverged = 0  # so far, as the progress line says
         for c in range(n_chunks):
             sel = padded_idx[c * chunk:(c + 1) * chunk]
-            w = jnp.asarray(slot_speeds[c * chunk:(c + 1) * chunk])
-            if n_dev > 1:
-                w = _global_speeds(slot_speeds[c * chunk:(c + 1) * chunk], devices)
+            slots = plan.slot_speeds[c * chunk:(c + 1) * chunk]
+            w = _global_speeds(slots, plan.devices) if plan.n_dev > 1 else jnp.asarray(slots)
             t0 = time.perf_counter()
-            out = programs.call(fn, compiled, w, self)
-            if multi_process and n_dev > 1:
+            out = programs.call(plan.fn, plan.compiled, w, self)
+            if multi_process and plan.n_dev > 1:
                 from jax.experimental import multihost_utils
 
                 out = multihost_utils.process_allgather(out, tiled=True)
@@ -446,7 +446,21 @@ def planned_chunk(model, n_speeds: int, solver: AbstractPeriodicSolver = Auto(),
     return _chunking(model, int(n_speeds), None, devices, solver)[3]
 
 
-def _plan(model, speeds, chunk_size, devices, solver: Transient):
+class _Plan(NamedTuple):
+    """How a :class:`Transient` runs a sweep's speeds (:func:`_plan`)."""
+
+    fn: Callable  # the compiled function of one chunk (mapped, vmapped or sharded)
+    compiled: object  # the model it takes (``model.compiled_form()``)
+    devices: object  # the devices (None: the default one)
+    n_dev: int
+    chunk: int  # slots per call
+    n_chunks: int
+    padded_idx: np.ndarray  # per slot, an index into the speeds (padded, cost-sorted)
+    pad: np.ndarray  # per slot, whether it is padding
+    slot_speeds: np.ndarray  # per slot, its speed (NaN in a mapped padding slot)
+
+
+def _plan(model, speeds, chunk_size, devices, solver: Transient) -> _Plan:
     """How ``solver`` (a :class:`Transient`) runs ``speeds``: the compiled function, the
     model it takes, the devices, the chunk, the speeds' padded, cost-sorted order (an index
     into ``speeds`` per slot), which slots are padding, and the speed of every slot (NaN
@@ -478,7 +492,7 @@ def _plan(model, speeds, chunk_size, devices, solver: Transient):
     else:
         fn = _sequential if sequential else _batched
     slot_speeds = np.where(pad & sequential, np.nan, speeds[padded_idx])
-    return fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, pad, slot_speeds
+    return _Plan(fn, compiled, devices, n_dev, chunk, n_chunks, padded_idx, pad, slot_speeds)
 
 
 def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(),
@@ -497,13 +511,12 @@ def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(
         solver = solver.choose(model, speeds.size)
     if not isinstance(solver, Transient):
         raise SimulationError("solver", solver, "only the transient's program is lowered ahead")
-    fn, compiled, devices, n_dev, chunk, _, _, _, slot_speeds = _plan(
-        model, speeds, chunk_size, devices, solver)
-    w = (_global_speeds(slot_speeds[:chunk], devices) if n_dev > 1
-         else jnp.asarray(slot_speeds[:chunk]))
+    plan = _plan(model, speeds, chunk_size, devices, solver)
+    first = plan.slot_speeds[:plan.chunk]
+    w = _global_speeds(first, plan.devices) if plan.n_dev > 1 else jnp.asarray(first)
     if jax.process_count() > 1:
         programs = NoProgramStore()
-    return programs.lower(fn, compiled, w, solver)
+    return programs.lower(plan.fn, plan.compiled, w, solver)
 
 
 def memory_chunk(model, simulate_kwargs: dict | None = None,
