@@ -15,6 +15,11 @@ Two measurements, each in a fresh process (empty in-memory caches; no persistent
   around its best points and the optima, the rebuilt check): wall time, compilations
   and their seconds, and the forward check of the optimum against the Table 1 reliefs by
   ``sweep`` (goal: <= 20 s cold, the optimum below both reliefs).
+* ``evaluations``: one evaluation (value and gradient) of ``gearjax optimise``'s default
+  objective (sdof te, zeta 0.03, 660-900 rad/s x 8, the three orbit starts) at five
+  designs, by the transient (the default) and by the shooting with its implicit
+  derivative: seconds per evaluation after the first call, the value, the value from
+  each start. What an evaluation costs is what the optimiser's 20 s needs cut.
 
 Run on a quiet machine (timings are meaningless while other work shares the cores)::
 
@@ -22,6 +27,7 @@ Run on a quiet machine (timings are meaningless while other work shares the core
     python benchmarks/bench_design_loop.py notebook --model 3d
     python benchmarks/bench_design_loop.py notebook --model 3d --max-frequency auto --configure
     python benchmarks/bench_design_loop.py optimise
+    python benchmarks/bench_design_loop.py evaluations
 
 and record the output in ``benchmarks/results/design_loop.md``.
 """
@@ -131,9 +137,34 @@ def optimise() -> None:
     print(f"    forward sweeps, max force: {worst}")
 
 
+def evaluations() -> None:
+    from gearjax import runtime
+
+    runtime.configure()
+    import gearjax as gj
+    from gearjax.design import DynamicObjective, ReliefSpace
+
+    rig = gj.get_rig("baud-velex-spur")
+    mesh = gj.Mesh.build(rig.pair, "iso6336", pinion_torque_Nm=rig.pinion_torque_Nm)
+    designs = ((14.8e-6, 0.305), (13.3e-6, 0.2), (13.3e-6, 0.5), (20e-6, 0.45), (10e-6, 0.3))
+    for solver in (gj.Transient(), gj.Shooting()):
+        obj = DynamicObjective(mesh, ReliefSpace(), np.linspace(660.0, 900.0, 8),
+                               "peak-force", formulation="te", solver=solver,
+                               orbits=("quasi-static", "separated", "far"))
+        name = type(solver).__name__
+        for x in designs:
+            with Step(f"{name} {x[0] * 1e6:.1f} um x {x[1]:.3f}, first call"):
+                obj(np.asarray(x))
+            t0 = time.perf_counter()
+            ev = obj(np.asarray(x))
+            print(f"    again {time.perf_counter() - t0:.2f} s: max force {ev.exact:.6g} N, "
+                  f"per start {np.round(ev.per_orbit, 1).tolist()}, "
+                  f"per speed {np.round(ev.per_case, 1).tolist()}", flush=True)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("what", choices=["notebook", "optimise"])
+    p.add_argument("what", choices=["notebook", "optimise", "evaluations"])
     p.add_argument("--model", default="torsional", choices=["torsional", "3d"])
     p.add_argument("--max-frequency", default="all", choices=["all", "auto"],
                    help="notebook, 3D: all modes (build_model's default) or the command "
@@ -155,8 +186,10 @@ def main(argv=None) -> int:
           f"{jax.devices()[0].platform}")
     if args.what == "notebook":
         notebook(args.model, args.max_frequency, devices)
-    else:
+    elif args.what == "optimise":
         optimise()
+    else:
+        evaluations()
     return 0
 
 

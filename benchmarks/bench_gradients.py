@@ -10,7 +10,14 @@ separate reliefs (4). Each timing is the median of ``--repeat`` runs after the f
 (compiling) call; ratios are to the forward value in the same process.
 
     python benchmarks/bench_gradients.py [--speeds 8] [--separate] [--repeat 3] [--model 3d]
-        [--method auto|transient|steady]
+        [--method auto|transient|steady] [--jvp]
+
+``--jvp`` adds two rows: one forward-mode direction (``jax.jvp`` along the relief
+amplitude), the cost of one tangent beside the primal, and the Jacobian as one ``jax.jvp``
+per design variable one after the other (``jax.lax.map``, the primal solved again per
+direction), against ``jacfwd``'s tangents vmapped on one primal solve; and the same four
+for the model's right-hand side alone (``vector_field`` of the model mapped to the design,
+4000 calls in a ``fori_loop``), microseconds per call.
 
 Measured (te, 4 speeds, 2 variables, this 2-core CPU shared with other jobs): compile
 29 s / 58 s / 104 s and run 0.065 s / 0.34 s (5.2x) / 8.2 s (125x) for the forward value,
@@ -41,7 +48,9 @@ import argparse
 import time
 
 import diffrax
+import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 import gearjax  # noqa: F401  (x64)
@@ -65,12 +74,50 @@ def _time(fn, repeat):
     return first - run, run, out
 
 
+def _rhs_rows(obj, x, speeds, n_calls: int = 4000, repeat: int = 5):
+    """Microseconds per call of the model's right-hand side at the design ``x`` and the
+    highest speed: primal, one ``jax.jvp`` direction, ``jax.jacfwd`` (one direction per
+    design variable, vmapped), and one ``jax.jvp`` per variable under ``jax.lax.map``."""
+    w = jnp.asarray(float(speeds[-1]))
+    y0 = obj.model.transient_start(w)
+    n = obj.space.size
+
+    def prim(m, xx):  # the design enters through the model's tables (with_modifications)
+        mm = m.with_modifications(obj.space.mods(xx))
+        return jax.lax.fori_loop(0, n_calls, lambda i, y: y + 1e-7 * mm.vector_field(
+            0.01 + i * 1e-4, y, w), y0)
+
+    e0 = jnp.zeros(n).at[0].set(1.0)
+    fns = {"primal": eqx.filter_jit(prim),
+           "jvp (1 direction)": eqx.filter_jit(lambda m, xx: jax.jvp(
+               lambda z: prim(m, z), (xx,), (e0,))),
+           f"jacfwd ({n}, vmapped)": eqx.filter_jit(lambda m, xx: jax.jacfwd(
+               lambda z: prim(m, z))(xx)),
+           f"jvp per variable, lax.map ({n})": eqx.filter_jit(lambda m, xx: jax.lax.map(
+               lambda v: jax.jvp(lambda z: prim(m, z), (xx,), (v,))[1], jnp.eye(n)))}
+    xj = jnp.asarray(x)
+    times = {k: [] for k in fns}
+    for f in fns.values():
+        jax.block_until_ready(f(obj.model, xj))
+    for _ in range(repeat):  # alternately, so that the machine's drift hits every row
+        for k, f in fns.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(f(obj.model, xj))
+            times[k].append((time.perf_counter() - t0) / n_calls * 1e6)
+    print(f"right-hand side at {float(w):g} rad/s, {n_calls} calls, median of {repeat}:")
+    base = float(np.median(times["primal"]))
+    for k, v in times.items():
+        print(f"  {k:40s} {np.median(v):8.2f} us per call  {np.median(v) / base:6.2f}")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--speeds", type=int, default=8)
     ap.add_argument("--separate", action="store_true")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--no-reverse", action="store_true")
+    ap.add_argument("--jvp", action="store_true",
+                    help="also time one forward-mode direction (jax.jvp along the amplitude)")
     ap.add_argument("--model", default="torsional", choices=["torsional", "3d"],
                     help="3d: the rig's 3D model (the objective's automatic cut-off, 8.9 kHz "
                          "at 480 rad/s; zeta 0.1)")
@@ -92,6 +139,21 @@ def main():
     rows = []
     c, r, ev = _time(lambda: fwd(x, grad=False).smooth, args.repeat)
     rows.append(("forward value", c, r, None))
+    if args.jvp:  # the objective's own function, as DynamicObjective differentiates it
+        from gearjax.design.objectives import DYNAMIC_OBJECTIVES, _dyn_values_impl
+
+        k = DYNAMIC_OBJECTIVES.index(fwd.kind)
+        sp, e0 = jnp.asarray(speeds), jnp.zeros(space.size).at[0].set(1e-6)
+        one = eqx.filter_jit(lambda m, xx: jax.jvp(
+            lambda y: _dyn_values_impl(m, y, sp, fwd._static, diffrax.ForwardMode())[0][k],
+            (xx,), (e0,)))
+        c, r, _ = _time(lambda: one(fwd.model, jnp.asarray(x)), args.repeat)
+        rows.append(("jvp + ForwardMode (1 direction)", c, r, None))
+        each = eqx.filter_jit(lambda m, xx: jax.lax.map(lambda v: jax.jvp(
+            lambda y: _dyn_values_impl(m, y, sp, fwd._static, diffrax.ForwardMode())[0][k],
+            (xx,), (v,))[1], jnp.eye(space.size)))
+        c, r, _ = _time(lambda: each(fwd.model, jnp.asarray(x)), args.repeat)
+        rows.append((f"jvp per variable, lax.map ({space.size})", c, r, None))
     c, r, ev_f = _time(lambda: fwd(x, grad=True).grad, args.repeat)
     rows.append((f"jacfwd + ForwardMode ({space.size} vars)", c, r, ev_f))
     if not args.no_reverse:
@@ -106,8 +168,10 @@ def main():
     print(f"{'what':40s} {'compile [s]':>12s} {'run [s]':>10s} {'run / forward':>14s}")
     for name, c, r, _ in rows:
         print(f"{name:40s} {c:12.2f} {r:10.3f} {r / base:14.2f}")
-    if len(rows) == 3:
-        g_f, g_r = np.asarray(rows[1][3]), np.asarray(rows[2][3])
+    if args.jvp:
+        _rhs_rows(fwd, x, speeds)
+    if not args.no_reverse:
+        g_f, g_r = np.asarray(rows[-2][3]), np.asarray(rows[-1][3])
         print("forward vs reverse gradient, max relative difference:",
               float(np.max(np.abs(g_f - g_r) / np.abs(g_f))))
 
