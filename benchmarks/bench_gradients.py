@@ -117,7 +117,8 @@ def main():
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--no-reverse", action="store_true")
     ap.add_argument("--jvp", action="store_true",
-                    help="also time one forward-mode direction (jax.jvp along the amplitude)")
+                    help="also time one forward-mode direction, one jvp per variable "
+                         "(lax.map), and the model's right-hand side alone")
     ap.add_argument("--model", default="torsional", choices=["torsional", "3d"],
                     help="3d: the rig's 3D model (the objective's automatic cut-off, 8.9 kHz "
                          "at 480 rad/s; zeta 0.1)")
@@ -144,14 +145,16 @@ def main():
 
         k = DYNAMIC_OBJECTIVES.index(fwd.kind)
         sp, e0 = jnp.asarray(speeds), jnp.zeros(space.size).at[0].set(1e-6)
-        one = eqx.filter_jit(lambda m, xx: jax.jvp(
-            lambda y: _dyn_values_impl(m, y, sp, fwd._static, diffrax.ForwardMode())[0][k],
-            (xx,), (e0,)))
+
+        def along(m, xx, v):  # the smoothed objective and its derivative along v
+            return jax.jvp(lambda y: _dyn_values_impl(m, y, sp, fwd._static,
+                                                      diffrax.ForwardMode())[0][k], (xx,), (v,))
+
+        one = eqx.filter_jit(lambda m, xx: along(m, xx, e0))
         c, r, _ = _time(lambda: one(fwd.model, jnp.asarray(x)), args.repeat)
         rows.append(("jvp + ForwardMode (1 direction)", c, r, None))
-        each = eqx.filter_jit(lambda m, xx: jax.lax.map(lambda v: jax.jvp(
-            lambda y: _dyn_values_impl(m, y, sp, fwd._static, diffrax.ForwardMode())[0][k],
-            (xx,), (v,))[1], jnp.eye(space.size)))
+        each = eqx.filter_jit(lambda m, xx: jax.lax.map(lambda v: along(m, xx, v)[1],
+                                                        jnp.eye(space.size)))
         c, r, _ = _time(lambda: each(fwd.model, jnp.asarray(x)), args.repeat)
         rows.append((f"jvp per variable, lax.map ({space.size})", c, r, None))
     c, r, ev_f = _time(lambda: fwd(x, grad=True).grad, args.repeat)

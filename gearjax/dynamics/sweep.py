@@ -206,10 +206,8 @@ class Transient(AbstractOrbitSolver):
         n_done = n_unconverged = 0  # so far, as the progress line says
         for c in range(n_chunks):
             sel = padded_idx[c * chunk:(c + 1) * chunk]
-            slots = plan.slot_speeds[c * chunk:(c + 1) * chunk]
-            w = _global_speeds(slots, plan.devices) if plan.n_dev > 1 else jnp.asarray(slots)
             t0 = time.perf_counter()
-            out = programs.call(plan.fn, plan.compiled, w, self)
+            out = programs.call(plan.fn, plan.compiled, plan.chunk_speeds(c), self)
             if multi_process and plan.n_dev > 1:
                 from jax.experimental import multihost_utils
 
@@ -459,6 +457,11 @@ class _Plan(NamedTuple):
     pad: np.ndarray  # per slot, whether it is padding
     slot_speeds: np.ndarray  # per slot, its speed (NaN in a mapped padding slot)
 
+    def chunk_speeds(self, c: int):
+        """The speeds of chunk ``c`` as its program takes them (shared over the devices)."""
+        slots = self.slot_speeds[c * self.chunk:(c + 1) * self.chunk]
+        return _global_speeds(slots, self.devices) if self.n_dev > 1 else jnp.asarray(slots)
+
 
 def _plan(model, speeds, chunk_size, devices, solver: Transient) -> _Plan:
     """How ``solver`` (a :class:`Transient`) runs ``speeds``: the compiled function, the
@@ -512,11 +515,9 @@ def lower_sweep(model, speeds_rad_s, solver: AbstractPeriodicSolver = Transient(
     if not isinstance(solver, Transient):
         raise SimulationError("solver", solver, "only the transient's program is lowered ahead")
     plan = _plan(model, speeds, chunk_size, devices, solver)
-    first = plan.slot_speeds[:plan.chunk]
-    w = _global_speeds(first, plan.devices) if plan.n_dev > 1 else jnp.asarray(first)
     if jax.process_count() > 1:
         programs = NoProgramStore()
-    return programs.lower(plan.fn, plan.compiled, w, solver)
+    return programs.lower(plan.fn, plan.compiled, plan.chunk_speeds(0), solver)
 
 
 def memory_chunk(model, simulate_kwargs: dict | None = None,
