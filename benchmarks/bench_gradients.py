@@ -10,14 +10,17 @@ separate reliefs (4). Each timing is the median of ``--repeat`` runs after the f
 (compiling) call; ratios are to the forward value in the same process.
 
     python benchmarks/bench_gradients.py [--speeds 8] [--separate] [--repeat 3] [--model 3d]
-        [--method auto|transient|steady] [--jvp]
+        [--method auto|transient|steady] [--jvp [--kernels K]]
 
 ``--jvp`` adds two rows: one forward-mode direction (``jax.jvp`` along the relief
 amplitude), the cost of one tangent beside the primal, and the Jacobian as one ``jax.jvp``
 per design variable one after the other (``jax.lax.map``, the primal solved again per
 direction), against ``jacfwd``'s tangents vmapped on one primal solve; and the same four
 for the model's right-hand side alone (``vector_field`` of the model mapped to the design,
-4000 calls in a ``fori_loop``), microseconds per call.
+4000 calls in a ``fori_loop``), microseconds per call. ``--kernels K`` adds, for the
+right-hand side's primal, one direction and ``jacfwd``, the K dearest compiled kernels of
+one profiled call (``jax.profiler``), each with its output shape and the table reads fused
+into it.
 
 Measured (te, 4 speeds, 2 variables, this 2-core CPU shared with other jobs): compile
 29 s / 58 s / 104 s and run 0.065 s / 0.34 s (5.2x) / 8.2 s (125x) for the forward value,
@@ -74,40 +77,91 @@ def _time(fn, repeat):
     return first - run, run, out
 
 
-def _rhs_rows(obj, x, speeds, n_calls: int = 4000, repeat: int = 5):
+def _rhs_rows(obj, x, speeds, n_calls: int = 4000, repeat: int = 5, kernels: int = 0):
     """Microseconds per call of the model's right-hand side at the design ``x`` and the
     highest speed: primal, one ``jax.jvp`` direction, ``jax.jacfwd`` (one direction per
-    design variable, vmapped), and one ``jax.jvp`` per variable under ``jax.lax.map``."""
+    design variable, vmapped), and one ``jax.jvp`` per variable under ``jax.lax.map``.
+    ``kernels`` > 0: also the ``kernels`` dearest compiled kernels of the primal, the one
+    direction and ``jacfwd`` (:func:`_kernel_rows`)."""
     w = jnp.asarray(float(speeds[-1]))
     y0 = obj.model.transient_start(w)
     n = obj.space.size
+    arrays, static = eqx.partition(obj.model, eqx.is_array)
 
-    def prim(m, xx):  # the design enters through the model's tables (with_modifications)
-        mm = m.with_modifications(obj.space.mods(xx))
+    def prim(p, xx):  # the design enters through the model's tables (with_modifications)
+        mm = eqx.combine(p, static).with_modifications(obj.space.mods(xx))
         return jax.lax.fori_loop(0, n_calls, lambda i, y: y + 1e-7 * mm.vector_field(
             0.01 + i * 1e-4, y, w), y0)
 
     e0 = jnp.zeros(n).at[0].set(1.0)
-    fns = {"primal": eqx.filter_jit(prim),
-           "jvp (1 direction)": eqx.filter_jit(lambda m, xx: jax.jvp(
-               lambda z: prim(m, z), (xx,), (e0,))),
-           f"jacfwd ({n}, vmapped)": eqx.filter_jit(lambda m, xx: jax.jacfwd(
-               lambda z: prim(m, z))(xx)),
-           f"jvp per variable, lax.map ({n})": eqx.filter_jit(lambda m, xx: jax.lax.map(
-               lambda v: jax.jvp(lambda z: prim(m, z), (xx,), (v,))[1], jnp.eye(n)))}
+    fns = {"primal": jax.jit(prim),
+           "jvp (1 direction)": jax.jit(lambda p, xx: jax.jvp(
+               lambda z: prim(p, z), (xx,), (e0,))),
+           f"jacfwd ({n}, vmapped)": jax.jit(lambda p, xx: jax.jacfwd(
+               lambda z: prim(p, z))(xx)),
+           f"jvp per variable, lax.map ({n})": jax.jit(lambda p, xx: jax.lax.map(
+               lambda v: jax.jvp(lambda z: prim(p, z), (xx,), (v,))[1], jnp.eye(n)))}
     xj = jnp.asarray(x)
     times = {k: [] for k in fns}
     for f in fns.values():
-        jax.block_until_ready(f(obj.model, xj))
+        jax.block_until_ready(f(arrays, xj))
     for _ in range(repeat):  # alternately, so that the machine's drift hits every row
         for k, f in fns.items():
             t0 = time.perf_counter()
-            jax.block_until_ready(f(obj.model, xj))
+            jax.block_until_ready(f(arrays, xj))
             times[k].append((time.perf_counter() - t0) / n_calls * 1e6)
     print(f"right-hand side at {float(w):g} rad/s, {n_calls} calls, median of {repeat}:")
     base = float(np.median(times["primal"]))
     for k, v in times.items():
         print(f"  {k:40s} {np.median(v):8.2f} us per call  {np.median(v) / base:6.2f}")
+    if kernels:
+        for k in list(fns)[:3]:
+            _kernel_rows(k, fns[k], (arrays, xj), n_calls, kernels)
+
+
+def _kernel_rows(name, fn, args, n_calls: int, top: int):
+    """The ``top`` dearest kernels of the compiled ``fn`` that run once per right-hand-side
+    call (``n_calls`` times or more), from one profiled call (``jax.profiler.trace``; the
+    tracer adds about the same to every kernel, so the times are for comparing kernels and
+    rows, not absolute): microseconds per call, the kernel's output shape and how many
+    dynamic slices and gathers its fused computation holds (a table lookup fused into an
+    elementwise kernel is done again for every element of its output)."""
+    import collections
+    import re
+    import tempfile
+    from pathlib import Path
+
+    text = fn.lower(*args).compile().as_text()
+    shapes, reads, bodies = {}, {}, {}
+    for line in text.splitlines():
+        m = re.match(r"\s*(?:ROOT )?%([\w.\-]+) = (\S+) fusion\(.*calls=%([\w.\-]+)", line)
+        if m:
+            shapes[m.group(1)], bodies[m.group(1)] = m.group(2), m.group(3)
+        m = re.match(r"\s*(?:ROOT )?%([\w.\-]+) = (\S+) (dot|copy|concatenate)\(", line)
+        if m:
+            shapes[m.group(1)] = m.group(2)
+    for comp in set(bodies.values()):
+        block = re.search(rf"^%{re.escape(comp)} .*?^}}", text, re.S | re.M)
+        reads[comp] = len(re.findall(r"= \S+ (?:dynamic-slice|gather)\(",
+                                     block.group(0))) if block else 0
+    with tempfile.TemporaryDirectory() as d:
+        with jax.profiler.trace(d):
+            jax.block_until_ready(fn(*args))
+        data = jax.profiler.ProfileData.from_file(str(next(Path(d).rglob("*.xplane.pb"))))
+    total, count = collections.Counter(), collections.Counter()
+    for plane in data.planes:
+        for line in plane.lines:
+            for ev in line.events:
+                total[ev.name] += ev.duration_ns
+                count[ev.name] += 1
+    rows = [(t / 1e3 / n_calls, k) for k, t in total.items()
+            if k in shapes and count[k] >= n_calls]
+    rows.sort(reverse=True)
+    print(f"  {name}: {len(rows)} kernels per call, profiled sum "
+          f"{sum(r[0] for r in rows):.2f} us per call; the dearest:")
+    for us, k in rows[:top]:
+        print(f"    {k:34s} {shapes[k]:22s} {us:7.2f} us  "
+              f"{reads.get(bodies.get(k), 0):3d} table reads")
 
 
 def main():
@@ -119,6 +173,9 @@ def main():
     ap.add_argument("--jvp", action="store_true",
                     help="also time one forward-mode direction, one jvp per variable "
                          "(lax.map), and the model's right-hand side alone")
+    ap.add_argument("--kernels", type=int, default=0, metavar="K",
+                    help="with --jvp: also the K dearest compiled kernels of the right-hand "
+                         "side's primal, one direction and jacfwd, from a profiled call")
     ap.add_argument("--model", default="torsional", choices=["torsional", "3d"],
                     help="3d: the rig's 3D model (the objective's automatic cut-off, 8.9 kHz "
                          "at 480 rad/s; zeta 0.1)")
@@ -172,7 +229,7 @@ def main():
     for name, c, r, _ in rows:
         print(f"{name:40s} {c:12.2f} {r:10.3f} {r / base:14.2f}")
     if args.jvp:
-        _rhs_rows(fwd, x, speeds)
+        _rhs_rows(fwd, x, speeds, kernels=args.kernels)
     if not args.no_reverse:
         g_f, g_r = np.asarray(rows[-2][3]), np.asarray(rows[-1][3])
         print("forward vs reverse gradient, max relative difference:",
