@@ -10,17 +10,17 @@ separate reliefs (4). Each timing is the median of ``--repeat`` runs after the f
 (compiling) call; ratios are to the forward value in the same process.
 
     python benchmarks/bench_gradients.py [--speeds 8] [--separate] [--repeat 3] [--model 3d]
-        [--method auto|transient|steady] [--jvp [--kernels K]]
+        [--method auto|transient|steady] [--jvp] [--kernels K]
 
 ``--jvp`` adds two rows: one forward-mode direction (``jax.jvp`` along the relief
 amplitude), the cost of one tangent beside the primal, and the Jacobian as one ``jax.jvp``
 per design variable one after the other (``jax.lax.map``, the primal solved again per
 direction), against ``jacfwd``'s tangents vmapped on one primal solve; and the same four
 for the model's right-hand side alone (``vector_field`` of the model mapped to the design,
-4000 calls in a ``fori_loop``), microseconds per call. ``--kernels K`` adds, for the
-right-hand side's primal, one direction and ``jacfwd``, the K dearest compiled kernels of
-one profiled call (``jax.profiler``), each with its output shape and the table reads fused
-into it.
+4000 calls in a ``fori_loop``), microseconds per call. ``--kernels K`` (implies
+``--jvp``) adds, for the right-hand side's primal, one direction and ``jacfwd``, the K
+dearest compiled kernels of one profiled call (``jax.profiler``), each with its output
+shape and the table reads fused into it.
 
 Measured (te, 4 speeds, 2 variables, this 2-core CPU shared with other jobs): compile
 29 s / 58 s / 104 s and run 0.065 s / 0.34 s (5.2x) / 8.2 s (125x) for the forward value,
@@ -48,7 +48,11 @@ accelerated transient (quiet 2-core CPU): model build 15 s; compile 23 / 41 / 79
 from __future__ import annotations
 
 import argparse
+import collections
+import re
+import tempfile
 import time
+from pathlib import Path
 
 import diffrax
 import equinox as eqx
@@ -125,12 +129,7 @@ def _kernel_rows(name, fn, args, n_calls: int, top: int):
     tracer adds about the same to every kernel, so the times are for comparing kernels and
     rows, not absolute): microseconds per call, the kernel's output shape and how many
     dynamic slices and gathers its fused computation holds (a table lookup fused into an
-    elementwise kernel is done again for every element of its output)."""
-    import collections
-    import re
-    import tempfile
-    from pathlib import Path
-
+    elementwise kernel may be redone for every element of its output)."""
     text = fn.lower(*args).compile().as_text()
     shapes, reads, bodies = {}, {}, {}
     for line in text.splitlines():
@@ -174,8 +173,9 @@ def main():
                     help="also time one forward-mode direction, one jvp per variable "
                          "(lax.map), and the model's right-hand side alone")
     ap.add_argument("--kernels", type=int, default=0, metavar="K",
-                    help="with --jvp: also the K dearest compiled kernels of the right-hand "
-                         "side's primal, one direction and jacfwd, from a profiled call")
+                    help="also the K dearest compiled kernels of the right-hand side's "
+                         "primal, one direction and jacfwd, from a profiled call (implies "
+                         "--jvp)")
     ap.add_argument("--model", default="torsional", choices=["torsional", "3d"],
                     help="3d: the rig's 3D model (the objective's automatic cut-off, 8.9 kHz "
                          "at 480 rad/s; zeta 0.1)")
@@ -183,6 +183,7 @@ def main():
                     help="the objective's solver (auto: the transient); steady (shooting) is "
                          "forward mode only")
     args = ap.parse_args()
+    args.jvp = args.jvp or args.kernels > 0
     rig = get_rig("baud-velex-spur")
     mesh = Mesh.build(rig.pair, "iso6336")
     space = ReliefSpace(shared=not args.separate)
